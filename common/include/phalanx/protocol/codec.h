@@ -1,0 +1,97 @@
+#pragma once
+/// Message ⇄ payload bytes (explicit little-endian, field by field) and the byte-stream framing:
+/// frame = COBS(msg_id | payload | CRC-16/CCITT-FALSE(msg_id | payload), little-endian) followed by 0x00.
+/// Freestanding: no heap, no exceptions.
+#include <cstddef>
+#include <cstdint>
+
+#include "phalanx/protocol/messages.h"
+
+namespace phalanx::protocol {
+
+/// Largest encoded frame on a byte stream: COBS overhead 1 byte per 254 + delimiter.
+constexpr size_t kMaxFrameBody = 1 + kMaxPayload + 2;
+constexpr size_t kMaxEncodedFrame = kMaxFrameBody + 1 + (kMaxFrameBody / 254) + 1;
+
+/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor); check value "123456789" → 0x29B1.
+uint16_t crc16(const uint8_t* data, size_t len, uint16_t crc = 0xFFFF);
+
+/// COBS encode len bytes (no delimiter appended). Returns the encoded length; dst needs len + len/254 + 1 bytes.
+size_t cobsEncode(const uint8_t* src, size_t len, uint8_t* dst);
+/// COBS decode (input without the delimiter). Returns decoded length, or 0 on malformed input / overflow.
+size_t cobsDecode(const uint8_t* src, size_t len, uint8_t* dst, size_t dst_cap);
+
+// Payload serialisation. encode*: writes exactly T::kWireSize bytes. decode*: false if len != T::kWireSize or a
+// field holds a value outside its enum (the message is then rejected, never half-applied).
+void encodePayload(const Hello& m, uint8_t* out);
+void encodePayload(const HelloAck& m, uint8_t* out);
+void encodePayload(const Command& m, uint8_t* out);
+void encodePayload(const Telemetry& m, uint8_t* out);
+void encodePayload(const Event& m, uint8_t* out);
+void encodePayload(const ClearFaults& m, uint8_t* out);
+void encodePayload(const ParamGet& m, uint8_t* out);
+void encodePayload(const ParamSet& m, uint8_t* out);
+void encodePayload(const ParamValue& m, uint8_t* out);
+bool decodePayload(const uint8_t* in, size_t len, Hello& m);
+bool decodePayload(const uint8_t* in, size_t len, HelloAck& m);
+bool decodePayload(const uint8_t* in, size_t len, Command& m);
+bool decodePayload(const uint8_t* in, size_t len, Telemetry& m);
+bool decodePayload(const uint8_t* in, size_t len, Event& m);
+bool decodePayload(const uint8_t* in, size_t len, ClearFaults& m);
+bool decodePayload(const uint8_t* in, size_t len, ParamGet& m);
+bool decodePayload(const uint8_t* in, size_t len, ParamSet& m);
+bool decodePayload(const uint8_t* in, size_t len, ParamValue& m);
+
+/// Frame one message for a byte stream into out (capacity ≥ kMaxEncodedFrame). Returns bytes written incl. 0x00.
+template <class Msg>
+size_t encodeFrame(const Msg& m, uint8_t* out);
+size_t encodeFrameRaw(uint8_t id, const uint8_t* payload, size_t len, uint8_t* out);
+
+/// A decoded frame: message ID and its payload (valid until the next push()).
+struct Frame {
+  uint8_t id = 0;
+  const uint8_t* payload = nullptr;
+  size_t len = 0;
+};
+
+/// Counters of rejected input; never reset by the decoder itself.
+struct DecodeStats {
+  uint32_t frames_ok = 0;
+  uint32_t crc_errors = 0;
+  uint32_t framing_errors = 0;   ///< malformed COBS, too short, or longer than the largest frame
+  uint32_t unknown_id = 0;
+  uint32_t bad_length = 0;       ///< known ID, payload length differs from its wire size
+  uint32_t total_rejected() const { return crc_errors + framing_errors + unknown_id + bad_length; }
+};
+
+/// Incremental byte-stream decoder: feed bytes one at a time; a complete valid frame is reported once.
+/// Bounded memory (one frame buffer); an oversized frame is discarded up to the next delimiter.
+class StreamDecoder {
+ public:
+  /// Returns true when byte completes a valid frame; then frame() is valid until the next push().
+  bool push(uint8_t byte);
+  const Frame& frame() const { return frame_; }
+  const DecodeStats& stats() const { return stats_; }
+
+ private:
+  uint8_t raw_[kMaxEncodedFrame] = {};
+  uint8_t decoded_[kMaxFrameBody] = {};
+  size_t raw_len_ = 0;
+  bool overflow_ = false;
+  Frame frame_;
+  DecodeStats stats_;
+};
+
+/// Decode a frame body (already COBS-decoded: id | payload | crc) with the same checks as the stream decoder.
+/// Used by packet transports (CAN-FD, USB bulk) that carry one frame per packet.
+enum class BodyStatus : uint8_t { kOk = 0, kTooShort = 1, kCrc = 2, kUnknownId = 3, kBadLength = 4 };
+BodyStatus checkBody(const uint8_t* body, size_t len, Frame& out);
+
+template <class Msg>
+size_t encodeFrame(const Msg& m, uint8_t* out) {
+  uint8_t payload[Msg::kWireSize];
+  encodePayload(m, payload);
+  return encodeFrameRaw(static_cast<uint8_t>(Msg::kId), payload, Msg::kWireSize, out);
+}
+
+}  // namespace phalanx::protocol

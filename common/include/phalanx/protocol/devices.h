@@ -1,0 +1,88 @@
+#pragma once
+/// Per-device channel maps: what each telemetry sample and command setpoint means, and the fixed-point scale of
+/// each sample kind. One table used by firmware (to encode) and host (to decode).
+#include <cmath>
+#include <cstdint>
+
+#include "phalanx/protocol/messages.h"
+
+namespace phalanx::protocol {
+
+/// The physical kind of a telemetry sample; each kind has one fixed-point scale (SI units per LSB).
+enum class SampleKind : uint8_t {
+  kAngle = 0,    ///< rad, 1e-4 rad/LSB (±3.2767 rad)
+  kForce = 1,    ///< N, 1e-3 N/LSB (±32.767 N)
+  kTorque = 2,   ///< N·m, 1e-4 N·m/LSB (±3.2767 N·m)
+  kDuty = 3,     ///< PWM duty, 1e-4/LSB (±1 used)
+  kCurrent = 4,  ///< A, 1e-3 A/LSB
+};
+
+constexpr float sampleScale(SampleKind kind) {
+  switch (kind) {
+    case SampleKind::kAngle: return 1e-4f;
+    case SampleKind::kForce: return 1e-3f;
+    case SampleKind::kTorque: return 1e-4f;
+    case SampleKind::kDuty: return 1e-4f;
+    case SampleKind::kCurrent: return 1e-3f;
+  }
+  return 1.0f;
+}
+
+/// SI value → int16 sample, rounded to nearest and saturated; NaN encodes as 0.
+inline int16_t encodeSample(float value, SampleKind kind) {
+  if (!(value == value)) return 0;
+  const float lsb = value / sampleScale(kind);
+  if (lsb >= 32767.0f) return 32767;
+  if (lsb <= -32767.0f) return -32767;
+  return static_cast<int16_t>(std::lround(lsb));
+}
+
+inline float decodeSample(int16_t raw, SampleKind kind) { return static_cast<float>(raw) * sampleScale(kind); }
+
+/// A device's channel layout.
+struct DeviceLayout {
+  DeviceType type;
+  const char* name;            ///< "glove5", "sea_finger", "pantograph"
+  uint8_t setpoint_count;
+  float setpoint_limit;        ///< |setpoint| hard limit in SI units (device side rejects beyond)
+  uint8_t sample_count;
+  SampleKind sample_kind[kMaxSamples];
+};
+
+/// glove5: samples 0..14 mechanism angles α (3·finger + joint), 15..19 fingertip pad force, 20..24 motor duty.
+/// Setpoints 0..4: fingertip pad force in N (positive resists flexion), |F| ≤ 10 N (000 §2.2).
+constexpr DeviceLayout kGlove5Layout{
+    DeviceType::kGlove5, "glove5", 5, 10.0f, 25,
+    {SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
+     SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
+     SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
+     SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce,
+     SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty}};
+
+/// sea_finger: samples 0..4 joint angle sensors, 5..6 motor angles (MCP, PIP), 7..8 SEA torque (eq 7),
+/// 9..10 motor duty. Setpoints 0..1: exoskeleton joint torque in N·m.
+constexpr DeviceLayout kSeaFingerLayout{
+    DeviceType::kSeaFinger, "sea_finger", 2, 1.0f, 11,
+    {SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
+     SampleKind::kAngle, SampleKind::kAngle, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kDuty,
+     SampleKind::kDuty}};
+
+/// pantograph: samples 0..5 joint angles, 6..11 motor torque. Setpoints 0..5: motor torque in N·m.
+constexpr DeviceLayout kPantographLayout{
+    DeviceType::kPantograph, "pantograph", 6, 1.0f, 12,
+    {SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
+     SampleKind::kAngle, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kTorque,
+     SampleKind::kTorque, SampleKind::kTorque}};
+
+/// Layout for a device type, or nullptr.
+constexpr const DeviceLayout* layoutFor(DeviceType type) {
+  switch (type) {
+    case DeviceType::kGlove5: return &kGlove5Layout;
+    case DeviceType::kSeaFinger: return &kSeaFingerLayout;
+    case DeviceType::kPantograph: return &kPantographLayout;
+    case DeviceType::kAny: return nullptr;
+  }
+  return nullptr;
+}
+
+}  // namespace phalanx::protocol

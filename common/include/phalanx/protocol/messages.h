@@ -1,0 +1,223 @@
+#pragma once
+/// The Phalanx wire protocol: the one definition of every message, used by firmware, host and tools.
+/// Freestanding C++17 (no heap, no exceptions). Fields are fixed-width and little-endian on the wire; each
+/// message's wire size is a constant checked at compile time, and every message fits one CAN-FD frame (64 bytes).
+/// docs/protocol.md is the prose specification of the same layouts.
+#include <cstddef>
+#include <cstdint>
+
+namespace phalanx::protocol {
+
+/// Bumped on any incompatible change of a layout, ID or meaning. Checked in the handshake.
+constexpr uint16_t kProtocolVersion = 1;
+/// Largest payload of any message (one CAN-FD frame).
+constexpr size_t kMaxPayload = 64;
+/// Most setpoint channels in a command, and most sample channels in a telemetry frame.
+constexpr size_t kMaxSetpoints = 8;
+constexpr size_t kMaxSamples = 25;
+
+/// Message IDs are explicit and never renumbered: a new message takes a new number.
+enum class MsgId : uint8_t {
+  kHello = 0x01,        ///< host → device: start a session
+  kHelloAck = 0x02,     ///< device → host: identity and handshake status
+  kCommand = 0x10,      ///< host → device: full-state command (mode, setpoints, gain scales, own timeout)
+  kTelemetry = 0x20,    ///< device → host: one per control tick
+  kEvent = 0x30,        ///< device → host: fault latched / cleared, request refused
+  kClearFaults = 0x31,  ///< host → device: explicit clear of latched faults
+  kParamGet = 0x40,     ///< host → device
+  kParamSet = 0x41,     ///< host → device
+  kParamValue = 0x42,   ///< device → host: answer to get/set
+};
+
+enum class DeviceType : uint8_t {
+  kAny = 0,  ///< only in Hello: accept whatever device answers
+  kGlove5 = 1,
+  kSeaFinger = 2,
+  kPantograph = 3,
+};
+
+/// Control mode carried by every command. What a setpoint means depends on the device (docs/protocol.md).
+enum class Mode : uint8_t {
+  kSafe = 0,         ///< outputs off; the device's passive state
+  kTransparent = 1,  ///< zero interaction force/torque: the device follows the user
+  kSetpoint = 2,     ///< track the per-channel setpoints (glove: fingertip force N; SEA: joint torque N·m; pen: motor torque N·m)
+  kLock = 3,         ///< motors off, mechanism held passively (glove worm drive); same as safe on back-drivable devices
+};
+constexpr uint8_t kModeCount = 4;
+
+enum class HandshakeStatus : uint8_t {
+  kOk = 0,
+  kVersionMismatch = 1,
+  kDeviceMismatch = 2,
+};
+
+/// Fault bits (telemetry.fault_bits, Event.code for kFaultLatched). Sticky until ClearFaults.
+namespace fault {
+constexpr uint16_t kCommandTimeout = 1u << 0;  ///< no valid command within the last command's timeout
+constexpr uint16_t kInvalidCommand = 1u << 1;  ///< command with NaN/Inf, out-of-range mode or setpoint
+constexpr uint16_t kEstop = 1u << 2;           ///< e-stop input pressed
+constexpr uint16_t kSensorRange = 1u << 3;     ///< ADC value outside its plausible range
+constexpr uint16_t kSensorStuck = 1u << 4;     ///< sensor did not change while the mechanism moved
+constexpr uint16_t kForceLimit = 1u << 5;      ///< measured force/torque beyond the hard limit
+constexpr uint16_t kJointLimit = 1u << 6;      ///< joint outside its allowed range
+constexpr uint16_t kCurrentLimit = 1u << 7;    ///< motor current beyond its limit
+constexpr uint16_t kSensorSaturated = 1u << 8; ///< force sensor at full scale
+constexpr uint16_t kMotorAngle = 1u << 9;      ///< motor angle outside its watchdog window (SEA ±60°)
+constexpr uint16_t kTickOverrun = 1u << 10;    ///< control tick missed its deadline
+constexpr uint16_t kInternal = 1u << 15;
+}  // namespace fault
+
+/// Telemetry state flags.
+namespace state {
+constexpr uint8_t kFaultLatched = 1u << 0;
+constexpr uint8_t kEstopPressed = 1u << 1;
+constexpr uint8_t kSessionOpen = 1u << 2;  ///< a Hello was accepted
+constexpr uint8_t kOutputsActive = 1u << 3;  ///< motors are being driven this tick
+}  // namespace state
+
+struct Hello {
+  static constexpr MsgId kId = MsgId::kHello;
+  static constexpr size_t kWireSize = 8;
+  uint16_t protocol_version = kProtocolVersion;
+  DeviceType expected_device = DeviceType::kAny;
+  uint8_t reserved = 0;
+  uint32_t session_id = 0;
+};
+
+struct HelloAck {
+  static constexpr MsgId kId = MsgId::kHelloAck;
+  static constexpr size_t kWireSize = 16;
+  uint16_t protocol_version = kProtocolVersion;
+  DeviceType device_type = DeviceType::kAny;
+  HandshakeStatus status = HandshakeStatus::kOk;
+  uint32_t session_id = 0;
+  uint32_t firmware_build_id = 0;
+  uint16_t tick_rate_hz = 0;
+  uint8_t setpoint_count = 0;
+  uint8_t sample_count = 0;
+};
+
+/// Stateless full-state command: a lost one is harmless, the next carries everything again.
+struct Command {
+  static constexpr MsgId kId = MsgId::kCommand;
+  static constexpr size_t kWireSize = 56;
+  uint16_t seq = 0;            ///< echoed in telemetry; wraps
+  uint16_t timeout_ms = 0;     ///< the device enters its safe state if no valid command follows within this (1..1000)
+  Mode mode = Mode::kSafe;
+  uint8_t flags = 0;           ///< reserved, must be 0
+  uint8_t channel_count = 0;   ///< must equal the device's setpoint count
+  uint8_t reserved = 0;
+  float setpoint[kMaxSetpoints] = {};               ///< SI units of the device's setpoint kind
+  uint16_t gain_scale_permille[kMaxSetpoints] = {};  ///< controller gain scale per channel, 0..2000 (1000 = nominal)
+};
+
+/// One per control tick. Samples are int16 fixed-point; the scale of each channel is given by its kind.
+struct Telemetry {
+  static constexpr MsgId kId = MsgId::kTelemetry;
+  static constexpr size_t kWireSize = 64;
+  uint32_t time_us = 0;       ///< device clock, wraps every 71.6 min; the host unwraps
+  uint16_t seq = 0;           ///< telemetry sequence; gaps = lost telemetry
+  uint16_t cmd_seq_echo = 0;  ///< seq of the last valid command applied
+  Mode mode = Mode::kSafe;    ///< mode in effect this tick (kSafe whenever faulted)
+  uint8_t state_flags = 0;    ///< state::*
+  uint16_t fault_bits = 0;    ///< fault::* (latched)
+  uint8_t cmd_lost = 0;       ///< running count mod 256 of command sequence gaps seen by the device
+  uint8_t rx_errors = 0;      ///< running count mod 256 of rejected frames (CRC, framing, unknown ID, bad length)
+  int16_t sample[kMaxSamples] = {};
+};
+
+enum class EventCode : uint16_t {
+  kFaultLatched = 1,    ///< value = the new fault bits
+  kFaultsCleared = 2,
+  kClearRefused = 3,    ///< a fault condition is still present (e.g. e-stop held); value = its bits
+  kCommandRejected = 4, ///< value = reason (RejectReason)
+  kSessionOpened = 5,
+};
+
+enum class RejectReason : uint8_t {
+  kNoSession = 1,
+  kBadMode = 2,
+  kBadChannelCount = 3,
+  kNonFinite = 4,
+  kOutOfRange = 5,
+  kBadTimeout = 6,
+  kBadFlags = 7,
+};
+
+struct Event {
+  static constexpr MsgId kId = MsgId::kEvent;
+  static constexpr size_t kWireSize = 12;
+  uint32_t time_us = 0;
+  EventCode code = EventCode::kFaultLatched;
+  uint8_t channel = 0;   ///< channel concerned, 0xFF = none
+  uint8_t detail = 0;    ///< RejectReason for kCommandRejected
+  float value = 0.0f;
+};
+
+struct ClearFaults {
+  static constexpr MsgId kId = MsgId::kClearFaults;
+  static constexpr size_t kWireSize = 4;
+  uint32_t session_id = 0;
+};
+
+struct ParamGet {
+  static constexpr MsgId kId = MsgId::kParamGet;
+  static constexpr size_t kWireSize = 2;
+  uint16_t param_id = 0;
+};
+
+struct ParamSet {
+  static constexpr MsgId kId = MsgId::kParamSet;
+  static constexpr size_t kWireSize = 8;
+  uint16_t param_id = 0;
+  uint16_t reserved = 0;
+  float value = 0.0f;
+};
+
+enum class ParamStatus : uint8_t {
+  kOk = 0,
+  kUnknownParam = 1,
+  kOutOfRange = 2,
+  kReadOnly = 3,
+  kBusy = 4,  ///< not settable while outputs are active
+};
+
+struct ParamValue {
+  static constexpr MsgId kId = MsgId::kParamValue;
+  static constexpr size_t kWireSize = 8;
+  uint16_t param_id = 0;
+  ParamStatus status = ParamStatus::kOk;
+  uint8_t reserved = 0;
+  float value = 0.0f;
+};
+
+// The in-memory structs are laid out without padding, so sizeof equals the wire size; the codec still
+// serialises field by field (explicit little-endian), this only guards against silent layout drift.
+static_assert(sizeof(Hello) == Hello::kWireSize);
+static_assert(sizeof(HelloAck) == HelloAck::kWireSize);
+static_assert(sizeof(Command) == Command::kWireSize);
+static_assert(sizeof(Telemetry) == Telemetry::kWireSize);
+static_assert(sizeof(Event) == Event::kWireSize);
+static_assert(sizeof(ClearFaults) == ClearFaults::kWireSize);
+static_assert(sizeof(ParamGet) == ParamGet::kWireSize);
+static_assert(sizeof(ParamSet) == ParamSet::kWireSize);
+static_assert(sizeof(ParamValue) == ParamValue::kWireSize);
+static_assert(Telemetry::kWireSize <= kMaxPayload && Command::kWireSize <= kMaxPayload);
+
+/// Wire size of a message ID's payload, or 0 for an unknown ID.
+constexpr size_t wireSize(uint8_t id) {
+  switch (static_cast<MsgId>(id)) {
+    case MsgId::kHello: return Hello::kWireSize;
+    case MsgId::kHelloAck: return HelloAck::kWireSize;
+    case MsgId::kCommand: return Command::kWireSize;
+    case MsgId::kTelemetry: return Telemetry::kWireSize;
+    case MsgId::kEvent: return Event::kWireSize;
+    case MsgId::kClearFaults: return ClearFaults::kWireSize;
+    case MsgId::kParamGet: return ParamGet::kWireSize;
+    case MsgId::kParamSet: return ParamSet::kWireSize;
+    case MsgId::kParamValue: return ParamValue::kWireSize;
+  }
+  return 0;
+}
+
+}  // namespace phalanx::protocol

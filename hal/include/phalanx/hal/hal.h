@@ -1,0 +1,70 @@
+#pragma once
+/// Hardware abstraction interfaces. The firmware core and the device apps talk to hardware only through these;
+/// each backend (hal/sim, hal/mcu/...) implements them. Freestanding: no heap, no exceptions.
+#include <cstddef>
+#include <cstdint>
+
+namespace phalanx::hal {
+
+/// Monotonic microsecond clock.
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  virtual uint64_t nowUs() const = 0;
+};
+
+/// H-bridge PWM outputs, one channel per motor. Duty in [-1, 1]; the sign selects the bridge direction.
+class PwmOutputs {
+ public:
+  virtual ~PwmOutputs() = default;
+  virtual uint8_t count() const = 0;
+  virtual void setDuty(uint8_t channel, float duty) = 0;
+  /// Safe state: every bridge off (high impedance) at once. Must be callable from a fault handler.
+  virtual void disableAll() = 0;
+};
+
+/// ADC channels, raw counts (the backend documents the resolution; values are not scaled here).
+class AdcInputs {
+ public:
+  virtual ~AdcInputs() = default;
+  virtual uint8_t count() const = 0;
+  virtual int32_t read(uint8_t channel) const = 0;
+};
+
+/// Quadrature encoders, accumulated counts.
+class Encoders {
+ public:
+  virtual ~Encoders() = default;
+  virtual uint8_t count() const = 0;
+  virtual int32_t read(uint8_t channel) const = 0;
+};
+
+/// Digital lines. Inputs: e-stop (true = pressed, fail-safe). Outputs: drive enable.
+class Gpio {
+ public:
+  virtual ~Gpio() = default;
+  virtual bool estopPressed() const = 0;
+  virtual void setDriveEnable(bool enabled) = 0;
+};
+
+/// Byte stream to the host (UART, USB CDC, pty). Non-blocking: both calls return what they could move now.
+class ByteLink {
+ public:
+  virtual ~ByteLink() = default;
+  virtual size_t read(uint8_t* dst, size_t max_len) = 0;
+  virtual size_t write(const uint8_t* src, size_t len) = 0;
+  /// Bytes that write() can accept now without splitting; the core only writes whole frames.
+  virtual size_t writeSpace() const = 0;
+};
+
+/// The hardware one device app needs, gathered so the core can hand it over in one piece.
+struct Board {
+  Clock* clock = nullptr;
+  PwmOutputs* pwm = nullptr;
+  AdcInputs* adc = nullptr;
+  Encoders* encoders = nullptr;
+  Gpio* gpio = nullptr;
+  ByteLink* link = nullptr;
+};
+
+}  // namespace phalanx::hal

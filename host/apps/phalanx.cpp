@@ -1,0 +1,54 @@
+// phalanx: the user's command-line entry point.
+//   phalanx run     start a session (the simulated firmware too, for sim:* devices) and print a summary
+//   phalanx version protocol and build information
+#include <cstdio>
+#include <iostream>
+
+#include "common_options.h"
+#include "phalanx/host/config.h"
+#include "phalanx/protocol/messages.h"
+
+int main(int argc, char** argv) {
+  using namespace phalanx::host;
+  CLI::App app{"phalanx - Phalanx haptic control stack"};
+  app.require_subcommand(1);
+
+  RunOptions opt;
+  std::string config_path;
+  bool no_rt = false;
+  bool json = false;
+  CLI::App* run = app.add_subcommand("run", "run a device session (default device: sim:glove5)");
+  addRunOptions(*run, opt, config_path, no_rt, json);
+
+  CLI::App* version = app.add_subcommand("version", "print version information");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  if (version->parsed()) {
+    std::printf("phalanx %s, wire protocol v%u\n", PHALANX_VERSION, phalanx::protocol::kProtocolVersion);
+    return 0;
+  }
+  if (!config_path.empty()) {
+    RunOptions from_file;
+    if (const std::string err = loadConfigFile(config_path, from_file); !err.empty()) {
+      std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+      return 2;
+    }
+    opt = from_file;
+    app.parse(argc, argv);
+  }
+  if (no_rt) opt.realtime = false;
+  if (opt.seconds == 0.0 && json) opt.seconds = 10.0;
+  installStopSignals();
+  nlohmann::json summary;
+  const int rc = runSession(opt, summary);
+  if (json) {
+    std::cout << summary.dump(2) << std::endl;
+  } else {
+    std::cout << summary.dump(2) << std::endl;
+  }
+  return rc;
+}

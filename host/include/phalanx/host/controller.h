@@ -1,0 +1,33 @@
+#pragma once
+/// Host-side controllers: turn the newest telemetry into the next full-state command, every cycle.
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/session.h"
+#include "phalanx/protocol/messages.h"
+
+namespace phalanx::host {
+
+class Controller {
+ public:
+  virtual ~Controller() = default;
+  virtual const char* name() const = 0;
+  /// Fill cmd.mode and cmd.setpoint[0..n) from the newest telemetry. t_s: time since the session started.
+  /// Must not allocate (it runs in the 1 kHz loop).
+  virtual void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) = 0;
+  /// Extra per-device numbers for the end-of-session summary.
+  virtual void summarize(nlohmann::json& /*out*/) const {}
+  /// One line for the live terminal view (called at ~10 Hz, may allocate).
+  virtual std::string liveLine(const TelemetryFrame& tel) const;
+};
+
+/// Zero force/torque on every channel: the device follows the user.
+class TransparentController : public Controller {
+ public:
+  const char* name() const override { return "transparent"; }
+  void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
+};
+
+}  // namespace phalanx::host

@@ -1,0 +1,109 @@
+#pragma once
+/// The host's protocol endpoint for one device: handshake, command sending, telemetry decoding and the
+/// link statistics (lost frames, CRC errors, round-trip latency from the echoed command sequence).
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "phalanx/hal/hal.h"
+#include "phalanx/host/stats.h"
+#include "phalanx/protocol/codec.h"
+#include "phalanx/protocol/devices.h"
+
+namespace phalanx::host {
+
+/// One decoded telemetry frame in SI units.
+struct TelemetryFrame {
+  uint64_t device_time_us = 0;  ///< unwrapped device clock
+  uint64_t host_rx_ns = 0;
+  uint16_t seq = 0;
+  uint16_t cmd_seq_echo = 0;
+  protocol::Mode mode = protocol::Mode::kSafe;
+  uint8_t state_flags = 0;
+  uint16_t fault_bits = 0;
+  uint8_t sample_count = 0;
+  std::array<float, protocol::kMaxSamples> value{};
+};
+
+struct LinkStats {
+  uint64_t telemetry_received = 0;
+  uint64_t telemetry_lost = 0;       ///< gaps in the telemetry sequence
+  uint64_t commands_sent = 0;
+  uint64_t commands_unsent = 0;      ///< link buffer full
+  uint64_t device_cmd_lost = 0;      ///< command gaps the device reported (unwrapped)
+  uint64_t device_rx_errors = 0;     ///< frames the device rejected (unwrapped)
+  protocol::DecodeStats host_rx;     ///< frames the host rejected
+  uint64_t events = 0;
+};
+
+enum class HandshakeResult { kPending, kOk, kVersionMismatch, kDeviceMismatch, kTimeout };
+
+class HostSession {
+ public:
+  explicit HostSession(hal::ByteLink& link);
+
+  void sendHello(uint32_t session_id, protocol::DeviceType expected);
+  /// Assigns the next sequence number, records the send time for the round-trip measurement, sends.
+  bool sendCommand(protocol::Command& cmd, uint64_t now_ns);
+  void sendClearFaults();
+  bool sendParamGet(uint16_t id);
+
+  /// Read everything available now. Returns how many telemetry frames arrived; latest() is the newest.
+  int poll(uint64_t now_ns);
+
+  HandshakeResult handshake() const { return handshake_; }
+  const protocol::HelloAck& deviceInfo() const { return ack_; }
+  const protocol::DeviceLayout* layout() const { return layout_; }
+  /// Human-readable reason for a failed handshake.
+  std::string handshakeError() const;
+  const TelemetryFrame& latest() const { return latest_; }
+  bool hasTelemetry() const { return stats_.telemetry_received > 0; }
+  const LinkStats& stats() const { return stats_; }
+  const Histogram& roundTripUs() const { return rtt_us_; }
+  /// Last event received (fault latched, command rejected, …).
+  const protocol::Event& lastEvent() const { return last_event_; }
+  /// Called for each event (for logging); optional.
+  void setEventCallback(void (*fn)(void*, const protocol::Event&), void* ctx) {
+    event_fn_ = fn;
+    event_ctx_ = ctx;
+  }
+  bool lastParamValid() const { return param_valid_; }
+  const protocol::ParamValue& lastParam() const { return last_param_; }
+
+ private:
+  void handleFrame(const protocol::Frame& frame, uint64_t now_ns);
+
+  hal::ByteLink& link_;
+  protocol::StreamDecoder decoder_;
+  HandshakeResult handshake_ = HandshakeResult::kPending;
+  uint32_t session_id_ = 0;
+  protocol::HelloAck ack_{};
+  const protocol::DeviceLayout* layout_ = nullptr;
+  TelemetryFrame latest_;
+  LinkStats stats_;
+  Histogram rtt_us_;
+  uint16_t next_seq_ = 1;
+  static constexpr size_t kSendLog = 1024;  // power of two; outstanding commands tracked for RTT
+  std::array<uint64_t, kSendLog> sent_ns_{};
+  std::array<uint16_t, kSendLog> sent_seq_{};
+  bool have_tel_seq_ = false;
+  uint16_t last_tel_seq_ = 0;
+  uint32_t last_time_us_ = 0;
+  uint64_t time_wraps_ = 0;
+  uint8_t last_dev_cmd_lost_ = 0;
+  uint8_t last_dev_rx_errors_ = 0;
+  uint16_t last_echo_ = 0;
+  bool have_echo_ = false;
+  protocol::Event last_event_{};
+  void (*event_fn_)(void*, const protocol::Event&) = nullptr;
+  void* event_ctx_ = nullptr;
+  protocol::ParamValue last_param_{};
+  bool param_valid_ = false;
+};
+
+const char* faultName(uint16_t single_bit);
+/// "command-timeout|estop" style list of the set bits, "none" when 0.
+std::string faultList(uint16_t bits);
+const char* modeName(protocol::Mode mode);
+
+}  // namespace phalanx::host

@@ -1,0 +1,92 @@
+#include "phalanx/host/config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace phalanx::host {
+namespace {
+
+struct ConfigError {
+  std::string message;
+};
+
+template <class T>
+T scalar(const YAML::Node& node, const std::string& key, const char* type_name) {
+  if (!node.IsScalar()) throw ConfigError{key + ": expected a " + type_name};
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    throw ConfigError{key + ": expected a " + type_name + ", got '" + node.Scalar() + "'"};
+  }
+}
+
+void requireKeys(const YAML::Node& map, const std::string& where, const std::set<std::string>& allowed) {
+  if (!map.IsMap()) throw ConfigError{(where.empty() ? std::string("top level") : where) + ": expected a mapping"};
+  for (const auto& kv : map) {
+    const std::string key = kv.first.as<std::string>();
+    if (allowed.count(key) == 0) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw ConfigError{(where.empty() ? "" : where + ".") + key + ": unknown key (allowed: " + list + ")"};
+    }
+  }
+}
+
+void apply(const YAML::Node& root, RunOptions& opt) {
+  if (root.IsNull()) return;
+  requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
+                         "seed", "clear_faults", "glove"});
+  if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
+    throw ConfigError{"version: only version 1 is understood by this phalanxd"};
+  }
+  if (root["device"]) opt.device = scalar<std::string>(root["device"], "device", "string");
+  if (root["seconds"]) opt.seconds = scalar<double>(root["seconds"], "seconds", "number");
+  if (root["rate_hz"]) opt.rate_hz = scalar<unsigned>(root["rate_hz"], "rate_hz", "positive integer");
+  if (root["command_timeout_ms"]) {
+    opt.command_timeout_ms = scalar<unsigned>(root["command_timeout_ms"], "command_timeout_ms", "positive integer");
+  }
+  if (root["record"]) opt.record_csv = scalar<std::string>(root["record"], "record", "path");
+  if (root["seed"]) opt.seed = scalar<uint32_t>(root["seed"], "seed", "non-negative integer");
+  if (root["clear_faults"]) opt.clear_faults = scalar<bool>(root["clear_faults"], "clear_faults", "boolean");
+  if (const YAML::Node rt = root["realtime"]) {
+    requireKeys(rt, "realtime", {"enabled", "priority"});
+    if (rt["enabled"]) opt.realtime = scalar<bool>(rt["enabled"], "realtime.enabled", "boolean");
+    if (rt["priority"]) opt.rt_priority = scalar<int>(rt["priority"], "realtime.priority", "integer");
+  }
+  if (const YAML::Node g = root["glove"]) {
+    requireKeys(g, "glove", {"scene", "scenario", "mode"});
+    if (g["scene"]) opt.scene = scalar<std::string>(g["scene"], "glove.scene", "string");
+    if (g["scenario"]) opt.scenario = scalar<std::string>(g["scenario"], "glove.scenario", "string");
+    if (g["mode"]) opt.mode = scalar<std::string>(g["mode"], "glove.mode", "string");
+  }
+}
+
+}  // namespace
+
+std::string loadConfigText(const std::string& yaml_text, const std::string& source, RunOptions& opt) {
+  RunOptions candidate = opt;  // nothing changes unless the whole file is valid
+  try {
+    apply(YAML::Load(yaml_text), candidate);
+  } catch (const ConfigError& e) {
+    return source + ": " + e.message;
+  } catch (const YAML::Exception& e) {
+    return source + ": YAML syntax error at line " + std::to_string(e.mark.line + 1) + ": " + e.msg;
+  }
+  const std::string problem = validate(candidate);
+  if (!problem.empty()) return source + ": " + problem;
+  opt = candidate;
+  return {};
+}
+
+std::string loadConfigFile(const std::string& path, RunOptions& opt) {
+  std::ifstream in(path);
+  if (!in) return path + ": cannot read configuration file";
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return loadConfigText(ss.str(), path, opt);
+}
+
+}  // namespace phalanx::host

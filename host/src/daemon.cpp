@@ -1,0 +1,398 @@
+#include "phalanx/host/daemon.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <random>
+
+#include "phalanx/host/controller.h"
+#include "phalanx/host/session.h"
+#include "phalanx/linux/fd_link.h"
+#include "phalanx/linux/realtime.h"
+
+extern char** environ;
+
+namespace phalanx::host {
+
+std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, const RunOptions& opt,
+                                           std::string& error);
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void onStopSignal(int) { g_stop = 1; }
+
+std::string selfDir() {
+  char buf[4096];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+  if (n <= 0) return ".";
+  buf[n] = 0;
+  std::string p(buf);
+  const auto slash = p.rfind('/');
+  return slash == std::string::npos ? "." : p.substr(0, slash);
+}
+
+/// The simulated firmware as a child process; it prints "PTY <path>" once its link is up.
+class SimChild {
+ public:
+  ~SimChild() { stop(); }
+  std::string start(const RunOptions& opt, const std::string& device_name, std::string& pty_path) {
+    const std::string exe = opt.firmware_sim.empty() ? selfDir() + "/firmware-sim" : opt.firmware_sim;
+    if (access(exe.c_str(), X_OK) != 0) return "cannot run the simulated firmware '" + exe + "': " + std::strerror(errno);
+    int out[2];
+    if (pipe2(out, O_CLOEXEC) != 0) return std::string("pipe: ") + std::strerror(errno);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
+    const std::string seed = std::to_string(opt.seed);
+    const std::string hz = std::to_string(opt.rate_hz);
+    std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
+                                     "--scenario", opt.scenario, "--exit-with-parent"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, exe.c_str(), &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    ::close(out[1]);
+    if (rc != 0) {
+      ::close(out[0]);
+      pid_ = -1;
+      return "cannot start " + exe + ": " + std::strerror(rc);
+    }
+    // Read its first line (bounded wait).
+    std::string line;
+    pollfd pfd{out[0], POLLIN, 0};
+    while (line.find('\n') == std::string::npos) {
+      if (::poll(&pfd, 1, 5000) <= 0) break;
+      char c[256];
+      const ssize_t n = ::read(out[0], c, sizeof c);
+      if (n <= 0) break;
+      line.append(c, static_cast<size_t>(n));
+    }
+    ::close(out[0]);
+    if (line.rfind("PTY ", 0) != 0) return "the simulated firmware did not report its link (got '" + line + "')";
+    pty_path = line.substr(4, line.find('\n') - 4);
+    return {};
+  }
+  void stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    int status = 0;
+    for (int i = 0; i < 200 && waitpid(pid_, &status, WNOHANG) == 0; ++i) usleep(5000);
+    if (waitpid(pid_, &status, WNOHANG) == 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, &status, 0);
+    }
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+/// CSV recorder: a large stdio buffer so a row costs a memcpy on the loop, not a system call.
+class Recorder {
+ public:
+  ~Recorder() { close(); }
+  std::string open(const std::string& path, const protocol::DeviceLayout& layout) {
+    f_ = std::fopen(path.c_str(), "w");
+    if (f_ == nullptr) return "cannot write recording " + path + ": " + std::strerror(errno);
+    std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
+    std::fprintf(f_, "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits");
+    for (uint8_t i = 0; i < layout.sample_count; ++i) std::fprintf(f_, ",sample%u", i);
+    for (uint8_t i = 0; i < layout.setpoint_count; ++i) std::fprintf(f_, ",setpoint%u", i);
+    std::fprintf(f_, "\n");
+    samples_ = layout.sample_count;
+    setpoints_ = layout.setpoint_count;
+    return {};
+  }
+  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
+    if (f_ == nullptr) return;
+    std::fprintf(f_, "%.6f,%llu,%u,%u,%u,%u", t_s, static_cast<unsigned long long>(tel.device_time_us), tel.seq,
+                 tel.cmd_seq_echo, static_cast<unsigned>(tel.mode), tel.fault_bits);
+    for (uint8_t i = 0; i < samples_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(tel.value[i]));
+    for (uint8_t i = 0; i < setpoints_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(cmd.setpoint[i]));
+    std::fputc('\n', f_);
+    ++rows_;
+  }
+  void close() {
+    if (f_ != nullptr) std::fclose(f_);
+    f_ = nullptr;
+  }
+  uint64_t rows() const { return rows_; }
+
+ private:
+  std::FILE* f_ = nullptr;
+  uint8_t samples_ = 0;
+  uint8_t setpoints_ = 0;
+  uint64_t rows_ = 0;
+};
+
+nlohmann::json histogramJson(const Histogram& h) {
+  return {{"count", h.count()},          {"mean_us", h.mean()},         {"p50_us", h.percentile(0.5)},
+          {"p99_us", h.percentile(0.99)}, {"p999_us", h.percentile(0.999)}, {"max_us", h.max()}};
+}
+
+void logEvent(void*, const protocol::Event& e) {
+  switch (e.code) {
+    case protocol::EventCode::kFaultLatched:
+      std::fprintf(stderr, "phalanxd: device fault latched: %s\n",
+                   faultList(static_cast<uint16_t>(e.value)).c_str());
+      break;
+    case protocol::EventCode::kCommandRejected:
+      std::fprintf(stderr, "phalanxd: device rejected a command (reason %u, channel %u, value %g)\n", e.detail,
+                   e.channel, static_cast<double>(e.value));
+      break;
+    case protocol::EventCode::kClearRefused:
+      std::fprintf(stderr, "phalanxd: device refused to clear faults: %s still present\n",
+                   faultList(static_cast<uint16_t>(e.value)).c_str());
+      break;
+    default:
+      break;
+  }
+}
+
+/// Host-side last line of defence: nothing non-finite or beyond the device's limit leaves the host.
+bool commandIsSafe(const protocol::Command& cmd, const protocol::DeviceLayout& layout) {
+  if (static_cast<uint8_t>(cmd.mode) >= protocol::kModeCount) return false;
+  for (uint8_t i = 0; i < layout.setpoint_count; ++i) {
+    if (!std::isfinite(cmd.setpoint[i]) || std::fabs(cmd.setpoint[i]) > layout.setpoint_limit) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void installStopSignals() {
+  struct sigaction sa {};
+  sa.sa_handler = onStopSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+}
+
+std::string validate(const RunOptions& opt) {
+  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0) {
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:pantograph or serial:/dev/ttyACM0[@baud])";
+  }
+  if (opt.device.rfind("sim:", 0) == 0) {
+    const std::string d = opt.device.substr(4);
+    if (d != "glove5" && d != "sea_finger" && d != "pantograph") {
+      return "device: unknown simulated device '" + d + "' (glove5, sea_finger, pantograph)";
+    }
+  }
+  if (!std::isfinite(opt.seconds) || opt.seconds < 0 || opt.seconds > 86400) return "seconds: must be in [0, 86400]";
+  if (opt.rate_hz < 100 || opt.rate_hz > 4000) return "rate_hz: must be in [100, 4000]";
+  if (opt.command_timeout_ms < 2 || opt.command_timeout_ms > 1000) return "command_timeout_ms: must be in [2, 1000]";
+  if (opt.command_timeout_ms * opt.rate_hz < 2000) {
+    return "command_timeout_ms: must cover at least two host periods (" + std::to_string(2000 / opt.rate_hz + 1) + " ms at " +
+           std::to_string(opt.rate_hz) + " Hz)";
+  }
+  if (opt.rt_priority < 1 || opt.rt_priority > 99) return "realtime.priority: must be in [1, 99]";
+  if (opt.scenario != "still" && opt.scenario != "close-open" && opt.scenario != "grasp" && opt.scenario != "random") {
+    return "scenario: '" + opt.scenario + "' is not one of still, close-open, grasp, random";
+  }
+  if (opt.scene != "none" && opt.scene != "rigid-ball" && opt.scene != "soft-ball" && opt.scene != "wall") {
+    return "scene: '" + opt.scene + "' is not one of none, rigid-ball, soft-ball, wall";
+  }
+  if (opt.mode != "render" && opt.mode != "transparent") return "mode: '" + opt.mode + "' is not one of render, transparent";
+  return {};
+}
+
+int runSession(const RunOptions& opt, nlohmann::json& summary) {
+  auto fail = [&](const std::string& msg, int code) {
+    summary["error"] = msg;
+    std::fprintf(stderr, "phalanxd: error: %s\n", msg.c_str());
+    return code;
+  };
+  if (const std::string problem = validate(opt); !problem.empty()) return fail(problem, 2);
+  summary["device"] = opt.device;
+
+  SimChild sim;
+  std::string path = opt.device.substr(opt.device.find(':') + 1);
+  unsigned baud = 0;
+  protocol::DeviceType expected = protocol::DeviceType::kAny;
+  if (opt.device.rfind("sim:", 0) == 0) {
+    const std::string name = path;
+    expected = name == "glove5" ? protocol::DeviceType::kGlove5
+               : name == "sea_finger" ? protocol::DeviceType::kSeaFinger
+                                      : protocol::DeviceType::kPantograph;
+    if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
+  } else if (const auto at = path.find('@'); at != std::string::npos) {
+    try {
+      baud = static_cast<unsigned>(std::stoul(path.substr(at + 1)));
+    } catch (...) {
+      return fail("device: bad baud rate in '" + opt.device + "'", 2);
+    }
+    path = path.substr(0, at);
+  }
+  linux_hal::SerialLink link;
+  if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
+  summary["link"] = path;
+
+  HostSession session(link);
+  session.setEventCallback(logEvent, nullptr);
+  std::random_device rd;
+  const uint32_t session_id = rd();
+  session.sendHello(session_id, expected);
+  link.flush();
+  const uint64_t hs_start = linux_hal::monotonicNs();
+  while (session.handshake() == HandshakeResult::kPending) {
+    if (static_cast<double>(linux_hal::monotonicNs() - hs_start) > opt.handshake_timeout_s * 1e9) {
+      return fail("device did not answer the handshake within " + std::to_string(opt.handshake_timeout_s) +
+                      " s on " + path + " (wrong port, or not Phalanx firmware?)",
+                  4);
+    }
+    usleep(1000);
+    session.poll(linux_hal::monotonicNs());
+  }
+  if (session.handshake() != HandshakeResult::kOk) return fail(session.handshakeError(), 4);
+  const protocol::DeviceLayout& layout = *session.layout();
+  summary["device_type"] = layout.name;
+  summary["firmware_build_id"] = session.deviceInfo().firmware_build_id;
+  summary["firmware_tick_hz"] = session.deviceInfo().tick_rate_hz;
+  summary["protocol_version"] = protocol::kProtocolVersion;
+
+  std::string ctl_error;
+  std::unique_ptr<Controller> controller = makeController(layout, opt, ctl_error);
+  if (!controller) return fail(ctl_error, 2);
+  summary["controller"] = controller->name();
+
+  Recorder recorder;
+  if (!opt.record_csv.empty()) {
+    if (std::string err = recorder.open(opt.record_csv, layout); !err.empty()) return fail(err, 3);
+  }
+
+  linux_hal::RealtimeStatus rt;
+  if (opt.realtime) {
+    rt = linux_hal::setupRealtime(opt.rt_priority);
+    if (!rt.warning.empty()) std::fprintf(stderr, "phalanxd: warning: %s\n", rt.warning.c_str());
+  } else {
+    rt.warning = "real-time scheduling disabled by configuration";
+  }
+  summary["realtime"] = {{"memory_locked", rt.memory_locked}, {"sched_fifo", rt.fifo_scheduling}};
+
+  // Wait for the first telemetry; clear faults left latched by a previous session if asked to.
+  const uint64_t first_wait = linux_hal::monotonicNs();
+  while (!session.hasTelemetry() && linux_hal::monotonicNs() - first_wait < 500000000ull) {
+    usleep(500);
+    session.poll(linux_hal::monotonicNs());
+  }
+  if (!session.hasTelemetry()) return fail("device answered the handshake but sends no telemetry", 4);
+  if (session.latest().fault_bits != 0) {
+    const std::string prior = faultList(session.latest().fault_bits);
+    summary["faults_at_start"] = prior;
+    if (!opt.clear_faults) return fail("device has latched faults (" + prior + ") and clear_faults is off", 5);
+    std::fprintf(stderr, "phalanxd: clearing faults latched before this session: %s\n", prior.c_str());
+    session.sendClearFaults();
+    link.flush();
+  }
+
+  const uint64_t period_ns = 1000000000ull / opt.rate_hz;
+  const double dt_s = 1.0 / opt.rate_hz;
+  Histogram jitter_us(5000);
+  Histogram cycle_us(5000);
+  uint64_t overruns = 0;
+  uint64_t cycles = 0;
+  uint64_t cycles_without_telemetry = 0;
+  uint64_t host_refused = 0;
+  uint16_t faults_seen = 0;
+  const auto max_cycles = static_cast<uint64_t>(std::llround(opt.seconds * opt.rate_hz));
+  linux_hal::PeriodicTimer timer(period_ns);
+  const uint64_t start_ns = linux_hal::monotonicNs();
+  uint64_t expected_wake_ns = start_ns + period_ns;
+  uint64_t next_live_ns = start_ns;
+  protocol::Command cmd;
+  cmd.channel_count = layout.setpoint_count;
+  cmd.timeout_ms = static_cast<uint16_t>(opt.command_timeout_ms);
+  for (auto& g : cmd.gain_scale_permille) g = 1000;
+
+  while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles)) {
+    const uint32_t missed = timer.wait();
+    const uint64_t wake_ns = linux_hal::monotonicNs();
+    jitter_us.add(std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns)) / 1000.0);
+    overruns += missed;
+    expected_wake_ns += (1 + missed) * period_ns;
+    ++cycles;
+
+    if (session.poll(wake_ns) == 0) ++cycles_without_telemetry;
+    const TelemetryFrame& tel = session.latest();
+    faults_seen |= tel.fault_bits;
+    const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
+    controller->update(tel, t_s, dt_s, cmd);
+    cmd.channel_count = layout.setpoint_count;
+    if (!commandIsSafe(cmd, layout)) {
+      ++host_refused;
+      cmd.mode = protocol::Mode::kSafe;
+      for (auto& s : cmd.setpoint) s = 0.0f;
+    }
+    session.sendCommand(cmd, linux_hal::monotonicNs());
+    if (!link.flush()) {
+      summary["link_error"] = link.error();
+      break;
+    }
+    recorder.row(t_s, tel, cmd);
+    cycle_us.add(static_cast<double>(linux_hal::monotonicNs() - wake_ns) / 1000.0);
+
+    if (opt.live_view && wake_ns >= next_live_ns) {
+      next_live_ns = wake_ns + 100000000ull;
+      std::fprintf(stderr, "\r\033[K%7.2fs %-11s faults=%s %s", t_s, modeName(tel.mode),
+                   faultList(tel.fault_bits).c_str(), controller->liveLine(tel).c_str());
+      std::fflush(stderr);
+    }
+  }
+  if (opt.live_view) std::fputc('\n', stderr);
+
+  // Leave the device safe: an explicit safe command (the device would also time out by itself).
+  cmd.mode = protocol::Mode::kSafe;
+  for (auto& s : cmd.setpoint) s = 0.0f;
+  for (int i = 0; i < 3; ++i) {
+    session.sendCommand(cmd, linux_hal::monotonicNs());
+    link.flush();
+    usleep(2000);
+  }
+  session.poll(linux_hal::monotonicNs());
+  recorder.close();
+  sim.stop();
+
+  const LinkStats& s = session.stats();
+  summary["seconds"] = static_cast<double>(linux_hal::monotonicNs() - start_ns) * 1e-9;
+  summary["rate_hz"] = opt.rate_hz;
+  summary["cycles"] = cycles;
+  summary["overruns"] = overruns;
+  summary["period_jitter"] = histogramJson(jitter_us);
+  summary["cycle_time"] = histogramJson(cycle_us);
+  summary["round_trip"] = histogramJson(session.roundTripUs());
+  summary["telemetry"] = {{"received", s.telemetry_received},
+                          {"lost", s.telemetry_lost},
+                          {"cycles_without_new_telemetry", cycles_without_telemetry}};
+  summary["commands"] = {{"sent", s.commands_sent},
+                         {"unsent_link_full", s.commands_unsent},
+                         {"refused_by_host_limits", host_refused},
+                         {"lost_seen_by_device", s.device_cmd_lost},
+                         {"rejected_by_device", s.device_rx_errors}};
+  summary["host_rx_errors"] = {{"crc", s.host_rx.crc_errors},
+                               {"framing", s.host_rx.framing_errors},
+                               {"unknown_id", s.host_rx.unknown_id},
+                               {"bad_length", s.host_rx.bad_length}};
+  summary["faults_seen"] = faultList(faults_seen);
+  summary["final_mode"] = modeName(session.latest().mode);
+  if (!opt.record_csv.empty()) summary["recording"] = {{"path", opt.record_csv}, {"rows", recorder.rows()}};
+  nlohmann::json extra = nlohmann::json::object();
+  controller->summarize(extra);
+  if (!extra.empty()) summary[layout.name] = extra;
+  return summary.contains("link_error") ? 6 : 0;
+}
+
+}  // namespace phalanx::host

@@ -1,0 +1,207 @@
+#include "phalanx/host/session.h"
+
+namespace phalanx::host {
+
+using namespace protocol;
+
+HostSession::HostSession(hal::ByteLink& link) : link_(link) {}
+
+template <class Msg>
+static bool sendMsg(hal::ByteLink& link, const Msg& m) {
+  uint8_t frame[kMaxEncodedFrame];
+  const size_t n = encodeFrame(m, frame);
+  if (link.writeSpace() < n) return false;
+  return link.write(frame, n) == n;
+}
+
+void HostSession::sendHello(uint32_t session_id, DeviceType expected) {
+  Hello h;
+  h.expected_device = expected;
+  h.session_id = session_id;
+  session_id_ = session_id;
+  handshake_ = HandshakeResult::kPending;
+  sendMsg(link_, h);
+}
+
+bool HostSession::sendCommand(Command& cmd, uint64_t now_ns) {
+  cmd.seq = next_seq_++;
+  const size_t slot = cmd.seq & (kSendLog - 1);
+  sent_ns_[slot] = now_ns;
+  sent_seq_[slot] = cmd.seq;
+  if (!sendMsg(link_, cmd)) {
+    ++stats_.commands_unsent;
+    return false;
+  }
+  ++stats_.commands_sent;
+  return true;
+}
+
+void HostSession::sendClearFaults() {
+  ClearFaults c;
+  c.session_id = session_id_;
+  sendMsg(link_, c);
+}
+
+bool HostSession::sendParamGet(uint16_t id) {
+  ParamGet g;
+  g.param_id = id;
+  param_valid_ = false;
+  return sendMsg(link_, g);
+}
+
+int HostSession::poll(uint64_t now_ns) {
+  int telemetry = 0;
+  uint8_t buf[512];
+  for (;;) {
+    const size_t n = link_.read(buf, sizeof buf);
+    if (n == 0) break;
+    for (size_t i = 0; i < n; ++i) {
+      if (!decoder_.push(buf[i])) continue;
+      const Frame& f = decoder_.frame();
+      if (f.id == static_cast<uint8_t>(MsgId::kTelemetry)) ++telemetry;
+      handleFrame(f, now_ns);
+    }
+  }
+  stats_.host_rx = decoder_.stats();
+  return telemetry;
+}
+
+void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
+  switch (static_cast<MsgId>(f.id)) {
+    case MsgId::kHelloAck: {
+      HelloAck a;
+      if (!decodePayload(f.payload, f.len, a) || a.session_id != session_id_) return;
+      ack_ = a;
+      if (a.status == HandshakeStatus::kVersionMismatch || a.protocol_version != kProtocolVersion) {
+        handshake_ = HandshakeResult::kVersionMismatch;
+      } else if (a.status == HandshakeStatus::kDeviceMismatch) {
+        handshake_ = HandshakeResult::kDeviceMismatch;
+      } else {
+        layout_ = layoutFor(a.device_type);
+        handshake_ = layout_ != nullptr && layout_->sample_count == a.sample_count &&
+                             layout_->setpoint_count == a.setpoint_count
+                         ? HandshakeResult::kOk
+                         : HandshakeResult::kDeviceMismatch;
+      }
+      return;
+    }
+    case MsgId::kTelemetry: {
+      Telemetry t;
+      if (handshake_ != HandshakeResult::kOk || !decodePayload(f.payload, f.len, t)) return;
+      if (have_tel_seq_) {
+        const uint16_t gap = static_cast<uint16_t>(t.seq - last_tel_seq_ - 1u);
+        if (gap < 0x8000u) stats_.telemetry_lost += gap;
+        if (t.time_us < last_time_us_) ++time_wraps_;
+        stats_.device_cmd_lost += static_cast<uint8_t>(t.cmd_lost - last_dev_cmd_lost_);
+        stats_.device_rx_errors += static_cast<uint8_t>(t.rx_errors - last_dev_rx_errors_);
+      } else {
+        // The device's counters start at session start; what they held before this session is not ours.
+        stats_.device_cmd_lost = 0;
+        stats_.device_rx_errors = 0;
+      }
+      have_tel_seq_ = true;
+      last_tel_seq_ = t.seq;
+      last_time_us_ = t.time_us;
+      last_dev_cmd_lost_ = t.cmd_lost;
+      last_dev_rx_errors_ = t.rx_errors;
+      ++stats_.telemetry_received;
+
+      latest_.device_time_us = (time_wraps_ << 32) | t.time_us;
+      latest_.host_rx_ns = now_ns;
+      latest_.seq = t.seq;
+      latest_.cmd_seq_echo = t.cmd_seq_echo;
+      latest_.mode = t.mode;
+      latest_.state_flags = t.state_flags;
+      latest_.fault_bits = t.fault_bits;
+      latest_.sample_count = layout_->sample_count;
+      for (uint8_t i = 0; i < layout_->sample_count; ++i) {
+        latest_.value[i] = decodeSample(t.sample[i], layout_->sample_kind[i]);
+      }
+      // Round trip: the first telemetry that echoes a command we sent closes that command's measurement.
+      if (!have_echo_ || t.cmd_seq_echo != last_echo_) {
+        const size_t slot = t.cmd_seq_echo & (kSendLog - 1);
+        if (sent_seq_[slot] == t.cmd_seq_echo && sent_ns_[slot] != 0) {
+          rtt_us_.add(static_cast<double>(now_ns - sent_ns_[slot]) / 1000.0);
+          sent_ns_[slot] = 0;
+        }
+        last_echo_ = t.cmd_seq_echo;
+        have_echo_ = true;
+      }
+      return;
+    }
+    case MsgId::kEvent: {
+      Event e;
+      if (!decodePayload(f.payload, f.len, e)) return;
+      ++stats_.events;
+      last_event_ = e;
+      if (event_fn_ != nullptr) event_fn_(event_ctx_, e);
+      return;
+    }
+    case MsgId::kParamValue: {
+      if (decodePayload(f.payload, f.len, last_param_)) param_valid_ = true;
+      return;
+    }
+    default:
+      return;
+  }
+}
+
+std::string HostSession::handshakeError() const {
+  switch (handshake_) {
+    case HandshakeResult::kOk: return {};
+    case HandshakeResult::kPending: return "handshake still pending";
+    case HandshakeResult::kTimeout: return "device did not answer the handshake (wrong port, or not Phalanx firmware?)";
+    case HandshakeResult::kVersionMismatch:
+      return "protocol version mismatch: host speaks v" + std::to_string(kProtocolVersion) + ", device speaks v" +
+             std::to_string(ack_.protocol_version) + " (update the firmware or the host so both match)";
+    case HandshakeResult::kDeviceMismatch: {
+      const DeviceLayout* l = layoutFor(ack_.device_type);
+      return std::string("device type mismatch: the connected device is '") + (l ? l->name : "unknown") +
+             "' (" + std::to_string(ack_.setpoint_count) + " setpoints, " + std::to_string(ack_.sample_count) +
+             " samples), not the one requested";
+    }
+  }
+  return "unknown";
+}
+
+const char* faultName(uint16_t bit) {
+  switch (bit) {
+    case fault::kCommandTimeout: return "command-timeout";
+    case fault::kInvalidCommand: return "invalid-command";
+    case fault::kEstop: return "estop";
+    case fault::kSensorRange: return "sensor-range";
+    case fault::kSensorStuck: return "sensor-stuck";
+    case fault::kForceLimit: return "force-limit";
+    case fault::kJointLimit: return "joint-limit";
+    case fault::kCurrentLimit: return "current-limit";
+    case fault::kSensorSaturated: return "sensor-saturated";
+    case fault::kMotorAngle: return "motor-angle";
+    case fault::kTickOverrun: return "tick-overrun";
+    case fault::kInternal: return "internal";
+    default: return "unknown";
+  }
+}
+
+std::string faultList(uint16_t bits) {
+  if (bits == 0) return "none";
+  std::string out;
+  for (int i = 0; i < 16; ++i) {
+    const auto bit = static_cast<uint16_t>(1u << i);
+    if ((bits & bit) == 0) continue;
+    if (!out.empty()) out += '|';
+    out += faultName(bit);
+  }
+  return out;
+}
+
+const char* modeName(Mode mode) {
+  switch (mode) {
+    case Mode::kSafe: return "safe";
+    case Mode::kTransparent: return "transparent";
+    case Mode::kSetpoint: return "setpoint";
+    case Mode::kLock: return "lock";
+  }
+  return "unknown";
+}
+
+}  // namespace phalanx::host
