@@ -2,6 +2,7 @@
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/daemon.h"
+#include "phalanx/host/glove/glove_controller.h"
 
 namespace phalanx::host {
 
@@ -14,8 +15,19 @@ void TransparentController::update(const TelemetryFrame&, double, double, protoc
 
 std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, const RunOptions& opt,
                                            std::string& error) {
-  (void)layout;
-  (void)opt;
+  if (layout.type == protocol::DeviceType::kGlove5) {
+    glove::GloveControllerConfig cfg;
+    cfg.transparent = opt.mode == "transparent";
+    if (opt.scene == "none") cfg.scene = glove::DemoScene::kNone;
+    else if (opt.scene == "rigid-ball") cfg.scene = glove::DemoScene::kRigidBall;
+    else if (opt.scene == "soft-ball") cfg.scene = glove::DemoScene::kSoftBall;
+    else if (opt.scene == "wall") cfg.scene = glove::DemoScene::kWall;
+    else {
+      error = "unknown glove scene '" + opt.scene + "'";
+      return nullptr;
+    }
+    return std::make_unique<glove::GloveController>(cfg);
+  }
   (void)error;
   return std::make_unique<TransparentController>();
 }

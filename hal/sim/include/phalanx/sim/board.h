@@ -65,6 +65,7 @@ class SimBoard {
   SimBoard(uint8_t pwm_count, uint8_t adc_count, uint8_t encoder_count, hal::ByteLink& link);
   SimIo& io() { return io_; }
   VirtualClock& clock() { return clock_; }
+  const VirtualClock& clock() const { return clock_; }
   hal::Board& board() { return board_; }
 
  private:

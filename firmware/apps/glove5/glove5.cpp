@@ -1,0 +1,185 @@
+#include "phalanx/apps/glove5.h"
+
+#include <cmath>
+
+namespace phalanx::apps {
+namespace {
+
+constexpr uint16_t kTareTicks = 64;
+
+float interpolate(const HallTable& t, float counts) {
+  if (t.points < 2) return 0.0f;
+  if (counts <= t.counts[0]) return t.angle_rad[0];
+  for (int i = 1; i < t.points; ++i) {
+    if (counts <= t.counts[i]) {
+      const float u = (counts - t.counts[i - 1]) / (t.counts[i] - t.counts[i - 1]);
+      return t.angle_rad[i - 1] + u * (t.angle_rad[i] - t.angle_rad[i - 1]);
+    }
+  }
+  return t.angle_rad[t.points - 1];
+}
+
+float clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+}  // namespace
+
+Glove5App::Glove5App(const Glove5Calibration& calibration, const Glove5Config& config)
+    : cal_(calibration), cfg_(config) {}
+
+const protocol::DeviceLayout& Glove5App::layout() const { return protocol::kGlove5Layout; }
+
+void Glove5App::init(hal::Board& board) { board_ = &board; }
+
+uint16_t Glove5App::sense(float dt_s) {
+  uint16_t faults = 0;
+  const hal::AdcInputs& adc = *board_->adc;
+  int32_t raw[kGloveHallChannels];
+  for (int ch = 0; ch < kGloveHallChannels; ++ch) raw[ch] = adc.read(static_cast<uint8_t>(ch));
+
+  for (int f = 0; f < kGloveFingers; ++f) {
+    GloveFingerState& s = finger_[f];
+    for (int j = 0; j < kGloveJoints; ++j) {
+      const int ch = f * kGloveJoints + j;
+      if (raw[ch] < cal_.hall_valid_min || raw[ch] > cal_.hall_valid_max) faults |= protocol::fault::kSensorRange;
+      const float alpha = interpolate(cal_.hall[ch], static_cast<float>(raw[ch]));
+      const float rate = primed_ ? (alpha - last_alpha_[ch]) / dt_s : 0.0f;
+      last_alpha_[ch] = alpha;
+      s.alpha_rad[j] = alpha;
+      s.alpha_rate_rad_per_s[j] = rate_lp_[ch].step(rate, cfg_.velocity_filter_hz, dt_s);
+
+      // Stuck sensor: its raw value froze while the finger's other two sensors kept moving.
+      if (primed_ && raw[ch] == last_raw_[ch]) {
+        if (unchanged_ticks_[ch] < 0xFFFF) ++unchanged_ticks_[ch];
+      } else {
+        unchanged_ticks_[ch] = 0;
+        motion_since_[ch] = 0;
+      }
+      if (primed_ && unchanged_ticks_[ch] > 0) {
+        for (int k = 0; k < kGloveJoints; ++k) {
+          const int other = f * kGloveJoints + k;
+          if (other == ch) continue;
+          const int32_t d = raw[other] - last_raw_[other];
+          motion_since_[ch] += d < 0 ? -d : d;
+        }
+      }
+      if (unchanged_ticks_[ch] >= cfg_.hall_stuck_ticks && motion_since_[ch] >= cfg_.hall_motion_counts) {
+        faults |= protocol::fault::kSensorStuck;
+      }
+    }
+
+    const auto strain_raw = adc.read(static_cast<uint8_t>(kGloveHallChannels + f));
+    if (strain_raw <= cal_.strain_saturation_min || strain_raw >= cal_.strain_saturation_max) {
+      faults |= protocol::fault::kSensorSaturated;
+    }
+    const float counts = static_cast<float>(strain_raw);
+    if (tare_ticks_left_ > 0) tare_sum_[f] += counts;
+    const float force = (counts - cal_.strain_zero_counts[f]) / cal_.strain_counts_per_N[f];
+    s.force_N = force_lp_[f].step(force, cfg_.force_filter_hz, dt_s);
+
+    const auto current_raw = adc.read(static_cast<uint8_t>(kGloveHallChannels + kGloveFingers + f));
+    s.current_A = (static_cast<float>(current_raw) - cal_.current_zero_counts) / cal_.current_counts_per_A;
+  }
+  for (int ch = 0; ch < kGloveHallChannels; ++ch) last_raw_[ch] = raw[ch];
+  primed_ = true;
+
+  if (tare_ticks_left_ > 0 && --tare_ticks_left_ == 0) {
+    for (int f = 0; f < kGloveFingers; ++f) {
+      cal_.strain_zero_counts[f] = tare_sum_[f] / static_cast<float>(kTareTicks);
+      tare_sum_[f] = 0.0f;
+    }
+  }
+  return faults;
+}
+
+uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
+  uint16_t faults = 0;
+  hal::PwmOutputs& pwm = *board_->pwm;
+  control::PidConfig pid = cfg_.force_pid;
+  pid.out_min = -cfg_.max_duty;
+  pid.out_max = cfg_.max_duty;
+  for (int f = 0; f < kGloveFingers; ++f) {
+    GloveFingerState& s = finger_[f];
+    for (int j = 0; j < kGloveJoints; ++j) {
+      if (s.alpha_rad[j] < cfg_.joint_min_rad[j] || s.alpha_rad[j] > cfg_.joint_max_rad[j]) {
+        faults |= protocol::fault::kJointLimit;
+      }
+    }
+    overcurrent_ticks_[f] = std::fabs(s.current_A) > cfg_.current_limit_A
+                                ? static_cast<uint16_t>(overcurrent_ticks_[f] + 1)
+                                : static_cast<uint16_t>(0);
+    if (overcurrent_ticks_[f] >= cfg_.current_limit_ticks) faults |= protocol::fault::kCurrentLimit;
+
+    if (cmd.mode == protocol::Mode::kLock) {
+      // Motor off: the self-locking worm holds the mechanism (000 §2.2).
+      control::pidReset(s.pid);
+      s.duty = 0.0f;
+      pwm.setDuty(static_cast<uint8_t>(f), 0.0f);
+      continue;
+    }
+    const float desired_N = cmd.mode == protocol::Mode::kSetpoint
+                                ? clampf(cmd.setpoint[f], -cfg_.active_force_limit_N, cfg_.active_force_limit_N)
+                                : 0.0f;  // transparent: zero force, the glove follows the finger
+    float ff = 0.0f;
+    for (int j = 0; j < kGloveJoints; ++j) ff += cal_.ff_duty_per_rad_per_s[f][j] * s.alpha_rate_rad_per_s[j];
+    ff *= cfg_.ff_scale;
+    const float gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
+    const float out = control::pidStep(pid, s.pid, cal_.force_per_duty_sign * s.force_N,
+                                       cal_.force_per_duty_sign * desired_N, dt_s, cal_.force_per_duty_sign * ff, gain);
+    s.duty = cal_.force_per_duty_sign * out;
+    pwm.setDuty(static_cast<uint8_t>(f), s.duty);
+  }
+  return faults;
+}
+
+void Glove5App::safe() {
+  for (auto& s : finger_) {
+    control::pidReset(s.pid);
+    s.duty = 0.0f;
+  }
+  for (auto& n : overcurrent_ticks_) n = 0;
+}
+
+void Glove5App::fillSamples(int16_t* samples) const {
+  using protocol::encodeSample;
+  using protocol::SampleKind;
+  for (int f = 0; f < kGloveFingers; ++f) {
+    for (int j = 0; j < kGloveJoints; ++j) {
+      samples[f * kGloveJoints + j] = encodeSample(finger_[f].alpha_rad[j], SampleKind::kAngle);
+    }
+    samples[kGloveHallChannels + f] = encodeSample(finger_[f].force_N, SampleKind::kForce);
+    samples[kGloveHallChannels + kGloveFingers + f] = encodeSample(finger_[f].duty, SampleKind::kDuty);
+  }
+}
+
+protocol::ParamStatus Glove5App::getParam(uint16_t id, float& value) const {
+  switch (id) {
+    case glove5_param::kForceKp: value = cfg_.force_pid.kp; return protocol::ParamStatus::kOk;
+    case glove5_param::kForceKi: value = cfg_.force_pid.ki; return protocol::ParamStatus::kOk;
+    case glove5_param::kForceKd: value = cfg_.force_pid.kd; return protocol::ParamStatus::kOk;
+    case glove5_param::kFeedForwardScale: value = cfg_.ff_scale; return protocol::ParamStatus::kOk;
+    case glove5_param::kTare: value = static_cast<float>(tare_ticks_left_); return protocol::ParamStatus::kOk;
+    default: return protocol::ParamStatus::kUnknownParam;
+  }
+}
+
+protocol::ParamStatus Glove5App::setParam(uint16_t id, float value) {
+  auto bounded = [&](float& field, float lo, float hi) {
+    if (value < lo || value > hi) return protocol::ParamStatus::kOutOfRange;
+    field = value;
+    return protocol::ParamStatus::kOk;
+  };
+  switch (id) {
+    case glove5_param::kForceKp: return bounded(cfg_.force_pid.kp, 0.0f, 10.0f);
+    case glove5_param::kForceKi: return bounded(cfg_.force_pid.ki, 0.0f, 1000.0f);
+    case glove5_param::kForceKd: return bounded(cfg_.force_pid.kd, 0.0f, 1.0f);
+    case glove5_param::kFeedForwardScale: return bounded(cfg_.ff_scale, 0.0f, 2.0f);
+    case glove5_param::kTare:
+      if (value != 1.0f) return protocol::ParamStatus::kOutOfRange;
+      tare_ticks_left_ = kTareTicks;
+      for (auto& s : tare_sum_) s = 0.0f;
+      return protocol::ParamStatus::kOk;
+    default: return protocol::ParamStatus::kUnknownParam;
+  }
+}
+
+}  // namespace phalanx::apps

@@ -1,0 +1,113 @@
+#pragma once
+/// Firmware app for the RML five-finger glove (000: Ma & Ben-Tzvi 2015): per finger a worm-geared DC motor on an
+/// H-bridge, three Hall-effect mechanism-angle sensors and a fingertip strain gauge. Fingertip-force PID with
+/// anti-windup plus a velocity feed-forward that moves the spool with the finger, at the core's tick rate.
+/// Freestanding: no heap, no exceptions, single precision.
+#include <cstdint>
+
+#include "phalanx/control/pid.h"
+#include "phalanx/fw/app.h"
+
+namespace phalanx::apps {
+
+constexpr int kGloveFingers = 5;
+constexpr int kGloveJoints = 3;
+constexpr int kGloveHallChannels = kGloveFingers * kGloveJoints;
+
+/// Piecewise-linear Hall transfer: raw counts (strictly increasing) → mechanism angle.
+struct HallTable {
+  static constexpr int kMaxPoints = 17;
+  uint8_t points = 0;
+  float counts[kMaxPoints] = {};
+  float angle_rad[kMaxPoints] = {};
+};
+
+/// Everything board- and unit-specific, in one place (defaults: glove5DefaultCalibration()).
+struct Glove5Calibration {
+  HallTable hall[kGloveHallChannels];
+  int32_t hall_valid_min = 0;       ///< raw counts below/above this are an open or shorted sensor
+  int32_t hall_valid_max = 4095;
+  float strain_counts_per_N[kGloveFingers] = {};
+  float strain_zero_counts[kGloveFingers] = {};
+  int32_t strain_saturation_min = 0;  ///< raw at or beyond these: the gauge amplifier is saturated
+  int32_t strain_saturation_max = 0;
+  float current_counts_per_A = 1.0f;
+  float current_zero_counts = 0.0f;
+  /// Spool feed-forward: duty per rad/s of each mechanism joint's rate (tendon routing × gear × back-EMF / supply),
+  /// signed so that it moves the spool with the finger.
+  float ff_duty_per_rad_per_s[kGloveFingers][kGloveJoints] = {};
+  /// +1 if positive duty increases the measured pad force, -1 otherwise.
+  float force_per_duty_sign = 1.0f;
+};
+
+struct Glove5Config {
+  control::PidConfig force_pid{};   ///< pad force error (N) → duty
+  float ff_scale = 1.0f;            ///< 0 disables the velocity feed-forward
+  float force_filter_hz = 300.0f;
+  float velocity_filter_hz = 40.0f;
+  float max_duty = 0.9f;
+  float current_limit_A = 1.5f;     ///< sustained |I| above this for current_limit_ticks → fault
+  uint16_t current_limit_ticks = 100;
+  float active_force_limit_N = 10.0f;  ///< 000 §2.2: maximum active fingertip force
+  float strain_full_scale_N = 30.0f;
+  /// Glove joint limits (000 Table 3 ranges with a margin; each ≤ 150°, eq 22), checked while driving.
+  float joint_min_rad[kGloveJoints] = {};
+  float joint_max_rad[kGloveJoints] = {};
+  uint16_t hall_stuck_ticks = 250;  ///< unchanged raw count this long while the finger's other sensors moved
+  int32_t hall_motion_counts = 40;  ///< "moved": total raw change of the other two sensors of the finger
+};
+
+/// Device parameters (ParamGet/ParamSet, only settable while outputs are safe).
+namespace glove5_param {
+constexpr uint16_t kForceKp = 0x0100;
+constexpr uint16_t kForceKi = 0x0101;
+constexpr uint16_t kForceKd = 0x0102;
+constexpr uint16_t kFeedForwardScale = 0x0103;
+constexpr uint16_t kTare = 0x0110;  ///< write 1: re-zero every strain gauge over the next 64 ticks (finger relaxed)
+}  // namespace glove5_param
+
+Glove5Calibration glove5DefaultCalibration();
+Glove5Config glove5DefaultConfig();
+
+/// Per-finger state, visible for tests and telemetry.
+struct GloveFingerState {
+  float alpha_rad[kGloveJoints] = {};
+  float alpha_rate_rad_per_s[kGloveJoints] = {};
+  float force_N = 0.0f;       ///< filtered pad force, positive resists flexion
+  float current_A = 0.0f;
+  float duty = 0.0f;
+  control::PidState pid{};
+};
+
+class Glove5App : public fw::DeviceApp {
+ public:
+  Glove5App(const Glove5Calibration& calibration, const Glove5Config& config);
+  const protocol::DeviceLayout& layout() const override;
+  void init(hal::Board& board) override;
+  uint16_t sense(float dt_s) override;
+  uint16_t control(const protocol::Command& cmd, float dt_s) override;
+  void safe() override;
+  void fillSamples(int16_t* samples) const override;
+  protocol::ParamStatus getParam(uint16_t id, float& value) const override;
+  protocol::ParamStatus setParam(uint16_t id, float value) override;
+
+  const GloveFingerState& finger(int i) const { return finger_[i]; }
+
+ private:
+  Glove5Calibration cal_;
+  Glove5Config cfg_;
+  hal::Board* board_ = nullptr;
+  GloveFingerState finger_[kGloveFingers];
+  control::LowPass force_lp_[kGloveFingers];
+  control::LowPass rate_lp_[kGloveHallChannels];
+  float last_alpha_[kGloveHallChannels] = {};
+  bool primed_ = false;
+  int32_t last_raw_[kGloveHallChannels] = {};
+  uint16_t unchanged_ticks_[kGloveHallChannels] = {};
+  int32_t motion_since_[kGloveHallChannels] = {};
+  uint16_t overcurrent_ticks_[kGloveFingers] = {};
+  uint16_t tare_ticks_left_ = 0;
+  float tare_sum_[kGloveFingers] = {};
+};
+
+}  // namespace phalanx::apps

@@ -1,0 +1,32 @@
+#pragma once
+/// A simulated device: one firmware app together with the physical plant it drives, and the board size.
+/// Used by firmware-sim (real time, over a pty) and by the lockstep rig (in-process, virtual time).
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "phalanx/fw/app.h"
+#include "phalanx/sim/plant.h"
+
+namespace phalanx::fw_sim {
+
+struct SimDeviceOptions {
+  uint32_t seed = 1;
+  std::string scenario = "grasp";  ///< simulated user's motion: still|close-open|grasp|random
+  bool noise = true;
+};
+
+class SimDevice {
+ public:
+  virtual ~SimDevice() = default;
+  virtual fw::DeviceApp& app() = 0;
+  virtual sim::Plant& plant() = 0;
+  virtual uint8_t pwmCount() const = 0;
+  virtual uint8_t adcCount() const = 0;
+  virtual uint8_t encoderCount() const = 0;
+};
+
+/// name: glove5 | sea_finger | pantograph. Returns nullptr and sets error for an unknown or unbuilt device.
+std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDeviceOptions& options, std::string& error);
+
+}  // namespace phalanx::fw_sim

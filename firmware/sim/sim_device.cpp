@@ -1,0 +1,41 @@
+#include "phalanx/fw_sim/sim_device.h"
+
+#include <stdexcept>
+
+#include "phalanx/fw_sim/glove5_sim.h"
+
+namespace phalanx::fw_sim {
+bool parseHandScenario(const std::string& name, sim::HandScenario& out) {
+  if (name == "still") out = sim::HandScenario::kStill;
+  else if (name == "close-open") out = sim::HandScenario::kCloseOpen;
+  else if (name == "grasp") out = sim::HandScenario::kGrasp;
+  else if (name == "random") out = sim::HandScenario::kRandom;
+  else return false;
+  return true;
+}
+
+std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDeviceOptions& options, std::string& error) {
+  if (name == "glove5") {
+    sim::GlovePlantConfig cfg;
+    cfg.seed = options.seed;
+    cfg.noise = options.noise;
+    if (!parseHandScenario(options.scenario, cfg.scenario)) {
+      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random)";
+      return nullptr;
+    }
+    try {
+      return std::make_unique<Glove5SimDevice>(cfg);
+    } catch (const std::invalid_argument& e) {
+      error = std::string("glove plant configuration: ") + e.what();
+      return nullptr;
+    }
+  }
+  if (name == "sea_finger" || name == "pantograph") {
+    error = "the simulated " + name + " is not built yet (only glove5 is available)";
+    return nullptr;
+  }
+  error = "unknown device '" + name + "' (glove5, sea_finger, pantograph)";
+  return nullptr;
+}
+
+}  // namespace phalanx::fw_sim

@@ -1,0 +1,251 @@
+#pragma once
+/// Simulated physical plant of the RML five-finger haptic glove (Ma & Ben-Tzvi 2015, seeds/000) and of the
+/// hand wearing it. docs/glove-plant.md lists every constant with its source and what is not modelled.
+///
+/// Per finger, from the firmware's PWM duty to the ADC counts it reads back:
+///   H-bridge (duty × 9 V, current regulation) → FA-130 brushed DC motor (current from the averaged voltage,
+///   electrical time constant neglected) → 101:1 gearbox whose last stage is a self-locking worm (forward
+///   efficiency < 50 %, the load cannot back-drive it; beyond the passive limit of 35 N at the fingertip the
+///   locked worm slips) → spool winding an antagonistic tendon pair (release tendon wound by positive duty,
+///   grasp tendon unwound) → tendon + fingertip-pad compliance in series → capstan friction over the routing
+///   (glove/capstan.h, eq 15–16, wrap changing with α, direction from the sliding velocity) → joint torques
+///   τ_α = r·(T_release − T_grasp) on the massless glove linkage, which follows the finger (α = f(θ), eq 6–8)
+///   → wrench F = (J_α^u)^{-T} τ_α on the fingertip (eq 18) → finger joints τ_θ = (J_θ^u)ᵀ F.
+///   The finger has three joints with small inertia, passive stiffness/damping and soft range limits, and is
+///   driven by a "muscle" impedance towards the intended trajectory θ_d(t) of the hand scenario.
+///   Sensors: 15 Hall angles (of α), 5 pad strain gauges (force along glove::padNormal), 5 motor currents,
+///   as 12-bit counts through board.h's nominal transfers plus gain/offset/mounting errors, noise, drift,
+///   quantisation and saturation.
+///
+/// Sign conventions: board.h (positive duty → spool + → release tendon → finger opens → positive pad force
+/// along padNormal → positive current). Frames, θ/α conventions: glove/kinematics.h.
+///
+/// Real-time rules: no allocation after construction (all state in std::array), deterministic for a seed
+/// (noise from std::mt19937 with portable Box–Muller, scenario randomness from a second seeded stream).
+#include <array>
+#include <cstdint>
+#include <random>
+
+#include "phalanx/glove/board.h"
+#include "phalanx/glove/capstan.h"
+#include "phalanx/glove/kinematics.h"
+#include "phalanx/sim/plant.h"
+
+namespace phalanx::sim {
+
+/// Motion of the simulated hand (all five fingers, with per-finger phase and amplitude variation).
+enum class HandScenario : std::uint8_t {
+  kStill = 0,      ///< relaxed hand, constant intent
+  kCloseOpen = 1,  ///< full close/open maneuvers, 1 s each (raised cosine) + 0.5 s rest (paper §4.3)
+  kGrasp = 2,      ///< reach and squeeze: intent closes past any object, effort saturates at squeeze_force_N
+  kRandom = 3,     ///< band-limited random motion (seeded) within Table 2's ranges
+  kPush = 4,       ///< finger at the mid-grasp pose presses into the glove: push_force_N on the pad
+};
+
+/// Tendon/pulley friction condition (paper §4.2).
+enum class TendonLubrication : std::uint8_t {
+  kLubricated = 0,  ///< μ_L = 0.053
+  kDry = 1,         ///< μ_NL = 0.0631
+};
+
+/// Physical constants of the plant. Defaults are the documented model (docs/glove-plant.md gives each
+/// source); tests and studies may change them. SI units throughout.
+struct GlovePlantParams {
+  // Motor (FA-130 class) and gearbox. R, K_t, supply, bridge: board.h.
+  double rotor_inertia_kg_m2 = 1.2e-7;       ///< rotor + first spur gears, at the motor shaft
+  double motor_coulomb_friction_Nm = 2.0e-4;  ///< brushes + bearings (≈ K·0.15 A of the 0.2 A no-load current)
+  double motor_viscous_Nm_s_per_rad = 7.0e-8; ///< rest of the no-load current at 9100 rpm
+  double spur_efficiency = 0.87;              ///< spur stages before the worm (two stages at ≈ 0.93)
+  double worm_lead_rad = 0.06981317;          ///< 4°: single-start worm lead angle λ
+  double worm_friction_coeff = 0.08;          ///< steel worm on brass wheel, greased: ρ = atan μ = 4.6° > λ
+  double spool_inertia_kg_m2 = 2.0e-7;        ///< spool + worm wheel + shaft, at the spool
+  double worm_wheel_inertia_kg_m2 = 1.0e-7;   ///< worm wheel alone (only while the spool slips on it)
+  double slip_kinetic_fraction = 0.85;        ///< kinetic / static slip torque of the overloaded worm drive
+  // Tendon routing and compliance.
+  double pad_transmission_ref = 0.3;          ///< c_ref: pad normal force per N of tip tension at the ref pose
+  glove::Vec3<double> ref_pose_deg = {-45.0, -65.0, -45.0};  ///< θ_ref (mid-grasp) defining moment arms
+  double tendon_stiffness_N_per_m = 20000.0;  ///< Dyneema ≈ 0.25 m spool→tip incl. knots and spool wraps
+  double tendon_damping_N_s_per_m = 10.0;     ///< material damping of the tendon (only while taut)
+  double pretension_N = 1.0;                  ///< both tendons at rest
+  double pad_stiffness_N_per_m = 4000.0;      ///< fingertip pulp + fabric + Velcro, normal to the pad
+  double capstan_sliding_velocity_m_per_s = 1e-3;  ///< tanh regularisation of the sliding direction
+  // Finger (human) — index values; other fingers scale with their length (docs/glove-plant.md).
+  double phalanx_mass_per_length_kg_per_m = 0.25;              ///< ≈ 12 / 7 / 5 g for the index
+  glove::Vec3<double> muscle_stiffness_Nm_per_rad = {1.0, 0.5, 0.2};  ///< MCP, PIP, DIP (index)
+  double muscle_damping_ratio = 0.7;                             ///< of each joint's own mode
+  glove::Vec3<double> passive_stiffness_Nm_per_rad = {0.05, 0.03, 0.01};
+  glove::Vec3<double> rest_pose_deg = {-20.0, -30.0, -20.0};    ///< passive equilibrium (relaxed hand)
+  double passive_damping_Nm_s_per_rad = 0.002;
+  double limit_stiffness_Nm_per_rad = 3.0;                       ///< soft stop beyond Table 2's range
+  double limit_damping_Nm_s_per_rad = 0.01;
+  // Sensor imperfections (1σ). Noise terms only when GlovePlantConfig::noise.
+  double hall_noise_counts = 2.0;             ///< DRV5055-class output noise after a 1 kHz RC filter
+  double strain_noise_counts = 2.0;           ///< bridge + INA noise, ≈ 21 mN
+  double strain_drift_N = 0.05;               ///< stationary σ of the slow offset drift (Ornstein–Uhlenbeck)
+  double strain_drift_time_s = 30.0;          ///< correlation time of the drift
+  double current_noise_counts = 3.0;          ///< residual PWM ripple + amplifier noise, ≈ 5 mA
+  // Per-sensor calibration errors (1σ, clipped at 3σ). Only when GlovePlantConfig::calibration_errors.
+  double hall_gain_error = 0.015;             ///< DRV5055 sensitivity tolerance + magnet strength spread
+  double hall_offset_error_counts = 6.0;      ///< quiescent-voltage tolerance
+  double hall_angle_error_rad = 0.0087266;    ///< 0.5° magnet mounting angle
+  double strain_gain_error = 0.02;
+  double strain_offset_error_N = 0.15;        ///< bridge imbalance after assembly (tare removes it)
+  double current_gain_error = 0.01;
+  double current_offset_error_counts = 5.0;
+  // Integration.
+  double max_substep_s = 1e-4;                ///< internal step; step() subdivides dt_s
+};
+
+/// Plant configuration.
+struct GlovePlantConfig {
+  std::uint32_t seed = 1;                                  ///< noise, calibration errors and kRandom motion
+  TendonLubrication lubrication = TendonLubrication::kLubricated;
+  bool noise = true;               ///< sensor noise and strain drift; false: deterministic, noise-free counts
+  bool calibration_errors = true;  ///< per-sensor gain/offset/mounting errors (seeded)
+  std::array<bool, 5> finger_enabled = {true, true, true, true, true};  ///< false: finger not simulated, ADC 0
+  /// true: that finger's tendons are removed (paper §4.3 "without cabling"): the glove linkage is dragged
+  /// by the finger with no force, the motor spins unloaded.
+  std::array<bool, 5> cables_removed = {false, false, false, false, false};
+  HandScenario scenario = HandScenario::kStill;
+  double squeeze_force_N = 5.0;  ///< kGrasp: the finger's maximum effort, as a pad-normal force (N)
+  /// kPush: pad force (N, ≥ 0) the finger presses into the glove with (towards flexion at θ_ref), applied
+  /// along the direction the tendon constrains; the other two directions hold the θ_ref posture.
+  double push_force_N = 0.0;
+  double push_ramp_s = 0.5;      ///< kPush: linear ramp time of the push force (s)
+  GlovePlantParams params{};
+};
+
+/// Ground truth of one finger after the last step() (for tests and metrics; the firmware sees only counts).
+struct GloveFingerTruth {
+  glove::Vec3<double> theta_rad{};         ///< finger joint angles MCP, PIP, DIP (kinematics.h frame)
+  glove::Vec3<double> theta_dot_rad_s{};
+  glove::Vec3<double> theta_d_rad{};       ///< intended finger angles θ_d (scenario)
+  glove::Vec3<double> alpha_rad{};         ///< mechanism joint angles (what the Hall sensors measure)
+  glove::Vec3<double> O_u_tip{};           ///< fingertip pose (x m, y m, φ rad) in {O}
+  glove::Vec3<double> O_F_tip{};           ///< planar wrench glove → fingertip (f_x N, f_y N, m_z N·m) in {O}
+  double pad_force_N = 0;                  ///< component of O_F_tip along padNormal(φ) (+: towards extension)
+  double tension_release_spool_N = 0;      ///< release tendon, spool end
+  double tension_release_tip_N = 0;        ///< release tendon, link-3 end (after capstan friction)
+  double tension_grasp_spool_N = 0;
+  double tension_grasp_tip_N = 0;
+  double tendon_sliding_m_per_s = 0;       ///< release tendon sliding towards the spool (grasp: opposite)
+  double spool_angle_rad = 0;              ///< + winds the release tendon; 0 at construction
+  double spool_speed_rad_s = 0;
+  double motor_speed_rad_s = 0;            ///< at the motor shaft (= gear ratio × worm-wheel speed)
+  double motor_voltage_V = 0;              ///< averaged bridge output (0 when the bridge is off)
+  double motor_current_A = 0;
+  bool bridge_on = false;                  ///< pwm_enabled && drive_enable && !estop_pressed
+  bool worm_locked = true;                 ///< worm at rest, held by self-locking
+  bool worm_slipping = false;              ///< load beyond the passive limit: spool slips on the locked worm
+  bool kinematics_ok = true;               ///< false if α = f(θ) had no solution (last α kept)
+};
+
+/// Per-finger constants derived at construction (exposed for tests, docs and controller design).
+struct GloveFingerConstants {
+  glove::Model<double> model{};               ///< glove::defaultModel for this finger
+  glove::CapstanModel<double> capstan{};      ///< μ from the config, γ_c = 90°, α range from the model
+  glove::Vec3<double> moment_arm_m{};         ///< r_i: τ_α = r ∘ (T_release − T_grasp) at the tip
+  glove::Vec3<double> ref_theta_rad{};        ///< θ_ref where the tendon force is purely pad-normal
+  glove::Vec3<double> push_direction{};       ///< finger torques per N of net tension at θ_ref (N·m/N)
+  double series_stiffness_N_per_m = 0;        ///< tendon + pad, in tendon-length coordinates
+  double slip_torque_Nm = 0;                  ///< static slip torque at the spool (35 N at the pad at θ_ref)
+  glove::Vec3<double> inertia_kg_m2{};        ///< finger joint inertias (diagonal, extended posture)
+  glove::Vec3<double> muscle_stiffness_Nm_per_rad{};
+  glove::Vec3<double> muscle_damping_Nm_s_per_rad{};
+};
+
+/// The glove + hand plant. Writes ADC channels 0..24 of SimIo (board.h map); reads PWM 0..4, pwm_enabled,
+/// drive_enable and estop_pressed (the e-stop cuts the bridge supply in hardware, as on the real board).
+class GlovePlant final : public Plant {
+ public:
+  /// Throws std::invalid_argument for a non-finite or out-of-range configuration value.
+  explicit GlovePlant(const GlovePlantConfig& config = GlovePlantConfig{});
+
+  /// Advances the physics by dt_s (s, finite, > 0; subdivided into steps ≤ params.max_substep_s) using the
+  /// duty cycles in io, then samples all sensors into io.adc. Throws std::invalid_argument on a bad dt_s.
+  /// Does not allocate.
+  void step(double dt_s, SimIo& io) override;
+
+  /// Simulated time since construction (s).
+  double time_s() const { return time_s_; }
+  const GlovePlantConfig& config() const { return config_; }
+
+  const GloveFingerTruth& truth(int finger) const { return fingers_[idx(finger)].truth; }
+  const GloveFingerConstants& constants(int finger) const { return fingers_[idx(finger)].k; }
+
+  /// True finger angles θ (rad), velocities θ̇ (rad/s), mechanism angles α (rad).
+  const glove::Vec3<double>& theta_rad(int finger) const { return truth(finger).theta_rad; }
+  const glove::Vec3<double>& thetaDot_rad_s(int finger) const { return truth(finger).theta_dot_rad_s; }
+  const glove::Vec3<double>& alpha_rad(int finger) const { return truth(finger).alpha_rad; }
+  /// Spool angle (rad, + winds the release tendon), motor current (A), true pad normal force (N).
+  double spoolAngle_rad(int finger) const { return truth(finger).spool_angle_rad; }
+  double motorCurrent_A(int finger) const { return truth(finger).motor_current_A; }
+  double padForce_N(int finger) const { return truth(finger).pad_force_N; }
+  /// The simulated user's intended finger angles θ_d (rad) at the current time.
+  const glove::Vec3<double>& fingerIntent(int finger) const { return truth(finger).theta_d_rad; }
+
+  /// Current strain-gauge offset drift (N) — ground truth for tests of tare/drift handling.
+  double strainDrift_N(int finger) const { return fingers_[idx(finger)].strain_drift_N; }
+
+ private:
+  struct SensorErrors {
+    glove::Vec3<double> hall_gain{};          ///< relative
+    glove::Vec3<double> hall_offset_counts{};
+    glove::Vec3<double> hall_angle_rad{};
+    double strain_gain = 0;
+    double strain_offset_N = 0;
+    double current_gain = 0;
+    double current_offset_counts = 0;
+  };
+  /// kRandom: band-limited closure s(t) and per-joint perturbations (sums of sinusoids).
+  struct RandomMotion {
+    static constexpr int kClosureTerms = 4;
+    static constexpr int kJointTerms = 3;
+    std::array<double, kClosureTerms> closure_amp{}, closure_freq_hz{}, closure_phase_rad{};
+    std::array<std::array<double, kJointTerms>, 3> joint_amp_rad{}, joint_freq_hz{}, joint_phase_rad{};
+  };
+  struct Finger {
+    int index = 0;
+    bool enabled = true;
+    bool cables = true;
+    GloveFingerConstants k{};
+    SensorErrors err{};
+    RandomMotion random{};
+    double s_open = 0.1, s_closed = 0.85, s_still = 0.35, delay_s = 0;  ///< scenario shaping
+    // State.
+    glove::Vec3<double> theta{}, theta_dot{};
+    glove::Vec3<double> alpha0{};          ///< α at construction (tendon length reference)
+    glove::Vec3<double> alpha_last{};      ///< last α that the kinematics solved (fallback)
+    double worm_speed = 0;                 ///< worm-wheel speed (rad/s, spool coordinates)
+    double worm_angle = 0;
+    double spool_speed = 0;
+    double spool_angle = 0;
+    bool worm_stuck = true;
+    bool slipping = false;
+    double strain_drift_N = 0;
+    GloveFingerTruth truth{};
+  };
+
+  struct Eval;  // forces and accelerations of one finger at one instant (glove_plant.cpp)
+
+  static int idx(int finger);
+  void initFinger(Finger& f, int index, std::mt19937& calib_rng, std::mt19937& motion_rng);
+  void intent(const Finger& f, double t, glove::Vec3<double>& theta_d, glove::Vec3<double>& theta_d_dot) const;
+  double closureS(const Finger& f, double t, double& s_dot) const;
+  void evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const;
+  void integrate(Finger& f, const Eval& e, double h);
+  static void fillTruth(Finger& f, const Eval& e, bool bridge_on);
+  void sample(Finger& f, double dt_s, SimIo& io);
+  double gaussian();
+  static std::int32_t toCounts(double value);
+
+  GlovePlantConfig config_;
+  double mu_ = 0;
+  double worm_eff_forward_ = 0;   ///< η_w = tan λ / tan(λ + ρ)
+  double worm_eff_backward_ = 0;  ///< η_wb = tan(λ − ρ) / tan λ (< 0: self-locking)
+  double time_s_ = 0;
+  std::array<Finger, 5> fingers_{};
+  std::mt19937 noise_rng_;
+};
+
+}  // namespace phalanx::sim

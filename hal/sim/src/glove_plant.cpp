@@ -1,0 +1,647 @@
+#include "phalanx/sim/glove_plant.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace phalanx::sim {
+
+namespace {
+
+using glove::Mat3;
+using glove::Vec3;
+namespace board = glove::board;
+
+constexpr double kPi = glove::kPi<double>;
+constexpr double degToRad(double deg) { return deg * kPi / 180.0; }
+double sq(double x) { return x * x; }
+double sign(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+
+// ---- Hand motion: a one-parameter closure synergy θ(s) = open + s·(closed − open), s ∈ [0, 1] --------------
+// s = 0 is an open hand with slight MCP hyperextension, s = 1 a full fist, both inside Table 2's ranges
+// (MCP [-90, 30]°, PIP [-120, 0]°, DIP [-80, 0]°). Fingers flex their three joints together (the DIP–PIP
+// coupling of a free finger), which is how the §4.3 close/open maneuvers look.
+constexpr Vec3<double> kSynergyOpen_deg = {20.0, -2.0, -2.0};
+constexpr Vec3<double> kSynergyClosed_deg = {-85.0, -115.0, -75.0};
+// Per-finger variation (thumb, index, middle, ring, little): where "open" and "closed" sit on the synergy,
+// the relaxed posture of kStill, and the onset delay of each finger (a hand never moves as one block).
+constexpr std::array<double, 5> kOpenS = {0.12, 0.10, 0.10, 0.11, 0.13};
+constexpr std::array<double, 5> kClosedS = {0.80, 0.86, 0.88, 0.86, 0.83};
+constexpr std::array<double, 5> kStillS = {0.30, 0.33, 0.36, 0.38, 0.40};
+constexpr std::array<double, 5> kDelay_s = {0.0, 0.02, 0.04, 0.06, 0.08};
+// kCloseOpen timing (§4.3: "about 1 s for one full close/open maneuver", two maneuvers in ≈ 3 s).
+constexpr double kCloseOpenLeadIn_s = 0.5;
+constexpr double kManeuver_s = 1.0;
+constexpr double kCloseOpenPeriod_s = 1.5;
+// kGrasp timing: reach starts after 0.3 s and the intent reaches a full fist (s = 1) after 0.8 s.
+constexpr double kGraspStart_s = 0.3;
+constexpr double kGraspDuration_s = 0.8;
+constexpr double kGraspTargetS = 1.0;
+// kGrasp: the effort bound never drops below this joint torque, so the finger can still move freely.
+constexpr double kMinEffort_Nm = 0.005;
+// kRandom: closure s ∈ 0.5 ± 0.36, band 0.1–1.0 Hz; per-joint deviations ±8°, band 0.2–1.5 Hz.
+constexpr double kRandomCentreS = 0.5;
+constexpr double kRandomSpanS = 0.36;
+constexpr double kRandomJointSpan_rad = 8.0 * kPi / 180.0;
+
+double uniform01(std::mt19937& rng) {
+  return (static_cast<double>(rng()) + 0.5) * (1.0 / 4294967296.0);
+}
+double uniform(std::mt19937& rng, double lo, double hi) { return lo + (hi - lo) * uniform01(rng); }
+/// Portable standard normal (Box–Muller on mt19937 words: same numbers with every standard library).
+double normal(std::mt19937& rng) {
+  const double u1 = uniform01(rng);
+  const double u2 = uniform01(rng);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
+}
+double clippedNormal(std::mt19937& rng, double sigma) { return sigma * std::clamp(normal(rng), -3.0, 3.0); }
+
+bool finitePositive(double x) { return std::isfinite(x) && x > 0.0; }
+bool finiteNonNegative(double x) { return std::isfinite(x) && x >= 0.0; }
+
+void requireValid(bool ok, const char* what) {
+  if (!ok) throw std::invalid_argument(what);
+}
+
+void validate(const GlovePlantConfig& c) {
+  const GlovePlantParams& p = c.params;
+  requireValid(finitePositive(c.squeeze_force_N), "GlovePlantConfig: squeeze_force_N must be finite and > 0");
+  requireValid(finiteNonNegative(c.push_force_N), "GlovePlantConfig: push_force_N must be finite and >= 0");
+  requireValid(finitePositive(c.push_ramp_s), "GlovePlantConfig: push_ramp_s must be finite and > 0");
+  const double positive[] = {p.rotor_inertia_kg_m2, p.spur_efficiency, p.worm_lead_rad, p.worm_friction_coeff,
+                             p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.slip_kinetic_fraction,
+                             p.pad_transmission_ref, p.tendon_stiffness_N_per_m, p.pad_stiffness_N_per_m,
+                             p.capstan_sliding_velocity_m_per_s, p.phalanx_mass_per_length_kg_per_m,
+                             p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad,
+                             p.strain_drift_time_s, p.max_substep_s};
+  for (double v : positive) requireValid(finitePositive(v), "GlovePlantParams: a value that must be > 0 is not");
+  const double non_negative[] = {p.motor_coulomb_friction_Nm, p.motor_viscous_Nm_s_per_rad,
+                                 p.tendon_damping_N_s_per_m, p.pretension_N, p.passive_damping_Nm_s_per_rad,
+                                 p.limit_damping_Nm_s_per_rad, p.hall_noise_counts, p.strain_noise_counts,
+                                 p.strain_drift_N, p.current_noise_counts, p.hall_gain_error,
+                                 p.hall_offset_error_counts, p.hall_angle_error_rad, p.strain_gain_error,
+                                 p.strain_offset_error_N, p.current_gain_error, p.current_offset_error_counts};
+  for (double v : non_negative) requireValid(finiteNonNegative(v), "GlovePlantParams: a value must be >= 0");
+  for (std::size_t j = 0; j < 3; ++j) {
+    requireValid(finitePositive(p.muscle_stiffness_Nm_per_rad[j]), "GlovePlantParams: muscle stiffness");
+    requireValid(finiteNonNegative(p.passive_stiffness_Nm_per_rad[j]), "GlovePlantParams: passive stiffness");
+    requireValid(std::isfinite(p.ref_pose_deg[j]) && std::isfinite(p.rest_pose_deg[j]), "GlovePlantParams: pose");
+  }
+  requireValid(p.spur_efficiency <= 1.0 && p.slip_kinetic_fraction <= 1.0, "GlovePlantParams: efficiency > 1");
+  // Self-locking needs the lead angle below the friction angle (λ < ρ); the forward efficiency is then < 50 %.
+  requireValid(p.worm_lead_rad < std::atan(p.worm_friction_coeff), "GlovePlantParams: worm is not self-locking");
+}
+
+}  // namespace
+
+// Everything one evaluation of the finger's forces produces (state → forces, accelerations, truth).
+struct GlovePlant::Eval {
+  Vec3<double> theta_d{}, theta_d_dot{};
+  Vec3<double> alpha{}, u{}, F{}, tau{};
+  // Linearly implicit finger step: local joint stiffness/damping (diagonal) and the tendon's rank-1 terms
+  // along a = ∂q_m/∂θ (stiffness, material damping and the capstan friction's velocity dependence).
+  Vec3<double> k_diag{}, b_diag{}, a{};
+  double k_tendon = 0, b_tendon = 0;
+  bool kin_ok = true;
+  double pad_N = 0;
+  double tr_spool = 0, tr_tip = 0, tg_spool = 0, tg_tip = 0, sliding = 0;
+  double tau_load_Nm = 0;  // tendon torque on the spool, + turns it +
+  double voltage_V = 0, current_A = 0;
+};
+
+GlovePlant::GlovePlant(const GlovePlantConfig& config) : config_(config), noise_rng_(config.seed) {
+  validate(config_);
+  const GlovePlantParams& p = config_.params;
+  mu_ = config_.lubrication == TendonLubrication::kDry ? glove::kMuDry<double> : glove::kMuLubricated<double>;
+  const double rho = std::atan(p.worm_friction_coeff);
+  worm_eff_forward_ = std::tan(p.worm_lead_rad) / std::tan(p.worm_lead_rad + rho);
+  worm_eff_backward_ = std::tan(p.worm_lead_rad - rho) / std::tan(p.worm_lead_rad);
+  // Separate streams so that switching noise or calibration errors never changes the hand's motion.
+  std::mt19937 calib_rng(config_.seed ^ 0x9E3779B9u);
+  std::mt19937 motion_rng(config_.seed ^ 0x7F4A7C15u);
+  for (int i = 0; i < board::kFingerCount; ++i) initFinger(fingers_[i], i, calib_rng, motion_rng);
+}
+
+int GlovePlant::idx(int finger) {
+  if (finger < 0 || finger >= board::kFingerCount) throw std::out_of_range("GlovePlant: finger index 0..4");
+  return finger;
+}
+
+void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::mt19937& motion_rng) {
+  const GlovePlantParams& p = config_.params;
+  f.index = index;
+  f.enabled = config_.finger_enabled[index];
+  f.cables = !config_.cables_removed[index];
+  GloveFingerConstants& k = f.k;
+  k.model = glove::defaultModel<double>(static_cast<glove::FingerId>(index));
+  k.capstan = glove::makeCapstanModel(k.model.mech, mu_);
+
+  // Moment arms. A tendon over constant-radius pulleys gives joint torques τ_α = r·T; through the rigid
+  // fingertip strap (paper §3.1) that is the tip wrench (J_α^u)^{-T} r T. r is chosen so that at the
+  // mid-grasp pose θ_ref this wrench is a pure pad-normal force c_ref·T (the §3.4 design intent,
+  // τ_i = a_2i f_y): r = c_ref·(J_α^u)ᵀ n. Away from θ_ref the same r also gives tangential force and a
+  // moment, and the normal transmission drops (to ≈ 0.07 at the open and closed ends of the synergy).
+  for (std::size_t j = 0; j < 3; ++j) k.ref_theta_rad[j] = degToRad(p.ref_pose_deg[j]);
+  Vec3<double> alpha_ref{};
+  if (!glove::isUsable(glove::alphaFromTheta(k.model, k.ref_theta_rad, alpha_ref))) {
+    throw std::invalid_argument("GlovePlantParams: ref_pose_deg is not reachable by the glove mechanism");
+  }
+  const Mat3<double> Ja_ref = glove::jacobianAlphaU(k.model.mech, alpha_ref);
+  const Vec3<double> n_ref = glove::padNormal(glove::tipPoseFromTheta(k.model.finger, k.ref_theta_rad)[2]);
+  k.moment_arm_m = glove::mulTransposed(Ja_ref, n_ref);
+  for (double& r : k.moment_arm_m) r *= p.pad_transmission_ref;
+  // Finger torques per unit net tendon tension at θ_ref: a_ref = (J_θ^u)ᵀ (J_α^u)^{-T} r = c_ref·(J_θ^u)ᵀ n.
+  const Vec3<double> Jtn_ref =
+      glove::mulTransposed(glove::jacobianThetaU(k.model.finger, k.ref_theta_rad), n_ref);
+  for (std::size_t j = 0; j < 3; ++j) k.push_direction[j] = p.pad_transmission_ref * Jtn_ref[j];
+
+  // Tendon and pad in series. The pad deflects δ = F/k_pad; seen along the tendon that is c·δ = c²T/k_pad.
+  k.series_stiffness_N_per_m =
+      1.0 / (1.0 / p.tendon_stiffness_N_per_m + sq(p.pad_transmission_ref) / p.pad_stiffness_N_per_m);
+  // Passive limit (§2.2): 35 N at the pad at θ_ref ⇒ tendon tension 35/c_ref at the spool radius.
+  k.slip_torque_Nm = static_cast<double>(board::kPassiveHoldForce_N) * static_cast<double>(board::kSpoolRadius_m) /
+                     p.pad_transmission_ref;
+
+  // Finger: phalanx masses ∝ length; diagonal joint inertias in the extended posture (upper bound).
+  const std::array<double, 3> len = {k.model.finger.p1_m, k.model.finger.p2_m, k.model.finger.p3_m};
+  for (std::size_t j = 0; j < 3; ++j) {
+    double inertia = 0.0;
+    double dist = 0.0;  // from joint j to the start of segment s
+    for (std::size_t s = j; s < 3; ++s) {
+      const double m = p.phalanx_mass_per_length_kg_per_m * len[s];
+      inertia += m * sq(len[s]) / 12.0 + m * sq(dist + 0.5 * len[s]);
+      dist += len[s];
+    }
+    k.inertia_kg_m2[j] = inertia;
+  }
+  // Muscle impedance: index values scaled by (finger length / index length)² so every fingertip has about
+  // the same stiffness (fingertip stiffness ≈ K / L²).
+  const glove::Model<double> index_model = glove::defaultModel<double>(glove::FingerId::kIndex);
+  const double l_index = index_model.finger.p1_m + index_model.finger.p2_m + index_model.finger.p3_m;
+  const double scale = sq((len[0] + len[1] + len[2]) / l_index);
+  for (std::size_t j = 0; j < 3; ++j) {
+    k.muscle_stiffness_Nm_per_rad[j] = p.muscle_stiffness_Nm_per_rad[j] * scale;
+    k.muscle_damping_Nm_s_per_rad[j] =
+        2.0 * p.muscle_damping_ratio * std::sqrt(k.muscle_stiffness_Nm_per_rad[j] * k.inertia_kg_m2[j]);
+  }
+
+  // Scenario shaping.
+  f.s_open = kOpenS[index];
+  f.s_closed = kClosedS[index];
+  f.s_still = kStillS[index];
+  f.delay_s = kDelay_s[index];
+  RandomMotion& rm = f.random;
+  for (int i = 0; i < RandomMotion::kClosureTerms; ++i) {
+    rm.closure_amp[i] = uniform(motion_rng, 0.5, 1.0);
+    rm.closure_freq_hz[i] = uniform(motion_rng, 0.1, 1.0);
+    rm.closure_phase_rad[i] = uniform(motion_rng, 0.0, 2.0 * kPi);
+  }
+  for (std::size_t j = 0; j < 3; ++j) {
+    for (int i = 0; i < RandomMotion::kJointTerms; ++i) {
+      rm.joint_amp_rad[j][i] = uniform(motion_rng, 0.5, 1.0);
+      rm.joint_freq_hz[j][i] = uniform(motion_rng, 0.2, 1.5);
+      rm.joint_phase_rad[j][i] = uniform(motion_rng, 0.0, 2.0 * kPi);
+    }
+  }
+
+  // Per-sensor calibration errors: always drawn (keeps the stream aligned), applied only when enabled.
+  const double on = config_.calibration_errors ? 1.0 : 0.0;
+  for (std::size_t j = 0; j < 3; ++j) {
+    f.err.hall_gain[j] = on * clippedNormal(calib_rng, p.hall_gain_error);
+    f.err.hall_offset_counts[j] = on * clippedNormal(calib_rng, p.hall_offset_error_counts);
+    f.err.hall_angle_rad[j] = on * clippedNormal(calib_rng, p.hall_angle_error_rad);
+  }
+  f.err.strain_gain = on * clippedNormal(calib_rng, p.strain_gain_error);
+  f.err.strain_offset_N = on * clippedNormal(calib_rng, p.strain_offset_error_N);
+  f.err.current_gain = on * clippedNormal(calib_rng, p.current_gain_error);
+  f.err.current_offset_counts = on * clippedNormal(calib_rng, p.current_offset_error_counts);
+
+  // Initial state: the finger at its intent, the tendons at their pretension, worm at rest and locked.
+  Vec3<double> theta_d{}, theta_d_dot{};
+  intent(f, 0.0, theta_d, theta_d_dot);
+  f.theta = theta_d;
+  f.theta_dot = theta_d_dot;
+  if (!glove::isUsable(glove::alphaFromTheta(k.model, f.theta, f.alpha0))) {
+    throw std::invalid_argument("GlovePlant: initial finger pose not reachable by the glove mechanism");
+  }
+  f.alpha_last = f.alpha0;
+  Eval e{};
+  evaluate(f, 0.0, 0.0, false, e);
+  fillTruth(f, e, false);
+}
+
+double GlovePlant::closureS(const Finger& f, double t, double& s_dot) const {
+  s_dot = 0.0;
+  switch (config_.scenario) {
+    case HandScenario::kCloseOpen: {
+      const double t0 = t - kCloseOpenLeadIn_s - f.delay_s;
+      if (t0 < 0.0) return f.s_open;
+      const double phase = std::fmod(t0, kCloseOpenPeriod_s);
+      if (phase >= kManeuver_s) return f.s_open;
+      // Raised cosine: open → closed → open in kManeuver_s, zero velocity at both ends.
+      const double w = 2.0 * kPi / kManeuver_s;
+      s_dot = (f.s_closed - f.s_open) * 0.5 * w * std::sin(w * phase);
+      return f.s_open + (f.s_closed - f.s_open) * 0.5 * (1.0 - std::cos(w * phase));
+    }
+    case HandScenario::kGrasp: {
+      const double t0 = t - kGraspStart_s - f.delay_s;
+      if (t0 <= 0.0) return f.s_open;
+      const double tau = std::min(1.0, t0 / kGraspDuration_s);
+      // Minimum-jerk reach towards a full fist: an object in the way stops the finger, not the intent.
+      const double shape = tau * tau * tau * (10.0 - 15.0 * tau + 6.0 * tau * tau);
+      const double shape_dot = 30.0 * tau * tau * (1.0 - tau) * (1.0 - tau) / kGraspDuration_s;
+      s_dot = tau < 1.0 ? (kGraspTargetS - f.s_open) * shape_dot : 0.0;
+      return f.s_open + (kGraspTargetS - f.s_open) * shape;
+    }
+    case HandScenario::kRandom: {
+      const RandomMotion& rm = f.random;
+      double sum = 0.0, sum_dot = 0.0, norm = 0.0;
+      for (int i = 0; i < RandomMotion::kClosureTerms; ++i) {
+        const double w = 2.0 * kPi * rm.closure_freq_hz[i];
+        sum += rm.closure_amp[i] * std::sin(w * t + rm.closure_phase_rad[i]);
+        sum_dot += rm.closure_amp[i] * w * std::cos(w * t + rm.closure_phase_rad[i]);
+        norm += rm.closure_amp[i];
+      }
+      s_dot = kRandomSpanS * sum_dot / norm;
+      return kRandomCentreS + kRandomSpanS * sum / norm;
+    }
+    case HandScenario::kStill:
+    case HandScenario::kPush:
+    default:
+      return f.s_still;
+  }
+}
+
+void GlovePlant::intent(const Finger& f, double t, Vec3<double>& theta_d, Vec3<double>& theta_d_dot) const {
+  const glove::FingerGeometry<double>& g = f.k.model.finger;
+  if (config_.scenario == HandScenario::kPush) {
+    theta_d = f.k.ref_theta_rad;
+    theta_d_dot = {0.0, 0.0, 0.0};
+    return;
+  }
+  double s_dot = 0.0;
+  const double s = closureS(f, t, s_dot);
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double span = degToRad(kSynergyClosed_deg[j] - kSynergyOpen_deg[j]);
+    theta_d[j] = degToRad(kSynergyOpen_deg[j]) + s * span;
+    theta_d_dot[j] = s_dot * span;
+    if (config_.scenario == HandScenario::kRandom) {
+      const RandomMotion& rm = f.random;
+      double sum = 0.0, sum_dot = 0.0, norm = 0.0;
+      for (int i = 0; i < RandomMotion::kJointTerms; ++i) {
+        const double w = 2.0 * kPi * rm.joint_freq_hz[j][i];
+        sum += rm.joint_amp_rad[j][i] * std::sin(w * t + rm.joint_phase_rad[j][i]);
+        sum_dot += rm.joint_amp_rad[j][i] * w * std::cos(w * t + rm.joint_phase_rad[j][i]);
+        norm += rm.joint_amp_rad[j][i];
+      }
+      theta_d[j] += kRandomJointSpan_rad * sum / norm;
+      theta_d_dot[j] += kRandomJointSpan_rad * sum_dot / norm;
+    }
+    if (theta_d[j] < g.theta_min_rad[j] || theta_d[j] > g.theta_max_rad[j]) {
+      theta_d[j] = std::clamp(theta_d[j], g.theta_min_rad[j], g.theta_max_rad[j]);
+      theta_d_dot[j] = 0.0;
+    }
+  }
+}
+
+void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const {
+  const GlovePlantParams& p = config_.params;
+  const GloveFingerConstants& k = f.k;
+  intent(f, t, e.theta_d, e.theta_d_dot);
+
+  // Kinematics: the massless glove follows the finger through the closure α = f(θ) (eq 6–8).
+  e.kin_ok = glove::isUsable(glove::alphaFromTheta(k.model, f.theta, e.alpha));
+  if (!e.kin_ok) e.alpha = f.alpha_last;
+  const Mat3<double> Jt = glove::jacobianThetaU(k.model.finger, f.theta);
+  const Mat3<double> Ja = glove::jacobianAlphaU(k.model.mech, e.alpha);
+  Mat3<double> Ja_inv{};
+  // |det J_α^u| = l1 l2 |sin α2| ≥ ~1e-3 m² over the working range (eq 24); 1e-9 only guards a singularity.
+  const bool ja_ok = glove::invert(Ja, 1e-9, Ja_inv) == glove::Status::kOk;
+  const Vec3<double> u_dot = glove::mul(Jt, f.theta_dot);
+  const Vec3<double> alpha_dot = ja_ok ? glove::mul(Ja_inv, u_dot) : Vec3<double>{0.0, 0.0, 0.0};
+  e.u = glove::tipPoseFromTheta(k.model.finger, f.theta);
+  const Vec3<double> n = glove::padNormal(e.u[2]);
+
+  // Tendons. q_m: shortening of the release path (= lengthening of the grasp path) since construction;
+  // q_s: release tendon wound on the spool (the grasp tendon is unwound by the same length).
+  e.tr_spool = e.tr_tip = e.tg_spool = e.tg_tip = e.sliding = 0.0;
+  e.b_tendon = 0.0;
+  if (f.cables) {
+    double q_m = 0.0, q_m_dot = 0.0;
+    for (std::size_t j = 0; j < 3; ++j) {
+      q_m += k.moment_arm_m[j] * (e.alpha[j] - f.alpha0[j]);
+      q_m_dot += k.moment_arm_m[j] * alpha_dot[j];
+    }
+    const double r_s = static_cast<double>(board::kSpoolRadius_m);
+    const double q_s = r_s * f.spool_angle;
+    const double q_s_dot = r_s * f.spool_speed;
+    const double e_pre = p.pretension_N / k.series_stiffness_N_per_m;
+    const double stretch_r = e_pre + q_s - q_m;
+    const double stretch_g = e_pre - q_s + q_m;
+    const double rate_r = q_s_dot - q_m_dot;
+    auto tension = [&](double stretch, double rate) {
+      if (stretch <= 0.0) return 0.0;  // slack: a tendon cannot push
+      return std::max(0.0, k.series_stiffness_N_per_m * stretch + p.tendon_damping_N_s_per_m * rate);
+    };
+    e.tr_spool = tension(stretch_r, rate_r);
+    e.tg_spool = tension(stretch_g, -rate_r);
+    // Sliding over the pulleys, release tendon towards the spool: its spool end moves at q̇_s, its tip end
+    // (relative to the routing) at q̇_m; the pulleys in between see about the mean. The grasp tendon slides
+    // the opposite way. Eq 15: the end the tendon slides towards is F1 (the higher tension), so the tip
+    // tension is T_spool·e^{-μγ} when the spool pulls and T_spool·e^{+μγ} when the finger pulls; tanh blends
+    // through zero velocity (no stiction is modelled, §4.2 considers kinetic friction only).
+    e.sliding = 0.5 * (q_s_dot + q_m_dot);
+    const double w = std::tanh(e.sliding / p.capstan_sliding_velocity_m_per_s);
+    const double mu_gamma_r = mu_ * glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, e.alpha);
+    const double mu_gamma_g = mu_ * glove::wrapAngle_rad(k.capstan, glove::Tendon::kGrasp, e.alpha);
+    e.tr_tip = e.tr_spool * std::exp(-w * mu_gamma_r);
+    e.tg_tip = e.tg_spool * std::exp(w * mu_gamma_g);
+    // ∂(T_r,tip − T_g,tip)/∂q̇_m: the regularised friction acts as a (large, positive) damping near v = 0.
+    e.b_tendon = (e.tr_tip * mu_gamma_r + e.tg_tip * mu_gamma_g) * (1.0 - w * w) /
+                 (2.0 * p.capstan_sliding_velocity_m_per_s);
+  }
+  const double net_tip = e.tr_tip - e.tg_tip;
+  // Massless linkage in equilibrium: τ_α = (J_α^u)ᵀ F (eq 18) ⇒ F = (J_α^u)^{-T} τ_α, applied to the finger.
+  // Per unit net tip tension: F₁ = (J_α^u)^{-T} r, pad transmission c_n = n·F₁, finger torques
+  // a = (J_θ^u)ᵀ F₁ = ∂q_m/∂θ (eq 12 chain: the tendon constrains the finger along a only).
+  const Vec3<double> F_unit = ja_ok ? glove::mulTransposed(Ja_inv, k.moment_arm_m) : Vec3<double>{0.0, 0.0, 0.0};
+  const Vec3<double> a = glove::mulTransposed(Jt, F_unit);
+  const double c_n = n[0] * F_unit[0] + n[1] * F_unit[1];
+  for (std::size_t j = 0; j < 3; ++j) e.F[j] = F_unit[j] * net_tip;
+  e.pad_N = c_n * net_tip;
+
+  // Finger: muscle impedance towards θ_d (with the passive torque at θ_d fed forward, as the CNS does),
+  // passive stiffness/damping, soft range limits, and the glove.
+  const glove::FingerGeometry<double>& g = k.model.finger;
+  Vec3<double> tau_muscle{};
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double rest = degToRad(p.rest_pose_deg[j]);
+    tau_muscle[j] = k.muscle_stiffness_Nm_per_rad[j] * (e.theta_d[j] - f.theta[j]) +
+                    k.muscle_damping_Nm_s_per_rad[j] * (e.theta_d_dot[j] - f.theta_dot[j]) +
+                    p.passive_stiffness_Nm_per_rad[j] * (e.theta_d[j] - rest);
+  }
+  if (config_.scenario == HandScenario::kGrasp) {
+    // Effort saturates at the squeeze force: the joint torques a pad-normal force of that size needs.
+    const Vec3<double> Jtn = glove::mulTransposed(Jt, n);
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double limit = std::fabs(Jtn[j]) * config_.squeeze_force_N + kMinEffort_Nm;
+      tau_muscle[j] = std::clamp(tau_muscle[j], -limit, limit);
+    }
+  } else if (config_.scenario == HandScenario::kPush) {
+    // The finger presses into the glove along the direction the tendon constrains at θ_ref (a_ref, where
+    // it is exactly the pad normal), with the tension that puts push_force_N on the pad there, and holds
+    // its posture (muscle + passive torque projected off a_ref) in the two directions the tendon leaves
+    // free. A fixed direction keeps the push from chasing the transmission as the finger yields.
+    const Vec3<double>& a_ref = k.push_direction;
+    const double aa = a_ref[0] * a_ref[0] + a_ref[1] * a_ref[1] + a_ref[2] * a_ref[2];
+    Vec3<double> posture = tau_muscle;
+    for (std::size_t j = 0; j < 3; ++j) {
+      posture[j] -= p.passive_stiffness_Nm_per_rad[j] * (f.theta[j] - degToRad(p.rest_pose_deg[j]));
+    }
+    const double along = (a_ref[0] * posture[0] + a_ref[1] * posture[1] + a_ref[2] * posture[2]) / aa;
+    const double push_N = config_.push_force_N * std::min(1.0, t / config_.push_ramp_s);
+    for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= a_ref[j] * (along + push_N / p.pad_transmission_ref);
+  }
+  const double taut = (e.tr_spool > 0.0 ? 1.0 : 0.0) + (e.tg_spool > 0.0 ? 1.0 : 0.0);
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double rest = degToRad(p.rest_pose_deg[j]);
+    const double kp = p.passive_stiffness_Nm_per_rad[j];
+    const double tau_passive = -kp * (f.theta[j] - rest) - p.passive_damping_Nm_s_per_rad * f.theta_dot[j];
+    double tau_limit = 0.0;
+    double k_limit = 0.0, b_limit = 0.0;
+    const double over = f.theta[j] > g.theta_max_rad[j]   ? f.theta[j] - g.theta_max_rad[j]
+                        : f.theta[j] < g.theta_min_rad[j] ? f.theta[j] - g.theta_min_rad[j]
+                                                           : 0.0;
+    if (over != 0.0) {
+      k_limit = p.limit_stiffness_Nm_per_rad;
+      b_limit = p.limit_damping_Nm_s_per_rad;
+      tau_limit = -k_limit * over - b_limit * f.theta_dot[j];
+    }
+    e.tau[j] = tau_muscle[j] + tau_passive + tau_limit + a[j] * net_tip;
+    e.k_diag[j] = k.muscle_stiffness_Nm_per_rad[j] + kp + k_limit;
+    e.b_diag[j] = k.muscle_damping_Nm_s_per_rad[j] + p.passive_damping_Nm_s_per_rad + b_limit;
+  }
+  e.a = a;
+  e.k_tendon = taut * k.series_stiffness_N_per_m;
+  e.b_tendon += taut * p.tendon_damping_N_s_per_m;
+
+  // Tendon torque on the spool: the release tendon pulls it back (−), the grasp tendon forward (+).
+  e.tau_load_Nm = -static_cast<double>(board::kSpoolRadius_m) * (e.tr_spool - e.tg_spool);
+
+  // Motor: averaged bridge voltage; the electrical time constant (≈ 0.1 ms) is neglected at these steps.
+  const double gear = static_cast<double>(board::kGearRatio);
+  const double kt = static_cast<double>(board::kMotorTorqueConstant_Nm_per_A);
+  e.voltage_V = bridge_on ? duty * static_cast<double>(board::kSupply_V) : 0.0;
+  if (bridge_on) {
+    const double r_total =
+        static_cast<double>(board::kMotorResistance_Ohm) + static_cast<double>(board::kBridgeOnResistance_Ohm);
+    const double limit = static_cast<double>(board::kBridgeCurrentLimit_A);
+    e.current_A = std::clamp((e.voltage_V - kt * gear * f.worm_speed) / r_total, -limit, limit);
+  } else {
+    // Bridge off: motor terminals open. No current can flow because the self-locking worm never lets the
+    // load spin the motor fast enough to forward-bias the bridge's body diodes.
+    e.current_A = 0.0;
+  }
+}
+
+void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
+  const GlovePlantParams& p = config_.params;
+  const double gear = static_cast<double>(board::kGearRatio);
+  const double kt = static_cast<double>(board::kMotorTorqueConstant_Nm_per_A);
+
+  // ---- Worm drive. Spool coordinates: ω is the worm-wheel speed, torques are referred to the wheel.
+  // Mesh with lead λ and friction angle ρ: steady motion in direction s against a load Q (torque opposing
+  // +rotation) needs the (ideal-ratio) input torque Q·g, with g = 1/η_w when the worm drives the load
+  // (Q·s > 0) and g = η_wb = tan(λ−ρ)/tan λ < 0 when the load would drive it: then the motor must still
+  // push along the motion — the load can never back-drive the motor (self-locking). With inertias:
+  //   ω̇ = (τ_in + g·τ_load) / (J_in + g·J_load).
+  const double tau_in = gear * p.spur_efficiency * kt * e.current_A;
+  const double tau_coulomb_in = gear * p.spur_efficiency * p.motor_coulomb_friction_Nm;
+  const double j_in = sq(gear) * p.rotor_inertia_kg_m2;
+  // While the spool slips on the locked worm the wheel feels the kinetic slip torque instead of the tendons.
+  const double slip_kinetic = p.slip_kinetic_fraction * f.k.slip_torque_Nm;
+  double slip_dir = 0.0;
+  if (f.slipping) {
+    slip_dir = sign(f.spool_speed - f.worm_speed);
+    if (slip_dir == 0.0) slip_dir = sign(e.tau_load_Nm);
+  }
+  const double tau_load = f.slipping ? slip_dir * slip_kinetic : e.tau_load_Nm;
+  const double j_load = f.slipping ? p.worm_wheel_inertia_kg_m2 : p.spool_inertia_kg_m2;
+  const double q = -tau_load;
+  const double eta_f = worm_eff_forward_;
+  const double eta_b = worm_eff_backward_;
+  double worm_acc = 0.0;
+  double dir = 0.0;
+  if (f.worm_stuck) {
+    // Break-away thresholds of the input torque for + and − motion (Coulomb friction of the motor added).
+    const double thr_pos = q > 0.0 ? q / eta_f : q * eta_b;
+    const double thr_neg = q > 0.0 ? q * eta_b : q / eta_f;
+    if (tau_in - tau_coulomb_in > thr_pos) {
+      dir = 1.0;
+    } else if (tau_in + tau_coulomb_in < thr_neg) {
+      dir = -1.0;
+    }
+    if (dir != 0.0) f.worm_stuck = false;
+  } else {
+    dir = sign(f.worm_speed);
+  }
+  if (!f.worm_stuck) {
+    const double g = q * dir >= 0.0 ? 1.0 / eta_f : eta_b;
+    const double tau_net = tau_in - dir * tau_coulomb_in -
+                           gear * p.spur_efficiency * p.motor_viscous_Nm_s_per_rad * gear * f.worm_speed;
+    worm_acc = (tau_net + g * tau_load) / (j_in + g * j_load);
+    const double next = f.worm_speed + h * worm_acc;
+    if (next * dir <= 0.0) {
+      // Came to rest within the step: the worm locks; the next step decides whether it breaks away again.
+      f.worm_speed = 0.0;
+      f.worm_stuck = true;
+      worm_acc = 0.0;
+    } else {
+      f.worm_speed = next;
+    }
+  }
+  f.worm_angle += h * f.worm_speed;
+
+  // ---- Spool on the worm wheel: rigidly held unless the tendon torque exceeds the passive limit (§2.2).
+  if (!f.slipping) {
+    const double clutch_torque = p.spool_inertia_kg_m2 * worm_acc - e.tau_load_Nm;
+    if (std::fabs(clutch_torque) > f.k.slip_torque_Nm) {
+      f.slipping = true;
+      slip_dir = sign(e.tau_load_Nm);
+    } else {
+      f.spool_speed = f.worm_speed;
+      f.spool_angle += h * f.spool_speed;
+    }
+  }
+  if (f.slipping) {
+    const double acc = (e.tau_load_Nm - slip_dir * slip_kinetic) / p.spool_inertia_kg_m2;
+    const double next = f.spool_speed + h * acc;
+    if ((next - f.worm_speed) * slip_dir <= 0.0 && std::fabs(e.tau_load_Nm) <= f.k.slip_torque_Nm) {
+      f.slipping = false;  // relative motion stopped and the load is back within the limit: grips again
+      f.spool_speed = f.worm_speed;
+    } else {
+      f.spool_speed = next;
+    }
+    f.spool_angle += h * f.spool_speed;
+  }
+
+  // ---- Finger: linearly implicit Euler, (M + h·B + h²·K)·Δθ̇ = h·τ, then θ += h·θ̇, with B and K the
+  // diagonal local joint terms plus the tendon's rank-1 terms c·a·aᵀ (solved exactly by Sherman–Morrison).
+  // The distal joint has ≈ 1e-6 kg·m² against tendon/limit stiffnesses of N·m/rad and the capstan
+  // friction's steep velocity dependence, which an explicit step at 0.1 ms would not keep stable.
+  Vec3<double> y{}, z{};
+  double ay = 0.0, az = 0.0;
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double m = f.k.inertia_kg_m2[j] + h * e.b_diag[j] + h * h * e.k_diag[j];
+    y[j] = h * e.tau[j] / m;
+    z[j] = e.a[j] / m;
+    ay += e.a[j] * y[j];
+    az += e.a[j] * z[j];
+  }
+  const double c = h * e.b_tendon + h * h * e.k_tendon;
+  const double corr = c * ay / (1.0 + c * az);
+  for (std::size_t j = 0; j < 3; ++j) {
+    f.theta_dot[j] += y[j] - z[j] * corr;
+    f.theta[j] += h * f.theta_dot[j];
+  }
+  if (e.kin_ok) f.alpha_last = e.alpha;
+}
+
+void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
+  GloveFingerTruth& t = f.truth;
+  t.theta_rad = f.theta;
+  t.theta_dot_rad_s = f.theta_dot;
+  t.theta_d_rad = e.theta_d;
+  t.alpha_rad = e.alpha;
+  t.O_u_tip = e.u;
+  t.O_F_tip = e.F;
+  t.pad_force_N = e.pad_N;
+  t.tension_release_spool_N = e.tr_spool;
+  t.tension_release_tip_N = e.tr_tip;
+  t.tension_grasp_spool_N = e.tg_spool;
+  t.tension_grasp_tip_N = e.tg_tip;
+  t.tendon_sliding_m_per_s = e.sliding;
+  t.spool_angle_rad = f.spool_angle;
+  t.spool_speed_rad_s = f.spool_speed;
+  t.motor_speed_rad_s = static_cast<double>(board::kGearRatio) * f.worm_speed;
+  t.motor_voltage_V = e.voltage_V;
+  t.motor_current_A = e.current_A;
+  t.bridge_on = bridge_on;
+  t.worm_locked = f.worm_stuck;
+  t.worm_slipping = f.slipping;
+  t.kinematics_ok = e.kin_ok;
+}
+
+double GlovePlant::gaussian() { return normal(noise_rng_); }
+
+std::int32_t GlovePlant::toCounts(double value) {
+  const double clamped = std::clamp(value, 0.0, static_cast<double>(board::kAdcMaxCounts));
+  return static_cast<std::int32_t>(std::lround(clamped));
+}
+
+void GlovePlant::sample(Finger& f, double dt_s, SimIo& io) {
+  const GlovePlantParams& p = config_.params;
+  const int i = f.index;
+  if (!f.enabled) {
+    for (int j = 0; j < board::kJointsPerFinger; ++j) io.adc[board::hallAdcChannel(i, j)] = 0;
+    io.adc[board::strainAdcChannel(i)] = 0;
+    io.adc[board::currentAdcChannel(i)] = 0;
+    return;
+  }
+  const bool noise = config_.noise;
+  // Hall sensors: the board.h nominal curve with this part's gain/offset/mounting errors, noise, 12 bits.
+  const double amp = static_cast<double>(board::kHallAmplitude_counts);
+  const double h3 = static_cast<double>(board::kHallThirdHarmonic);
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double kappa = static_cast<double>(board::kHallHalfFieldAngle_rad) /
+                         static_cast<double>(board::kHallHalfRange_rad[j]);
+    const double x = kappa * (f.truth.alpha_rad[j] + f.err.hall_angle_rad[j] -
+                              static_cast<double>(board::kHallCentre_rad[j]));
+    double v = static_cast<double>(board::kAdcMidCounts) + f.err.hall_offset_counts[j] +
+               amp * (1.0 + f.err.hall_gain[j]) * (std::sin(x) - h3 * std::sin(3.0 * x));
+    if (noise) v += p.hall_noise_counts * gaussian();
+    io.adc[board::hallAdcChannel(i, static_cast<int>(j))] = toCounts(v);
+  }
+  // Strain gauge: slow offset drift (exact Ornstein–Uhlenbeck update), noise, amplifier clamp at ±full scale.
+  if (noise) {
+    const double a = std::exp(-dt_s / p.strain_drift_time_s);
+    f.strain_drift_N = a * f.strain_drift_N + p.strain_drift_N * std::sqrt(1.0 - a * a) * gaussian();
+  }
+  const double cpn = static_cast<double>(board::kStrainCountsPerNewton);
+  double s = static_cast<double>(board::kStrainZeroCounts) +
+             cpn * ((1.0 + f.err.strain_gain) * f.truth.pad_force_N + f.err.strain_offset_N + f.strain_drift_N);
+  if (noise) s += p.strain_noise_counts * gaussian();
+  s = std::clamp(s, static_cast<double>(board::kStrainMinCounts), static_cast<double>(board::kStrainMaxCounts));
+  io.adc[board::strainAdcChannel(i)] = toCounts(s);
+  // Current sense.
+  double c = static_cast<double>(board::kCurrentZeroCounts) + f.err.current_offset_counts +
+             static_cast<double>(board::kCurrentCountsPerAmp) * (1.0 + f.err.current_gain) * f.truth.motor_current_A;
+  if (noise) c += p.current_noise_counts * gaussian();
+  io.adc[board::currentAdcChannel(i)] = toCounts(c);
+}
+
+void GlovePlant::step(double dt_s, SimIo& io) {
+  // 1 s bounds the work of one call (10^4 substeps per finger); a lockstep rig steps at 1 ms.
+  if (!std::isfinite(dt_s) || !(dt_s > 0.0) || dt_s > 1.0) {
+    throw std::invalid_argument("GlovePlant::step: dt_s must be finite and in (0, 1] s");
+  }
+  const int n = std::max(1, static_cast<int>(std::ceil(dt_s / config_.params.max_substep_s - 1e-9)));
+  const double h = dt_s / n;
+  const bool bridge_on = io.pwm_enabled && io.drive_enable && !io.estop_pressed;
+  Eval e{};
+  for (Finger& f : fingers_) {
+    if (!f.enabled) continue;
+    const double raw = static_cast<double>(io.pwm_duty[static_cast<std::size_t>(board::motorPwmChannel(f.index))]);
+    const double duty = std::isfinite(raw) ? std::clamp(raw, -1.0, 1.0) : 0.0;
+    for (int k = 0; k < n; ++k) {
+      evaluate(f, time_s_ + k * h, duty, bridge_on, e);
+      integrate(f, e, h);
+    }
+    evaluate(f, time_s_ + dt_s, duty, bridge_on, e);
+    fillTruth(f, e, bridge_on);
+  }
+  time_s_ += dt_s;
+  for (Finger& f : fingers_) sample(f, dt_s, io);
+}
+
+}  // namespace phalanx::sim

@@ -1,0 +1,50 @@
+#pragma once
+/// The glove's host controller: telemetry (mechanism angles α, pad forces) → α̇ → virtual scene rendering
+/// (F = b·ẋ + k·x, 000 eq 1) → per-finger pad-force setpoints, every cycle, without allocation.
+#include <array>
+
+#include "phalanx/host/controller.h"
+#include "phalanx/host/glove/scene.h"
+
+namespace phalanx::host::glove {
+
+struct GloveControllerConfig {
+  DemoScene scene = DemoScene::kRigidBall;
+  bool transparent = false;        ///< true: zero force in every finger (mode transparent), scene ignored
+  double rate_cutoff_hz = 40.0;    ///< low-pass on the α differences that give α̇
+};
+
+/// Per-finger session figures, for the summary.
+struct FingerStats {
+  double peak_force_N = 0.0;          ///< max |measured pad force|
+  double peak_setpoint_N = 0.0;
+  double contact_s = 0.0;             ///< time with a rendered contact
+  double sq_error_contact = 0.0;      ///< Σ (measured − setpoint)² during contact
+  double sq_force_free = 0.0;         ///< Σ measured² while free (no contact)
+  long contact_cycles = 0;
+  long free_cycles = 0;
+};
+
+class GloveController : public Controller {
+ public:
+  explicit GloveController(const GloveControllerConfig& config);
+  const char* name() const override { return config_.transparent ? "glove-transparent" : "glove-render"; }
+  void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
+  void summarize(nlohmann::json& out) const override;
+  std::string liveLine(const TelemetryFrame& tel) const override;
+
+  const RenderOutput& lastRender() const { return out_; }
+  const FingerStats& stats(int finger) const { return stats_[static_cast<size_t>(finger)]; }
+
+ private:
+  GloveControllerConfig config_;
+  GloveScene scene_;
+  RenderInput in_{};
+  RenderOutput out_{};
+  std::array<Vec3d, kNumFingers> last_alpha_{};
+  bool primed_ = false;
+  uint64_t last_device_time_us_ = 0;
+  std::array<FingerStats, kNumFingers> stats_{};
+};
+
+}  // namespace phalanx::host::glove

@@ -1,0 +1,88 @@
+#include "phalanx/host/glove/glove_controller.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "phalanx/protocol/devices.h"
+
+namespace phalanx::host::glove {
+
+namespace {
+constexpr size_t kForceSample0 = 15;  // kGlove5Layout: samples 15..19 are pad forces
+constexpr const char* kFingerLetters = "TIMRL";
+}  // namespace
+
+GloveController::GloveController(const GloveControllerConfig& config) : config_(config) {
+  loadDemoScene(scene_, config.scene);
+}
+
+void GloveController::update(const TelemetryFrame& tel, double, double dt_s, protocol::Command& cmd) {
+  // α̇ from successive telemetry, on the device clock (a repeated frame gives no new information).
+  const double dt_dev = primed_ && tel.device_time_us > last_device_time_us_
+                            ? static_cast<double>(tel.device_time_us - last_device_time_us_) * 1e-6
+                            : 0.0;
+  const double a = dt_dev > 0.0 ? dt_dev / (dt_dev + 1.0 / (2.0 * M_PI * config_.rate_cutoff_hz)) : 0.0;
+  for (size_t f = 0; f < kNumFingers; ++f) {
+    for (size_t j = 0; j < 3; ++j) {
+      const double alpha = static_cast<double>(tel.value[3 * f + j]);
+      in_[f].alpha_rad[j] = alpha;
+      if (dt_dev > 0.0) {
+        const double raw_rate = (alpha - last_alpha_[f][j]) / dt_dev;
+        in_[f].alpha_dot_rad_per_s[j] += a * (raw_rate - in_[f].alpha_dot_rad_per_s[j]);
+      }
+      last_alpha_[f][j] = alpha;
+    }
+  }
+  if (!primed_ || dt_dev > 0.0) last_device_time_us_ = tel.device_time_us;
+  primed_ = true;
+
+  scene_.render(in_, out_);
+  cmd.mode = config_.transparent ? protocol::Mode::kTransparent : protocol::Mode::kSetpoint;
+  for (size_t f = 0; f < kNumFingers; ++f) {
+    const double setpoint = config_.transparent ? 0.0 : out_[f].force_setpoint_N;
+    cmd.setpoint[f] = static_cast<float>(setpoint);
+    FingerStats& s = stats_[f];
+    const double measured = static_cast<double>(tel.value[kForceSample0 + f]);
+    s.peak_force_N = std::fmax(s.peak_force_N, std::fabs(measured));
+    s.peak_setpoint_N = std::fmax(s.peak_setpoint_N, std::fabs(setpoint));
+    if (!config_.transparent && out_[f].in_contact) {
+      s.contact_s += dt_s;
+      s.sq_error_contact += (measured - setpoint) * (measured - setpoint);
+      ++s.contact_cycles;
+    } else {
+      s.sq_force_free += measured * measured;
+      ++s.free_cycles;
+    }
+  }
+}
+
+void GloveController::summarize(nlohmann::json& out) const {
+  static const char* kNames[] = {"thumb", "index", "middle", "ring", "little"};
+  static const char* kScenes[] = {"none", "rigid-ball", "soft-ball", "wall"};
+  out["scene"] = config_.transparent ? "none (transparent)" : kScenes[static_cast<int>(config_.scene)];
+  for (size_t f = 0; f < kNumFingers; ++f) {
+    const FingerStats& s = stats_[f];
+    out["fingers"][kNames[f]] = {
+        {"peak_force_N", s.peak_force_N},
+        {"peak_setpoint_N", s.peak_setpoint_N},
+        {"contact_s", s.contact_s},
+        {"force_rms_error_in_contact_N", s.contact_cycles ? std::sqrt(s.sq_error_contact / static_cast<double>(s.contact_cycles)) : 0.0},
+        {"force_rms_free_N", s.free_cycles ? std::sqrt(s.sq_force_free / static_cast<double>(s.free_cycles)) : 0.0}};
+  }
+}
+
+std::string GloveController::liveLine(const TelemetryFrame& tel) const {
+  std::string line;
+  char buf[64];
+  for (size_t f = 0; f < kNumFingers; ++f) {
+    std::snprintf(buf, sizeof buf, " %c %4.0f/%4.0f/%4.0f° %5.2fN>%5.2fN%s", kFingerLetters[f],
+                  static_cast<double>(tel.value[3 * f]) * 57.29578, static_cast<double>(tel.value[3 * f + 1]) * 57.29578,
+                  static_cast<double>(tel.value[3 * f + 2]) * 57.29578,
+                  static_cast<double>(tel.value[kForceSample0 + f]), out_[f].force_setpoint_N,
+                  out_[f].in_contact ? "*" : " ");
+    line += buf;
+  }
+  return line;
+}
+
+}  // namespace phalanx::host::glove

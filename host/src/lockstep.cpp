@@ -1,0 +1,43 @@
+#include "phalanx/host/lockstep.h"
+
+namespace phalanx::host {
+
+LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, const LockstepOptions& options)
+    : device_(device),
+      controller_(controller),
+      opt_(options),
+      board_(device.pwmCount(), device.adcCount(), device.encoderCount(), pipe_.end(0)),
+      core_(board_.board(), device.app(), fw::CoreConfig{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame}),
+      session_(pipe_.end(1)) {
+  cmd_.timeout_ms = opt_.command_timeout_ms;
+  cmd_.channel_count = device.app().layout().setpoint_count;
+  for (auto& g : cmd_.gain_scale_permille) g = 1000;
+}
+
+std::string LockstepRig::handshake() {
+  session_.sendHello(1, device_.app().layout().type);
+  for (int i = 0; i < 10 && session_.handshake() == HandshakeResult::kPending; ++i) step();
+  if (session_.handshake() != HandshakeResult::kOk) return session_.handshakeError();
+  return {};
+}
+
+void LockstepRig::step() {
+  const uint64_t period_us = 1000000u / opt_.tick_hz;
+  const double sub_dt_s = static_cast<double>(period_us) * 1e-6 / opt_.substeps;
+  for (unsigned i = 0; i < opt_.substeps; ++i) device_.plant().step(sub_dt_s, board_.io());
+  board_.clock().advanceUs(period_us);
+  core_.tick();
+  const uint64_t now_ns = board_.clock().nowUs() * 1000u;
+  session_.poll(now_ns);
+  if (!host_connected_ || session_.handshake() != HandshakeResult::kOk || !session_.hasTelemetry()) return;
+  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us) * 1e-6, cmd_);
+  cmd_.channel_count = device_.app().layout().setpoint_count;
+  session_.sendCommand(cmd_, now_ns);
+}
+
+void LockstepRig::run(double seconds) {
+  const auto n = static_cast<long>(seconds * opt_.tick_hz + 0.5);
+  for (long i = 0; i < n; ++i) step();
+}
+
+}  // namespace phalanx::host

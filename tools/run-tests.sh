@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Set up, build and run every Phalanx test: the host build (unit, closed-loop simulation and multi-process
+# integration suites), the sanitizer build (unit suites under ASan + UBSan) and a short fuzz run of the decoder.
+# Usage: tools/run-tests.sh            (what CI runs)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+tools/setup.sh
+
+echo "== host build =="
+cmake --preset host >/dev/null
+cmake --build --preset host
+ctest --preset host -j2
+
+echo "== sanitizer build (ASan + UBSan), unit suites =="
+cmake --preset sanitize >/dev/null
+cmake --build --preset sanitize
+ctest --preset sanitize -j2
+
+if command -v clang++ >/dev/null; then
+  echo "== decoder fuzz (libFuzzer, 60 s) =="
+  tools/fuzz.sh 60
+fi
