@@ -6,6 +6,7 @@
 
 #include "common_options.h"
 #include "phalanx/host/config.h"
+#include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -22,10 +23,32 @@ int main(int argc, char** argv) {
 
   CLI::App* version = app.add_subcommand("version", "print version information");
 
+  CLI::App* bench = app.add_subcommand("bench", "run a bench scenario and print its metrics");
+  bench->require_subcommand(1);
+  phalanx::host::glove::GloveBenchOptions bench_opt;
+  bool bench_no_noise = false;
+  auto add_bench_options = [&](CLI::App* sc) {
+    sc->add_option("--seconds", bench_opt.seconds, "scenario length (0: its default)")->check(CLI::Range(0.0, 600.0));
+    sc->add_option("--seed", bench_opt.seed, "simulation seed");
+    sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
+    sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+  };
+  CLI::App* free_motion = bench->add_subcommand("glove-free-motion", "close/open maneuvers at zero force (000 §4.3)");
+  add_bench_options(free_motion);
+  CLI::App* grasp = bench->add_subcommand("glove-grasp", "grasp the rigid virtual ball (000 eq 1)");
+  add_bench_options(grasp);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (bench->parsed()) {
+    bench_opt.noise = !bench_no_noise;
+    const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
+                                                        : phalanx::host::glove::benchGrasp(bench_opt);
+    std::cout << result.dump(2) << std::endl;
+    return 0;
   }
   if (version->parsed()) {
     std::printf("phalanx %s, wire protocol v%u\n", PHALANX_VERSION, phalanx::protocol::kProtocolVersion);

@@ -39,6 +39,8 @@ constexpr double kGraspDuration_s = 0.8;
 constexpr double kGraspTargetS = 1.0;
 // kGrasp: the effort bound never drops below this joint torque, so the finger can still move freely.
 constexpr double kMinEffort_Nm = 0.005;
+// kPush: time constant of the person's fingertip-force regulation (visual/tactile loop, a few Hz).
+constexpr double kPushForceLoop_s = 0.15;
 // kRandom: closure s ∈ 0.5 ± 0.36, band 0.1–1.0 Hz; per-joint deviations ±8°, band 0.2–1.5 Hz.
 constexpr double kRandomCentreS = 0.5;
 constexpr double kRandomSpanS = 0.36;
@@ -69,14 +71,14 @@ void validate(const GlovePlantConfig& c) {
   requireValid(finiteNonNegative(c.push_force_N), "GlovePlantConfig: push_force_N must be finite and >= 0");
   requireValid(finitePositive(c.push_ramp_s), "GlovePlantConfig: push_ramp_s must be finite and > 0");
   const double positive[] = {p.rotor_inertia_kg_m2, p.spur_efficiency, p.worm_lead_rad, p.worm_friction_coeff,
-                             p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.slip_kinetic_fraction,
-                             p.pad_transmission_ref, p.tendon_stiffness_N_per_m, p.pad_stiffness_N_per_m,
-                             p.capstan_sliding_velocity_m_per_s, p.phalanx_mass_per_length_kg_per_m,
+                             p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.slip_kinetic_fraction, p.passive_hold_margin,
+                             p.pad_transmission_ref, p.tendon_stiffness_N_per_m, p.pad_stiffness_N_per_m, p.spool_segment_fraction,
+                             p.phalanx_mass_per_length_kg_per_m,
                              p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad,
                              p.strain_drift_time_s, p.max_substep_s};
   for (double v : positive) requireValid(finitePositive(v), "GlovePlantParams: a value that must be > 0 is not");
   const double non_negative[] = {p.motor_coulomb_friction_Nm, p.motor_viscous_Nm_s_per_rad,
-                                 p.tendon_damping_N_s_per_m, p.pretension_N, p.passive_damping_Nm_s_per_rad,
+                                 p.tendon_damping_N_s_per_m, p.pretension_N, p.passive_damping_Nm_s_per_rad, p.slip_damping_Nm_s_per_rad,
                                  p.limit_damping_Nm_s_per_rad, p.hall_noise_counts, p.strain_noise_counts,
                                  p.strain_drift_N, p.current_noise_counts, p.hall_gain_error,
                                  p.hall_offset_error_counts, p.hall_angle_error_rad, p.strain_gain_error,
@@ -88,6 +90,7 @@ void validate(const GlovePlantConfig& c) {
     requireValid(std::isfinite(p.ref_pose_deg[j]) && std::isfinite(p.rest_pose_deg[j]), "GlovePlantParams: pose");
   }
   requireValid(p.spur_efficiency <= 1.0 && p.slip_kinetic_fraction <= 1.0, "GlovePlantParams: efficiency > 1");
+  requireValid(p.spool_segment_fraction < 1.0, "GlovePlantParams: spool_segment_fraction must be < 1");
   // Self-locking needs the lead angle below the friction angle (λ < ρ); the forward efficiency is then < 50 %.
   requireValid(p.worm_lead_rad < std::atan(p.worm_friction_coeff), "GlovePlantParams: worm is not self-locking");
 }
@@ -101,13 +104,48 @@ struct GlovePlant::Eval {
   // Linearly implicit finger step: local joint stiffness/damping (diagonal) and the tendon's rank-1 terms
   // along a = ∂q_m/∂θ (stiffness, material damping and the capstan friction's velocity dependence).
   Vec3<double> k_diag{}, b_diag{}, a{};
-  double k_tendon = 0, b_tendon = 0;
+  double k_tendon = 0, b_tendon = 0, taut = 0;
+  double x_release = 0, x_grasp = 0;  // capstan node positions after this evaluation
+  int slide_release = 0, slide_grasp = 0;
+  double push_target_N = 0;  // kPush: pad force the person aims for now
   bool kin_ok = true;
   double pad_N = 0;
-  double tr_spool = 0, tr_tip = 0, tg_spool = 0, tg_tip = 0, sliding = 0;
+  double tr_spool = 0, tr_tip = 0, tg_spool = 0, tg_tip = 0;
   double tau_load_Nm = 0;  // tendon torque on the spool, + turns it +
   double voltage_V = 0, current_A = 0;
 };
+
+/// One tendon of the antagonistic pair as two springs joined by the capstan contact on the pulleys.
+/// u_s: tendon wound onto the spool, u_m: shortening of its path at the mechanism (both m, 0 at start),
+/// x_prev: cable passed over the pulleys towards the spool so far (m). Eq 15 with stiction: the contact
+/// sticks while e^{-μγ} ≤ T_spool/T_tip ≤ e^{μγ}; beyond, the cable slides and the ratio sits at the
+/// bound (F1 = the side the cable slides towards). Rate independent, as the §4.2 measurements show.
+GlovePlant::TendonState GlovePlant::solveTendon(const GloveFingerConstants& k, double u_s, double u_m,
+                                                double x_prev, double ratio) {
+  const double k1 = k.spool_segment_stiffness_N_per_m;
+  const double k2 = k.tip_segment_stiffness_N_per_m;
+  const double e1 = k.pretension_stretch_spool_m + u_s;  // spool segment stretch with x = 0
+  const double e2 = k.pretension_stretch_tip_m - u_m;    // tip segment stretch with x = 0
+  TendonState st{};
+  st.x_m = x_prev;
+  if (e1 + e2 <= 0.0) return st;  // the whole tendon is slack: no tension, the contact does not move
+  st.spool_N = k1 * std::max(0.0, e1 - x_prev);
+  st.tip_N = k2 * std::max(0.0, e2 + x_prev);
+  if (st.spool_N > ratio * st.tip_N) {
+    // Spool side pulls harder than friction can hold: slides towards the spool until T_spool = e^{μγ}·T_tip.
+    st.x_m = (k1 * e1 - ratio * k2 * e2) / (k1 + ratio * k2);
+    st.tip_N = k2 * (e2 + st.x_m);
+    st.spool_N = ratio * st.tip_N;
+    st.sliding = 1;
+  } else if (st.tip_N > ratio * st.spool_N) {
+    // The finger pulls the tendon out: slides towards the tip until T_tip = e^{μγ}·T_spool.
+    st.x_m = (ratio * k1 * e1 - k2 * e2) / (ratio * k1 + k2);
+    st.spool_N = k1 * (e1 - st.x_m);
+    st.tip_N = ratio * st.spool_N;
+    st.sliding = -1;
+  }
+  return st;
+}
 
 GlovePlant::GlovePlant(const GlovePlantConfig& config) : config_(config), noise_rng_(config.seed) {
   validate(config_);
@@ -156,11 +194,25 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   for (std::size_t j = 0; j < 3; ++j) k.push_direction[j] = p.pad_transmission_ref * Jtn_ref[j];
 
   // Tendon and pad in series. The pad deflects δ = F/k_pad; seen along the tendon that is c·δ = c²T/k_pad.
+  // The capstan contact splits the tendon into a spool segment and a tip segment (which carries the pad).
+  k.spool_segment_stiffness_N_per_m = p.tendon_stiffness_N_per_m / p.spool_segment_fraction;
+  k.tip_segment_stiffness_N_per_m =
+      1.0 / ((1.0 - p.spool_segment_fraction) / p.tendon_stiffness_N_per_m +
+             sq(p.pad_transmission_ref) / p.pad_stiffness_N_per_m);
   k.series_stiffness_N_per_m =
-      1.0 / (1.0 / p.tendon_stiffness_N_per_m + sq(p.pad_transmission_ref) / p.pad_stiffness_N_per_m);
-  // Passive limit (§2.2): 35 N at the pad at θ_ref ⇒ tendon tension 35/c_ref at the spool radius.
-  k.slip_torque_Nm = static_cast<double>(board::kPassiveHoldForce_N) * static_cast<double>(board::kSpoolRadius_m) /
-                     p.pad_transmission_ref;
+      1.0 / (1.0 / k.spool_segment_stiffness_N_per_m + 1.0 / k.tip_segment_stiffness_N_per_m);
+  k.pretension_stretch_spool_m = p.pretension_N / k.spool_segment_stiffness_N_per_m;
+  k.pretension_stretch_tip_m = p.pretension_N / k.tip_segment_stiffness_N_per_m;
+  // Passive limit (§2.2: "passive force as high as 35 N"). The finger pressing on the locked glove pulls
+  // the release tendon out against the capstan friction of the routing, so the spool sees the tip tension
+  // divided by e^{μ_L γ} (nominal lubricated μ: the slip torque is a gear property, not a function of the
+  // lubrication setting). At θ_ref, 35 N at the pad is a tip tension of 35 N / c_ref; the slip torque is
+  // that spool torque times passive_hold_margin, so that 35 N is held, not the slip point, once the finger
+  // has yielded into the tendon compliance (which lowers the transmission, docs/glove-plant.md).
+  const double gamma_ref = glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, alpha_ref);
+  const double tip_tension_ref = static_cast<double>(board::kPassiveHoldForce_N) / p.pad_transmission_ref;
+  k.slip_torque_Nm = p.passive_hold_margin * static_cast<double>(board::kSpoolRadius_m) * tip_tension_ref /
+                     glove::capstanRatio(glove::kMuLubricated<double>, gamma_ref);
 
   // Finger: phalanx masses ∝ length; diagonal joint inertias in the extended posture (upper bound).
   const std::array<double, 3> len = {k.model.finger.p1_m, k.model.finger.p2_m, k.model.finger.p3_m};
@@ -324,7 +376,11 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
 
   // Tendons. q_m: shortening of the release path (= lengthening of the grasp path) since construction;
   // q_s: release tendon wound on the spool (the grasp tendon is unwound by the same length).
-  e.tr_spool = e.tr_tip = e.tg_spool = e.tg_tip = e.sliding = 0.0;
+  e.tr_spool = e.tr_tip = e.tg_spool = e.tg_tip = 0.0;
+  e.x_release = f.x_release;
+  e.x_grasp = f.x_grasp;
+  e.slide_release = e.slide_grasp = 0;
+  e.taut = 0.0;
   e.b_tendon = 0.0;
   if (f.cables) {
     double q_m = 0.0, q_m_dot = 0.0;
@@ -335,30 +391,25 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
     const double r_s = static_cast<double>(board::kSpoolRadius_m);
     const double q_s = r_s * f.spool_angle;
     const double q_s_dot = r_s * f.spool_speed;
-    const double e_pre = p.pretension_N / k.series_stiffness_N_per_m;
-    const double stretch_r = e_pre + q_s - q_m;
-    const double stretch_g = e_pre - q_s + q_m;
-    const double rate_r = q_s_dot - q_m_dot;
-    auto tension = [&](double stretch, double rate) {
-      if (stretch <= 0.0) return 0.0;  // slack: a tendon cannot push
-      return std::max(0.0, k.series_stiffness_N_per_m * stretch + p.tendon_damping_N_s_per_m * rate);
-    };
-    e.tr_spool = tension(stretch_r, rate_r);
-    e.tg_spool = tension(stretch_g, -rate_r);
-    // Sliding over the pulleys, release tendon towards the spool: its spool end moves at q̇_s, its tip end
-    // (relative to the routing) at q̇_m; the pulleys in between see about the mean. The grasp tendon slides
-    // the opposite way. Eq 15: the end the tendon slides towards is F1 (the higher tension), so the tip
-    // tension is T_spool·e^{-μγ} when the spool pulls and T_spool·e^{+μγ} when the finger pulls; tanh blends
-    // through zero velocity (no stiction is modelled, §4.2 considers kinetic friction only).
-    e.sliding = 0.5 * (q_s_dot + q_m_dot);
-    const double w = std::tanh(e.sliding / p.capstan_sliding_velocity_m_per_s);
-    const double mu_gamma_r = mu_ * glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, e.alpha);
-    const double mu_gamma_g = mu_ * glove::wrapAngle_rad(k.capstan, glove::Tendon::kGrasp, e.alpha);
-    e.tr_tip = e.tr_spool * std::exp(-w * mu_gamma_r);
-    e.tg_tip = e.tg_spool * std::exp(w * mu_gamma_g);
-    // ∂(T_r,tip − T_g,tip)/∂q̇_m: the regularised friction acts as a (large, positive) damping near v = 0.
-    e.b_tendon = (e.tr_tip * mu_gamma_r + e.tg_tip * mu_gamma_g) * (1.0 - w * w) /
-                 (2.0 * p.capstan_sliding_velocity_m_per_s);
+    // Capstan friction (eq 15–16) over the routing, wrap γ(α) from capstan.h.
+    const double ratio_r =
+        glove::capstanRatio(mu_, glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, e.alpha));
+    const double ratio_g = glove::capstanRatio(mu_, glove::wrapAngle_rad(k.capstan, glove::Tendon::kGrasp, e.alpha));
+    const TendonState release = solveTendon(k, q_s, q_m, f.x_release, ratio_r);
+    const TendonState grasp = solveTendon(k, -q_s, -q_m, f.x_grasp, ratio_g);
+    // Material damping of the whole tendon (Kelvin–Voigt on its total stretch rate), same force along it.
+    const double damp = p.tendon_damping_N_s_per_m * (q_s_dot - q_m_dot);
+    const auto withDamping = [](double tension, double force) { return tension > 0.0 ? std::max(0.0, tension + force) : 0.0; };
+    e.tr_spool = withDamping(release.spool_N, damp);
+    e.tr_tip = withDamping(release.tip_N, damp);
+    e.tg_spool = withDamping(grasp.spool_N, -damp);
+    e.tg_tip = withDamping(grasp.tip_N, -damp);
+    e.x_release = release.x_m;
+    e.x_grasp = grasp.x_m;
+    e.slide_release = release.sliding;
+    e.slide_grasp = grasp.sliding;
+    e.taut = (release.tip_N > 0.0 ? 1.0 : 0.0) + (grasp.tip_N > 0.0 ? 1.0 : 0.0);
+    e.b_tendon = e.taut * p.tendon_damping_N_s_per_m;
   }
   const double net_tip = e.tr_tip - e.tg_tip;
   // Massless linkage in equilibrium: τ_α = (J_α^u)ᵀ F (eq 18) ⇒ F = (J_α^u)^{-T} τ_α, applied to the finger.
@@ -388,10 +439,10 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
       tau_muscle[j] = std::clamp(tau_muscle[j], -limit, limit);
     }
   } else if (config_.scenario == HandScenario::kPush) {
-    // The finger presses into the glove along the direction the tendon constrains at θ_ref (a_ref, where
-    // it is exactly the pad normal), with the tension that puts push_force_N on the pad there, and holds
-    // its posture (muscle + passive torque projected off a_ref) in the two directions the tendon leaves
-    // free. A fixed direction keeps the push from chasing the transmission as the finger yields.
+    // The finger presses into the glove along the direction the tendon constrains at θ_ref (a_ref, where it
+    // is exactly the pad normal) and holds its posture (muscle + passive torque projected off a_ref) in the
+    // two directions the tendon leaves free. Its effort (tension-equivalent along a_ref) is the state
+    // push_effort_N, which the person adjusts from what the fingertip feels (integrate()).
     const Vec3<double>& a_ref = k.push_direction;
     const double aa = a_ref[0] * a_ref[0] + a_ref[1] * a_ref[1] + a_ref[2] * a_ref[2];
     Vec3<double> posture = tau_muscle;
@@ -399,10 +450,9 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
       posture[j] -= p.passive_stiffness_Nm_per_rad[j] * (f.theta[j] - degToRad(p.rest_pose_deg[j]));
     }
     const double along = (a_ref[0] * posture[0] + a_ref[1] * posture[1] + a_ref[2] * posture[2]) / aa;
-    const double push_N = config_.push_force_N * std::min(1.0, t / config_.push_ramp_s);
-    for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= a_ref[j] * (along + push_N / p.pad_transmission_ref);
+    for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= a_ref[j] * (along + f.push_effort_N);
+    e.push_target_N = config_.push_force_N * std::min(1.0, t / config_.push_ramp_s);
   }
-  const double taut = (e.tr_spool > 0.0 ? 1.0 : 0.0) + (e.tg_spool > 0.0 ? 1.0 : 0.0);
   for (std::size_t j = 0; j < 3; ++j) {
     const double rest = degToRad(p.rest_pose_deg[j]);
     const double kp = p.passive_stiffness_Nm_per_rad[j];
@@ -422,8 +472,7 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
     e.b_diag[j] = k.muscle_damping_Nm_s_per_rad[j] + p.passive_damping_Nm_s_per_rad + b_limit;
   }
   e.a = a;
-  e.k_tendon = taut * k.series_stiffness_N_per_m;
-  e.b_tendon += taut * p.tendon_damping_N_s_per_m;
+  e.k_tendon = e.taut * k.tip_segment_stiffness_N_per_m;
 
   // Tendon torque on the spool: the release tendon pulls it back (−), the grasp tendon forward (+).
   e.tau_load_Nm = -static_cast<double>(board::kSpoolRadius_m) * (e.tr_spool - e.tg_spool);
@@ -514,7 +563,9 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
     }
   }
   if (f.slipping) {
-    const double acc = (e.tau_load_Nm - slip_dir * slip_kinetic) / p.spool_inertia_kg_m2;
+    const double acc = (e.tau_load_Nm - slip_dir * slip_kinetic -
+                        p.slip_damping_Nm_s_per_rad * (f.spool_speed - f.worm_speed)) /
+                       p.spool_inertia_kg_m2;
     const double next = f.spool_speed + h * acc;
     if ((next - f.worm_speed) * slip_dir <= 0.0 && std::fabs(e.tau_load_Nm) <= f.k.slip_torque_Nm) {
       f.slipping = false;  // relative motion stopped and the load is back within the limit: grips again
@@ -523,6 +574,14 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
       f.spool_speed = next;
     }
     f.spool_angle += h * f.spool_speed;
+  }
+
+  // ---- kPush: the person regulates the fingertip force by feel — effort integrates the force error with
+  // a 0.15 s time constant (a slow human force loop), never negative, at most twice the nominal effort.
+  if (config_.scenario == HandScenario::kPush) {
+    const double c_ref = p.pad_transmission_ref;
+    f.push_effort_N += h * (e.push_target_N - e.pad_N) / (c_ref * kPushForceLoop_s);
+    f.push_effort_N = std::clamp(f.push_effort_N, 0.0, 2.0 * config_.push_force_N / c_ref);
   }
 
   // ---- Finger: linearly implicit Euler, (M + h·B + h²·K)·Δθ̇ = h·τ, then θ += h·θ̇, with B and K the
@@ -545,6 +604,8 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
     f.theta[j] += h * f.theta_dot[j];
   }
   if (e.kin_ok) f.alpha_last = e.alpha;
+  f.x_release = e.x_release;
+  f.x_grasp = e.x_grasp;
 }
 
 void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
@@ -560,7 +621,8 @@ void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
   t.tension_release_tip_N = e.tr_tip;
   t.tension_grasp_spool_N = e.tg_spool;
   t.tension_grasp_tip_N = e.tg_tip;
-  t.tendon_sliding_m_per_s = e.sliding;
+  t.release_sliding = e.slide_release;
+  t.grasp_sliding = e.slide_grasp;
   t.spool_angle_rad = f.spool_angle;
   t.spool_speed_rad_s = f.spool_speed;
   t.motor_speed_rad_s = static_cast<double>(board::kGearRatio) * f.worm_speed;

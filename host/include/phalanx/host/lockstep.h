@@ -3,6 +3,7 @@
 /// virtual clock. Deterministic for a seed and far faster than real time; the link is an in-memory byte pipe
 /// carrying the same COBS frames as the real link, so the protocol path is exercised too.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -39,6 +40,9 @@ class LockstepRig {
   const protocol::Command& lastCommand() const { return cmd_; }
   /// Drop the host: stop sending commands (link loss seen from the device).
   void setHostConnected(bool connected) { host_connected_ = connected; }
+  /// Called after the plant wrote the sensors and before the firmware tick: fault injection (a stuck or
+  /// disconnected sensor, an e-stop press) on the board's I/O image.
+  void setIoHook(std::function<void(sim::SimIo&)> hook) { io_hook_ = std::move(hook); }
 
  private:
   fw_sim::SimDevice& device_;
@@ -50,6 +54,7 @@ class LockstepRig {
   HostSession session_;
   protocol::Command cmd_{};
   bool host_connected_ = true;
+  std::function<void(sim::SimIo&)> io_hook_;
 };
 
 }  // namespace phalanx::host

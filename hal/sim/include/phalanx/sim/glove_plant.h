@@ -8,7 +8,8 @@
 ///   efficiency < 50 %, the load cannot back-drive it; beyond the passive limit of 35 N at the fingertip the
 ///   locked worm slips) → spool winding an antagonistic tendon pair (release tendon wound by positive duty,
 ///   grasp tendon unwound) → tendon + fingertip-pad compliance in series → capstan friction over the routing
-///   (glove/capstan.h, eq 15–16, wrap changing with α, direction from the sliding velocity) → joint torques
+///   (glove/capstan.h, eq 15–16, wrap changing with α; stick, or slide with the ratio e^{±μγ} set by which
+///   end pulls) → joint torques
 ///   τ_α = r·(T_release − T_grasp) on the massless glove linkage, which follows the finger (α = f(θ), eq 6–8)
 ///   → wrench F = (J_α^u)^{-T} τ_α on the fingertip (eq 18) → finger joints τ_θ = (J_θ^u)ᵀ F.
 ///   The finger has three joints with small inertia, passive stiffness/damping and soft range limits, and is
@@ -60,15 +61,17 @@ struct GlovePlantParams {
   double worm_friction_coeff = 0.08;          ///< steel worm on brass wheel, greased: ρ = atan μ = 4.6° > λ
   double spool_inertia_kg_m2 = 2.0e-7;        ///< spool + worm wheel + shaft, at the spool
   double worm_wheel_inertia_kg_m2 = 1.0e-7;   ///< worm wheel alone (only while the spool slips on it)
+  double passive_hold_margin = 1.1;           ///< worm slip torque / torque of a 35 N push at θ_ref
   double slip_kinetic_fraction = 0.85;        ///< kinetic / static slip torque of the overloaded worm drive
+  double slip_damping_Nm_s_per_rad = 2.5e-4;  ///< viscous part of the slipping interface (greased)
   // Tendon routing and compliance.
   double pad_transmission_ref = 0.3;          ///< c_ref: pad normal force per N of tip tension at the ref pose
   glove::Vec3<double> ref_pose_deg = {-45.0, -65.0, -45.0};  ///< θ_ref (mid-grasp) defining moment arms
-  double tendon_stiffness_N_per_m = 20000.0;  ///< Dyneema ≈ 0.25 m spool→tip incl. knots and spool wraps
+  double tendon_stiffness_N_per_m = 40000.0;  ///< Dyneema, ≈ 0.25 m spool→tip, EA ≈ 10 kN (incl. knots)
   double tendon_damping_N_s_per_m = 10.0;     ///< material damping of the tendon (only while taut)
   double pretension_N = 1.0;                  ///< both tendons at rest
-  double pad_stiffness_N_per_m = 4000.0;      ///< fingertip pulp + fabric + Velcro, normal to the pad
-  double capstan_sliding_velocity_m_per_s = 1e-3;  ///< tanh regularisation of the sliding direction
+  double pad_stiffness_N_per_m = 8000.0;      ///< fingertip pulp + fabric + Velcro under load, pad normal
+  double spool_segment_fraction = 0.4;        ///< share of the tendon length between spool and pulleys
   // Finger (human) — index values; other fingers scale with their length (docs/glove-plant.md).
   double phalanx_mass_per_length_kg_per_m = 0.25;              ///< ≈ 12 / 7 / 5 g for the index
   glove::Vec3<double> muscle_stiffness_Nm_per_rad = {1.0, 0.5, 0.2};  ///< MCP, PIP, DIP (index)
@@ -108,8 +111,9 @@ struct GlovePlantConfig {
   std::array<bool, 5> cables_removed = {false, false, false, false, false};
   HandScenario scenario = HandScenario::kStill;
   double squeeze_force_N = 5.0;  ///< kGrasp: the finger's maximum effort, as a pad-normal force (N)
-  /// kPush: pad force (N, ≥ 0) the finger presses into the glove with (towards flexion at θ_ref), applied
-  /// along the direction the tendon constrains; the other two directions hold the θ_ref posture.
+  /// kPush: pad force (N, ≥ 0) the finger presses into the glove with (towards flexion at θ_ref), along
+  /// the direction the tendon constrains; the person regulates the effort until the pad force matches
+  /// (or the glove gives way); the other two directions hold the θ_ref posture.
   double push_force_N = 0.0;
   double push_ramp_s = 0.5;      ///< kPush: linear ramp time of the push force (s)
   GlovePlantParams params{};
@@ -128,7 +132,8 @@ struct GloveFingerTruth {
   double tension_release_tip_N = 0;        ///< release tendon, link-3 end (after capstan friction)
   double tension_grasp_spool_N = 0;
   double tension_grasp_tip_N = 0;
-  double tendon_sliding_m_per_s = 0;       ///< release tendon sliding towards the spool (grasp: opposite)
+  int release_sliding = 0;                 ///< capstan contact: +1 slides towards spool, −1 towards tip, 0 sticks
+  int grasp_sliding = 0;
   double spool_angle_rad = 0;              ///< + winds the release tendon; 0 at construction
   double spool_speed_rad_s = 0;
   double motor_speed_rad_s = 0;            ///< at the motor shaft (= gear ratio × worm-wheel speed)
@@ -147,8 +152,12 @@ struct GloveFingerConstants {
   glove::Vec3<double> moment_arm_m{};         ///< r_i: τ_α = r ∘ (T_release − T_grasp) at the tip
   glove::Vec3<double> ref_theta_rad{};        ///< θ_ref where the tendon force is purely pad-normal
   glove::Vec3<double> push_direction{};       ///< finger torques per N of net tension at θ_ref (N·m/N)
-  double series_stiffness_N_per_m = 0;        ///< tendon + pad, in tendon-length coordinates
-  double slip_torque_Nm = 0;                  ///< static slip torque at the spool (35 N at the pad at θ_ref)
+  double series_stiffness_N_per_m = 0;        ///< tendon + pad, in tendon-length coordinates (stuck contact)
+  double spool_segment_stiffness_N_per_m = 0; ///< spool → capstan contact
+  double tip_segment_stiffness_N_per_m = 0;   ///< capstan contact → link 3, with the pad reflected (c_ref²/k_pad)
+  double pretension_stretch_spool_m = 0;
+  double pretension_stretch_tip_m = 0;
+  double slip_torque_Nm = 0;                  ///< static slip torque at the spool (passive limit, §2.2)
   glove::Vec3<double> inertia_kg_m2{};        ///< finger joint inertias (diagonal, extended posture)
   glove::Vec3<double> muscle_stiffness_Nm_per_rad{};
   glove::Vec3<double> muscle_damping_Nm_s_per_rad{};
@@ -216,6 +225,7 @@ class GlovePlant final : public Plant {
     glove::Vec3<double> theta{}, theta_dot{};
     glove::Vec3<double> alpha0{};          ///< α at construction (tendon length reference)
     glove::Vec3<double> alpha_last{};      ///< last α that the kinematics solved (fallback)
+    double x_release = 0, x_grasp = 0;     ///< cable passed over the pulleys towards the spool (m)
     double worm_speed = 0;                 ///< worm-wheel speed (rad/s, spool coordinates)
     double worm_angle = 0;
     double spool_speed = 0;
@@ -223,10 +233,16 @@ class GlovePlant final : public Plant {
     bool worm_stuck = true;
     bool slipping = false;
     double strain_drift_N = 0;
+    double push_effort_N = 0;              ///< kPush: the person's effort, tension-equivalent along a_ref
     GloveFingerTruth truth{};
   };
 
   struct Eval;  // forces and accelerations of one finger at one instant (glove_plant.cpp)
+  struct TendonState {
+    double spool_N = 0, tip_N = 0, x_m = 0;
+    int sliding = 0;
+  };
+  static TendonState solveTendon(const GloveFingerConstants& k, double u_s, double u_m, double x_prev, double ratio);
 
   static int idx(int finger);
   void initFinger(Finger& f, int index, std::mt19937& calib_rng, std::mt19937& motion_rng);

@@ -1,0 +1,138 @@
+// Closed loop in lockstep: the glove5 firmware app on the simulated glove and hand, the link codec, and the
+// host's glove controller, on a virtual clock with the plant's sensor noise.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "phalanx/fw_sim/glove5_sim.h"
+#include "phalanx/glove/board.h"
+#include "phalanx/host/glove/glove_bench.h"
+#include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/lockstep.h"
+
+using namespace phalanx;
+using host::glove::GloveController;
+using host::glove::GloveControllerConfig;
+
+namespace {
+
+sim::GlovePlantConfig plantConfig(sim::HandScenario scenario) {
+  sim::GlovePlantConfig c;
+  c.scenario = scenario;
+  c.seed = 5;
+  return c;
+}
+
+}  // namespace
+
+TEST(GloveFreeMotion, PeakContactForceStaysWithinTargetAt1kHz) {
+  const auto r = host::glove::benchFreeMotion({});
+  EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
+  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.050) << r.dump(2);
+}
+
+TEST(GloveFreeMotion, JointTrajectoriesCorrelateWithTheCablesRemovedRun) {
+  const auto r = host::glove::benchFreeMotion({});
+  // 000 Table 4, all users: 0.94 / 0.80 / 0.87. The simulated glove must do at least as well.
+  const auto& mean = r["pearson_r_alpha_mean"];
+  EXPECT_GE(mean[0].get<double>(), 0.9417) << r.dump(2);
+  EXPECT_GE(mean[1].get<double>(), 0.7981) << r.dump(2);
+  EXPECT_GE(mean[2].get<double>(), 0.8692) << r.dump(2);
+}
+
+TEST(GloveGrasp, RenderedForceIsWithinTenPercentOfKxAtSteadyContact) {
+  const auto r = host::glove::benchGrasp({});
+  EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
+  EXPECT_GE(r["fingers_in_steady_contact"].get<int>(), 3) << r.dump(2);
+  EXPECT_LE(r["relative_error_max"].get<double>(), 0.10) << r.dump(2);
+}
+
+TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {
+  auto cfg = plantConfig(sim::HandScenario::kPush);
+  cfg.push_force_N = 33.0;
+  fw_sim::Glove5SimDevice device(cfg);
+  GloveControllerConfig ccfg;
+  ccfg.transparent = true;
+  GloveController controller(ccfg);
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.setHostConnected(false);  // no commands: outputs stay off
+  const double spool0 = device.glovePlant().spoolAngle_rad(1);
+  rig.run(2.0);
+  EXPECT_FALSE(rig.board().io().pwm_enabled);
+  EXPECT_NEAR(device.glovePlant().spoolAngle_rad(1), spool0, 1e-6) << "the worm was back-driven";
+  EXPECT_GT(device.glovePlant().padForce_N(1), 20.0) << "the finger must actually be pushing";
+}
+
+TEST(GloveFaults, LinkLossGoesSafeAndNoForceLimitIsExceeded) {
+  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kGrasp));
+  GloveController controller({});
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.run(1.5);
+  ASSERT_TRUE(rig.board().io().pwm_enabled);
+  rig.setHostConnected(false);
+  int ticks = 0;
+  while (rig.board().io().pwm_enabled && ticks < 100) {
+    rig.step();
+    ++ticks;
+  }
+  EXPECT_LE(ticks, 20 + 2) << "command timeout 20 ms + two ticks";
+  EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kCommandTimeout);
+  for (int f = 0; f < 5; ++f) EXPECT_LE(std::fabs(device.gloveApp().finger(f).duty), 1.0f);
+}
+
+TEST(GloveFaults, AStuckHallSensorIsDetectedAndDrivesTheOutputsSafe) {
+  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kCloseOpen));
+  GloveControllerConfig ccfg;
+  ccfg.transparent = true;
+  GloveController controller(ccfg);
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.run(0.5);
+  ASSERT_TRUE(rig.board().io().pwm_enabled);
+  const int ch = glove::board::hallAdcChannel(1, 1);
+  const int32_t frozen = rig.board().io().adc[static_cast<size_t>(ch)];
+  rig.setIoHook([&](sim::SimIo& io) { io.adc[static_cast<size_t>(ch)] = frozen; });
+  rig.run(1.5);
+  EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kSensorStuck);
+  EXPECT_FALSE(rig.board().io().pwm_enabled);
+  EXPECT_TRUE(rig.session().latest().fault_bits & protocol::fault::kSensorStuck);
+}
+
+TEST(GloveFaults, ADisconnectedHallSensorIsARangeFault) {
+  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kStill));
+  GloveController controller({});
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.run(0.2);
+  rig.setIoHook([](sim::SimIo& io) { io.adc[4] = 0; });  // pulled to ground
+  rig.run(0.01);
+  EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kSensorRange);
+  EXPECT_FALSE(rig.board().io().pwm_enabled);
+}
+
+TEST(GloveFaults, StrainGaugeSaturationGoesSafe) {
+  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kStill));
+  GloveController controller({});
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.run(0.2);
+  rig.setIoHook([](sim::SimIo& io) { io.adc[static_cast<size_t>(glove::board::strainAdcChannel(2))] = glove::board::kStrainMaxCounts; });
+  rig.run(0.01);
+  EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kSensorSaturated);
+  EXPECT_FALSE(rig.board().io().pwm_enabled);
+  for (int f = 0; f < 5; ++f) EXPECT_EQ(rig.board().io().pwm_duty[static_cast<size_t>(f)], 0.0f);
+}
+
+TEST(GloveFaults, AnEstopPressLatchesAndStopsTheMotors) {
+  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kGrasp));
+  GloveController controller({});
+  host::LockstepRig rig(device, controller);
+  ASSERT_EQ(rig.handshake(), "");
+  rig.run(1.0);
+  rig.board().io().estop_pressed = true;
+  rig.step();
+  EXPECT_FALSE(rig.board().io().pwm_enabled);
+  EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kEstop);
+}
