@@ -299,6 +299,24 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     link.flush();
   }
 
+  for (const auto& [id, value] : controller->startupParams()) {
+    session.sendParamSet(id, value);
+    link.flush();
+    const uint64_t t0 = linux_hal::monotonicNs();
+    while (!session.lastParamValid() && linux_hal::monotonicNs() - t0 < 200000000ull) {
+      usleep(500);
+      session.poll(linux_hal::monotonicNs());
+    }
+    if (!session.lastParamValid() || session.lastParam().status != protocol::ParamStatus::kOk) {
+      char what[96];
+      std::snprintf(what, sizeof what, "device refused start-up parameter 0x%04x (status %d)", id,
+                    static_cast<int>(session.lastParam().status));
+      return fail(what, 4);
+    }
+  }
+  usleep(static_cast<useconds_t>(controller->startupSettleS() * 1e6));
+  session.poll(linux_hal::monotonicNs());
+
   const uint64_t period_ns = 1000000000ull / opt.rate_hz;
   const double dt_s = 1.0 / opt.rate_hz;
   Histogram jitter_us(5000);

@@ -18,6 +18,15 @@ std::string LockstepRig::handshake() {
   session_.sendHello(1, device_.app().layout().type);
   for (int i = 0; i < 10 && session_.handshake() == HandshakeResult::kPending; ++i) step();
   if (session_.handshake() != HandshakeResult::kOk) return session_.handshakeError();
+  for (const auto& [id, value] : controller_.startupParams()) {
+    session_.sendParamSet(id, value);
+    step();
+    if (!session_.lastParamValid() || session_.lastParam().status != protocol::ParamStatus::kOk) {
+      return "device refused start-up parameter " + std::to_string(id);
+    }
+  }
+  run(controller_.startupSettleS());
+  started_ = true;
   return {};
 }
 
@@ -30,7 +39,7 @@ void LockstepRig::step() {
   core_.tick();
   const uint64_t now_ns = board_.clock().nowUs() * 1000u;
   session_.poll(now_ns);
-  if (!host_connected_ || session_.handshake() != HandshakeResult::kOk || !session_.hasTelemetry()) return;
+  if (!started_ || !host_connected_ || !session_.hasTelemetry()) return;
   controller_.update(session_.latest(), timeS(), static_cast<double>(period_us) * 1e-6, cmd_);
   cmd_.channel_count = device_.app().layout().setpoint_count;
   session_.sendCommand(cmd_, now_ns);

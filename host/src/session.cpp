@@ -49,6 +49,14 @@ bool HostSession::sendParamGet(uint16_t id) {
   return sendMsg(link_, g);
 }
 
+bool HostSession::sendParamSet(uint16_t id, float value) {
+  ParamSet set;
+  set.param_id = id;
+  set.value = value;
+  param_valid_ = false;
+  return sendMsg(link_, set);
+}
+
 int HostSession::poll(uint64_t now_ns) {
   int telemetry = 0;
   uint8_t buf[512];

@@ -1,5 +1,7 @@
 #include "phalanx/apps/glove5.h"
 
+#include "phalanx/glove/tendon.h"
+
 #include <cmath>
 
 namespace phalanx::apps {
@@ -94,13 +96,10 @@ uint16_t Glove5App::sense(float dt_s) {
 uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
   uint16_t faults = 0;
   hal::PwmOutputs& pwm = *board_->pwm;
-  control::PidConfig pid = cfg_.force_pid;
-  pid.out_min = -cfg_.max_duty;
-  pid.out_max = cfg_.max_duty;
   for (int f = 0; f < kGloveFingers; ++f) {
     GloveFingerState& s = finger_[f];
     for (int j = 0; j < kGloveJoints; ++j) {
-      if (s.alpha_rad[j] < cfg_.joint_min_rad[j] || s.alpha_rad[j] > cfg_.joint_max_rad[j]) {
+      if (s.alpha_rad[j] < cfg_.joint_min_rad[f][j] || s.alpha_rad[j] > cfg_.joint_max_rad[f][j]) {
         faults |= protocol::fault::kJointLimit;
       }
     }
@@ -119,13 +118,24 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
     const float desired_N = cmd.mode == protocol::Mode::kSetpoint
                                 ? clampf(cmd.setpoint[f], -cfg_.active_force_limit_N, cfg_.active_force_limit_N)
                                 : 0.0f;  // transparent: zero force, the glove follows the finger
-    float ff = 0.0f;
-    for (int j = 0; j < kGloveJoints; ++j) ff += cal_.ff_duty_per_rad_per_s[f][j] * s.alpha_rate_rad_per_s[j];
-    ff *= cfg_.ff_scale;
+    const glove::Vec3<float> alpha = {s.alpha_rad[0], s.alpha_rad[1], s.alpha_rad[2]};
+    const glove::Vec3<float> r = glove::tendonMomentArms(cal_.mech[f], alpha, cal_.pad_transmission);
+    float v_ff = 0.0f;
+    for (int j = 0; j < kGloveJoints; ++j) v_ff += r[static_cast<size_t>(j)] * s.alpha_rate_rad_per_s[j];
+    v_ff *= cfg_.ff_scale;
     const float gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
-    const float out = control::pidStep(pid, s.pid, cal_.force_per_duty_sign * s.force_N,
-                                       cal_.force_per_duty_sign * desired_N, dt_s, cal_.force_per_duty_sign * ff, gain);
-    s.duty = cal_.force_per_duty_sign * out;
+    const float sign = cal_.force_per_duty_sign;
+    float v_fb = sign * control::pidStep(cfg_.force_pid, s.pid, sign * s.force_N, sign * desired_N, dt_s, 0.0f, gain);
+    s.feedback_offset_m -= s.feedback_offset_m * dt_s / cfg_.feedback_offset_leak_s;
+    if ((s.feedback_offset_m >= cfg_.max_feedback_offset_m && v_fb > 0.0f) ||
+        (s.feedback_offset_m <= -cfg_.max_feedback_offset_m && v_fb < 0.0f)) {
+      v_fb = 0.0f;
+    }
+    s.feedback_offset_m += v_fb * dt_s;
+    s.tendon_velocity_m_per_s = v_ff + v_fb;
+    const float motor_rad_per_s = s.tendon_velocity_m_per_s * cal_.motor_rad_per_tendon_m;
+    const float duty = motor_rad_per_s * cal_.duty_per_motor_rad_per_s + cfg_.ir_compensation * cal_.duty_per_A * s.current_A;
+    s.duty = clampf(duty, -cfg_.max_duty, cfg_.max_duty);
     pwm.setDuty(static_cast<uint8_t>(f), s.duty);
   }
   return faults;
@@ -135,6 +145,7 @@ void Glove5App::safe() {
   for (auto& s : finger_) {
     control::pidReset(s.pid);
     s.duty = 0.0f;
+    s.feedback_offset_m = 0.0f;
   }
   for (auto& n : overcurrent_ticks_) n = 0;
 }

@@ -22,17 +22,15 @@ Glove5Calibration glove5DefaultCalibration() {
     c.strain_counts_per_N[f] = board::kStrainCountsPerNewton;
     c.strain_zero_counts[f] = static_cast<float>(board::kStrainZeroCounts);
 
-    // Spool feed-forward: keep the tendon length constant as the finger moves. Tendon travel Σ r_i α̇_i at the
-    // spool radius, through the gearbox, as back-EMF voltage over the supply (duty > 0 winds the release
-    // tendon and opens the mechanism, board.h).
-    glove::Vec3<float> r_m{};
-    const auto model = glove::defaultModel<float>(static_cast<glove::FingerId>(f));
-    if (glove::tendonMomentArms(model, glove::TendonDesign<float>{}, r_m)) {
-      const float duty_per_m_per_s =
-          board::kGearRatio * board::kMotorTorqueConstant_Nm_per_A / (board::kSpoolRadius_m * board::kSupply_V);
-      for (int j = 0; j < kGloveJoints; ++j) c.ff_duty_per_rad_per_s[f][j] = duty_per_m_per_s * r_m[static_cast<size_t>(j)];
-    }
+    // Tendon transmission r(α) needs the mechanism geometry (duty > 0 winds the release tendon and opens the
+    // mechanism, board.h, so a positive r·α̇ needs a positive tendon velocity).
+    c.mech[f] = glove::defaultModel<float>(static_cast<glove::FingerId>(f)).mech;
   }
+  c.pad_transmission = glove::TendonDesign<float>{}.pad_transmission;
+  c.motor_rad_per_tendon_m = board::kGearRatio / board::kSpoolRadius_m;
+  // K_e = K_t in SI units for a DC motor.
+  c.duty_per_motor_rad_per_s = board::kMotorTorqueConstant_Nm_per_A / board::kSupply_V;
+  c.duty_per_A = (board::kMotorResistance_Ohm + board::kBridgeOnResistance_Ohm) / board::kSupply_V;
   c.hall_valid_min = board::kHallPlausibleMinCounts;
   c.hall_valid_max = board::kHallPlausibleMaxCounts;
   c.strain_saturation_min = board::kStrainMinCounts;
@@ -45,25 +43,33 @@ Glove5Calibration glove5DefaultCalibration() {
 
 Glove5Config glove5DefaultConfig() {
   Glove5Config c;
-  c.force_pid.kp = 0.08f;
-  c.force_pid.ki = 2.0f;
+  // Gains in (m/s of tendon) per N of force error, chosen by sweeping kp 0.05–1.5 and c_IR 0–0.95 in the lockstep
+  // free-motion bench (docs/glove-firmware.md): the feed-forward carries the motion, the P term the residual.
+  // No integral term: the self-locking worm already integrates (duty sets spool speed), and an integrator
+  // limit-cycles against the worm's dead band (glove-plant.md).
+  c.force_pid.kp = 1.0f;
+  c.force_pid.ki = 0.0f;
   c.force_pid.kd = 0.0f;
   c.force_pid.d_cutoff_hz = 100.0f;
-  c.force_pid.i_limit = 0.3f;
-  c.max_duty = 0.9f;
+  c.force_pid.out_min = -0.25f;  // tendon speed limit (m/s): above the fastest §4.3 finger motion
+  c.force_pid.out_max = 0.25f;
+  c.force_pid.i_limit = 0.0f;
+  c.ir_compensation = 0.85f;
+  c.max_duty = 1.0f;  // transients only: the bridge's current regulation protects the motor (board.h)
   c.current_limit_A = 2.5f;  // below the bridge's 3 A regulation (board.h)
   c.current_limit_ticks = 200;
   c.active_force_limit_N = board::kMaxActiveForce_N;
   c.strain_full_scale_N = board::kStrainFullScale_N;
-  // 000 Table 3 mechanism ranges: α1 [−79.9, 60.0]°, α2 [−127.8, −58.3]°, α3 [−82.3, 81.6]°, with 15° margin
-  // (each span stays ≤ 150° + margins, eq 22).
-  const float deg = 3.14159265f / 180.0f;
-  c.joint_min_rad[0] = -95.0f * deg;
-  c.joint_max_rad[0] = 75.0f * deg;
-  c.joint_min_rad[1] = -143.0f * deg;
-  c.joint_max_rad[1] = -43.0f * deg;
-  c.joint_min_rad[2] = -97.0f * deg;
-  c.joint_max_rad[2] = 97.0f * deg;
+  // The mechanism's joint range over the finger's whole Table 2 range (kinematics.h model; 000 Table 3 for the
+  // index), widened by 15° of margin: the simulated hand pushes slightly past Table 2 when squeezing.
+  const float margin_rad = 15.0f * 3.14159265f / 180.0f;
+  for (int f = 0; f < kGloveFingers; ++f) {
+    const auto model = glove::defaultModel<float>(static_cast<glove::FingerId>(f));
+    for (int j = 0; j < kGloveJoints; ++j) {
+      c.joint_min_rad[f][j] = model.mech.alpha_min_rad[static_cast<size_t>(j)] - margin_rad;
+      c.joint_max_rad[f][j] = model.mech.alpha_max_rad[static_cast<size_t>(j)] + margin_rad;
+    }
+  }
   return c;
 }
 

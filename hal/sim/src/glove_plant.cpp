@@ -16,10 +16,12 @@ constexpr double kPi = glove::kPi<double>;
 constexpr double degToRad(double deg) { return deg * kPi / 180.0; }
 double sq(double x) { return x * x; }
 double sign(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+double dot3(const Vec3<double>& a, const Vec3<double>& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double asDouble(float x) { return static_cast<double>(x); }
 
 // ---- Hand motion: a one-parameter closure synergy θ(s) = open + s·(closed − open), s ∈ [0, 1] --------------
 // s = 0 is an open hand with slight MCP hyperextension, s = 1 a full fist, both inside Table 2's ranges
-// (MCP [-90, 30]°, PIP [-120, 0]°, DIP [-80, 0]°). Fingers flex their three joints together (the DIP–PIP
+// (MCP [-90, 30]°, PIP [-120, 0]°, DIP [-80, 0]°). The three joints of a finger flex together (the DIP–PIP
 // coupling of a free finger), which is how the §4.3 close/open maneuvers look.
 constexpr Vec3<double> kSynergyOpen_deg = {20.0, -2.0, -2.0};
 constexpr Vec3<double> kSynergyClosed_deg = {-85.0, -115.0, -75.0};
@@ -33,24 +35,22 @@ constexpr std::array<double, 5> kDelay_s = {0.0, 0.02, 0.04, 0.06, 0.08};
 constexpr double kCloseOpenLeadIn_s = 0.5;
 constexpr double kManeuver_s = 1.0;
 constexpr double kCloseOpenPeriod_s = 1.5;
-// kGrasp timing: reach starts after 0.3 s and the intent reaches a full fist (s = 1) after 0.8 s.
+// kGrasp timing: reach starts after 0.3 s and the intent reaches a full fist (s = 1) after 0.8 s more.
 constexpr double kGraspStart_s = 0.3;
 constexpr double kGraspDuration_s = 0.8;
 constexpr double kGraspTargetS = 1.0;
-// kGrasp: the effort bound never drops below this joint torque, so the finger can still move freely.
+// kGrasp: the effort bound never drops below this joint torque, so the finger can always move freely.
 constexpr double kMinEffort_Nm = 0.005;
-// kPush: time constant of the person's fingertip-force regulation (visual/tactile loop, a few Hz).
-constexpr double kPushForceLoop_s = 0.15;
 // kRandom: closure s ∈ 0.5 ± 0.36, band 0.1–1.0 Hz; per-joint deviations ±8°, band 0.2–1.5 Hz.
 constexpr double kRandomCentreS = 0.5;
 constexpr double kRandomSpanS = 0.36;
 constexpr double kRandomJointSpan_rad = 8.0 * kPi / 180.0;
+// kPush: time constant of the person's fingertip-force regulation (a slow tactile loop, a few Hz).
+constexpr double kPushForceLoop_s = 0.15;
 
-double uniform01(std::mt19937& rng) {
-  return (static_cast<double>(rng()) + 0.5) * (1.0 / 4294967296.0);
-}
+double uniform01(std::mt19937& rng) { return (static_cast<double>(rng()) + 0.5) * (1.0 / 4294967296.0); }
 double uniform(std::mt19937& rng, double lo, double hi) { return lo + (hi - lo) * uniform01(rng); }
-/// Portable standard normal (Box–Muller on mt19937 words: same numbers with every standard library).
+/// Portable standard normal (Box–Muller on mt19937 words: the same numbers with every standard library).
 double normal(std::mt19937& rng) {
   const double u1 = uniform01(rng);
   const double u2 = uniform01(rng);
@@ -71,18 +71,19 @@ void validate(const GlovePlantConfig& c) {
   requireValid(finiteNonNegative(c.push_force_N), "GlovePlantConfig: push_force_N must be finite and >= 0");
   requireValid(finitePositive(c.push_ramp_s), "GlovePlantConfig: push_ramp_s must be finite and > 0");
   const double positive[] = {p.rotor_inertia_kg_m2, p.spur_efficiency, p.worm_lead_rad, p.worm_friction_coeff,
-                             p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.slip_kinetic_fraction, p.passive_hold_margin,
-                             p.pad_transmission_ref, p.tendon_stiffness_N_per_m, p.pad_stiffness_N_per_m, p.spool_segment_fraction,
-                             p.phalanx_mass_per_length_kg_per_m,
-                             p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad,
-                             p.strain_drift_time_s, p.max_substep_s};
+                             p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.passive_hold_margin,
+                             p.slip_kinetic_fraction, p.pad_transmission, p.tendon_stiffness_N_per_m,
+                             p.spool_segment_fraction, p.pad_stiffness_N_per_m, p.phalanx_mass_per_length_kg_per_m,
+                             p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad, p.strain_drift_time_s,
+                             p.max_substep_s};
   for (double v : positive) requireValid(finitePositive(v), "GlovePlantParams: a value that must be > 0 is not");
   const double non_negative[] = {p.motor_coulomb_friction_Nm, p.motor_viscous_Nm_s_per_rad,
-                                 p.tendon_damping_N_s_per_m, p.pretension_N, p.passive_damping_Nm_s_per_rad, p.slip_damping_Nm_s_per_rad,
-                                 p.limit_damping_Nm_s_per_rad, p.hall_noise_counts, p.strain_noise_counts,
-                                 p.strain_drift_N, p.current_noise_counts, p.hall_gain_error,
-                                 p.hall_offset_error_counts, p.hall_angle_error_rad, p.strain_gain_error,
-                                 p.strain_offset_error_N, p.current_gain_error, p.current_offset_error_counts};
+                                 p.slip_damping_Nm_s_per_rad, p.tendon_damping_N_s_per_m, p.pretension_N,
+                                 p.passive_damping_Nm_s_per_rad, p.limit_damping_Nm_s_per_rad,
+                                 p.hall_noise_counts, p.strain_noise_counts, p.strain_drift_N,
+                                 p.current_noise_counts, p.hall_gain_error, p.hall_offset_error_counts,
+                                 p.hall_angle_error_rad, p.strain_gain_error, p.strain_offset_error_N,
+                                 p.current_gain_error, p.current_offset_error_counts};
   for (double v : non_negative) requireValid(finiteNonNegative(v), "GlovePlantParams: a value must be >= 0");
   for (std::size_t j = 0; j < 3; ++j) {
     requireValid(finitePositive(p.muscle_stiffness_Nm_per_rad[j]), "GlovePlantParams: muscle stiffness");
@@ -91,48 +92,56 @@ void validate(const GlovePlantConfig& c) {
   }
   requireValid(p.spur_efficiency <= 1.0 && p.slip_kinetic_fraction <= 1.0, "GlovePlantParams: efficiency > 1");
   requireValid(p.spool_segment_fraction < 1.0, "GlovePlantParams: spool_segment_fraction must be < 1");
+  requireValid(p.max_substep_s <= 1e-3, "GlovePlantParams: max_substep_s must be <= 1 ms");
   // Self-locking needs the lead angle below the friction angle (λ < ρ); the forward efficiency is then < 50 %.
   requireValid(p.worm_lead_rad < std::atan(p.worm_friction_coeff), "GlovePlantParams: worm is not self-locking");
 }
 
+std::int32_t toCounts(double value) {
+  const double clamped = std::clamp(value, 0.0, static_cast<double>(board::kAdcMaxCounts));
+  return static_cast<std::int32_t>(std::lround(clamped));
+}
+
 }  // namespace
 
-// Everything one evaluation of the finger's forces produces (state → forces, accelerations, truth).
+// Everything one evaluation of a finger produces: forces and accelerations from the state at one instant.
 struct GlovePlant::Eval {
   Vec3<double> theta_d{}, theta_d_dot{};
-  Vec3<double> alpha{}, u{}, F{}, tau{};
-  // Linearly implicit finger step: local joint stiffness/damping (diagonal) and the tendon's rank-1 terms
-  // along a = ∂q_m/∂θ (stiffness, material damping and the capstan friction's velocity dependence).
-  Vec3<double> k_diag{}, b_diag{}, a{};
-  double k_tendon = 0, b_tendon = 0, taut = 0;
-  double x_release = 0, x_grasp = 0;  // capstan node positions after this evaluation
-  int slide_release = 0, slide_grasp = 0;
-  double push_target_N = 0;  // kPush: pad force the person aims for now
+  Vec3<double> alpha{}, u{}, F{}, tau_alpha{}, tau{};
   bool kin_ok = true;
   double pad_N = 0;
+  double q_m_dot = 0;  // release-path shortening rate (m/s)
   double tr_spool = 0, tr_tip = 0, tg_spool = 0, tg_tip = 0;
+  double wrap_r = 0, wrap_g = 0;
+  double x_release = 0, x_grasp = 0;  // capstan contact positions after this evaluation
+  int slide_release = 0, slide_grasp = 0;
   double tau_load_Nm = 0;  // tendon torque on the spool, + turns it +
   double voltage_V = 0, current_A = 0;
+  double push_target_N = 0;  // kPush: the pad force the person aims for now
+  // Linearly implicit finger step: local joint stiffness/damping (diagonal) and the tendon's rank-1 terms
+  // along a = ∂q_m/∂θ.
+  Vec3<double> k_diag{}, b_diag{}, a{};
+  double k_tendon = 0, b_tendon = 0;
 };
 
-/// One tendon of the antagonistic pair as two springs joined by the capstan contact on the pulleys.
+/// One tendon of the antagonistic pair: two springs joined by the capstan contact on the pulleys.
 /// u_s: tendon wound onto the spool, u_m: shortening of its path at the mechanism (both m, 0 at start),
 /// x_prev: cable passed over the pulleys towards the spool so far (m). Eq 15 with stiction: the contact
-/// sticks while e^{-μγ} ≤ T_spool/T_tip ≤ e^{μγ}; beyond, the cable slides and the ratio sits at the
-/// bound (F1 = the side the cable slides towards). Rate independent, as the §4.2 measurements show.
+/// sticks while e^{-μγ} ≤ T_spool/T_tip ≤ e^{μγ}; beyond, the cable slides and the ratio sits at the bound,
+/// F1 being the end the cable slides towards. Rate independent, as §4.2 measured it.
 GlovePlant::TendonState GlovePlant::solveTendon(const GloveFingerConstants& k, double u_s, double u_m,
                                                 double x_prev, double ratio) {
   const double k1 = k.spool_segment_stiffness_N_per_m;
   const double k2 = k.tip_segment_stiffness_N_per_m;
-  const double e1 = k.pretension_stretch_spool_m + u_s;  // spool segment stretch with x = 0
-  const double e2 = k.pretension_stretch_tip_m - u_m;    // tip segment stretch with x = 0
+  const double e1 = k.pretension_stretch_spool_m + u_s;  // spool segment stretch for x = 0
+  const double e2 = k.pretension_stretch_tip_m - u_m;    // tip segment stretch for x = 0
   TendonState st{};
   st.x_m = x_prev;
   if (e1 + e2 <= 0.0) return st;  // the whole tendon is slack: no tension, the contact does not move
   st.spool_N = k1 * std::max(0.0, e1 - x_prev);
   st.tip_N = k2 * std::max(0.0, e2 + x_prev);
   if (st.spool_N > ratio * st.tip_N) {
-    // Spool side pulls harder than friction can hold: slides towards the spool until T_spool = e^{μγ}·T_tip.
+    // The spool pulls harder than friction holds: slides towards the spool until T_spool = e^{μγ}·T_tip.
     st.x_m = (k1 * e1 - ratio * k2 * e2) / (k1 + ratio * k2);
     st.tip_N = k2 * (e2 + st.x_m);
     st.spool_N = ratio * st.tip_N;
@@ -154,14 +163,14 @@ GlovePlant::GlovePlant(const GlovePlantConfig& config) : config_(config), noise_
   const double rho = std::atan(p.worm_friction_coeff);
   worm_eff_forward_ = std::tan(p.worm_lead_rad) / std::tan(p.worm_lead_rad + rho);
   worm_eff_backward_ = std::tan(p.worm_lead_rad - rho) / std::tan(p.worm_lead_rad);
-  // Separate streams so that switching noise or calibration errors never changes the hand's motion.
+  // Separate streams, so that switching noise or calibration errors never changes the hand's motion.
   std::mt19937 calib_rng(config_.seed ^ 0x9E3779B9u);
   std::mt19937 motion_rng(config_.seed ^ 0x7F4A7C15u);
   for (int i = 0; i < board::kFingerCount; ++i) initFinger(fingers_[i], i, calib_rng, motion_rng);
 }
 
 int GlovePlant::idx(int finger) {
-  if (finger < 0 || finger >= board::kFingerCount) throw std::out_of_range("GlovePlant: finger index 0..4");
+  if (finger < 0 || finger >= board::kFingerCount) throw std::out_of_range("GlovePlant: finger index must be 0..4");
   return finger;
 }
 
@@ -173,48 +182,35 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   GloveFingerConstants& k = f.k;
   k.model = glove::defaultModel<double>(static_cast<glove::FingerId>(index));
   k.capstan = glove::makeCapstanModel(k.model.mech, mu_);
-
-  // Moment arms. A tendon over constant-radius pulleys gives joint torques τ_α = r·T; through the rigid
-  // fingertip strap (paper §3.1) that is the tip wrench (J_α^u)^{-T} r T. r is chosen so that at the
-  // mid-grasp pose θ_ref this wrench is a pure pad-normal force c_ref·T (the §3.4 design intent,
-  // τ_i = a_2i f_y): r = c_ref·(J_α^u)ᵀ n. Away from θ_ref the same r also gives tangential force and a
-  // moment, and the normal transmission drops (to ≈ 0.07 at the open and closed ends of the synergy).
+  k.pad_transmission = p.pad_transmission;
   for (std::size_t j = 0; j < 3; ++j) k.ref_theta_rad[j] = degToRad(p.ref_pose_deg[j]);
-  Vec3<double> alpha_ref{};
-  if (!glove::isUsable(glove::alphaFromTheta(k.model, k.ref_theta_rad, alpha_ref))) {
+  if (!glove::isUsable(glove::alphaFromTheta(k.model, k.ref_theta_rad, k.ref_alpha_rad))) {
     throw std::invalid_argument("GlovePlantParams: ref_pose_deg is not reachable by the glove mechanism");
   }
-  const Mat3<double> Ja_ref = glove::jacobianAlphaU(k.model.mech, alpha_ref);
-  const Vec3<double> n_ref = glove::padNormal(glove::tipPoseFromTheta(k.model.finger, k.ref_theta_rad)[2]);
-  k.moment_arm_m = glove::mulTransposed(Ja_ref, n_ref);
-  for (double& r : k.moment_arm_m) r *= p.pad_transmission_ref;
-  // Finger torques per unit net tendon tension at θ_ref: a_ref = (J_θ^u)ᵀ (J_α^u)^{-T} r = c_ref·(J_θ^u)ᵀ n.
-  const Vec3<double> Jtn_ref =
-      glove::mulTransposed(glove::jacobianThetaU(k.model.finger, k.ref_theta_rad), n_ref);
-  for (std::size_t j = 0; j < 3; ++j) k.push_direction[j] = p.pad_transmission_ref * Jtn_ref[j];
 
-  // Tendon and pad in series. The pad deflects δ = F/k_pad; seen along the tendon that is c·δ = c²T/k_pad.
-  // The capstan contact splits the tendon into a spool segment and a tip segment (which carries the pad).
+  // Tendon and pad in series. The pad deflects δ = F/k_pad = c·T/k_pad; seen along the tendon that is
+  // c·δ = c²·T/k_pad. The capstan contact splits the tendon into a spool segment and a tip segment (which
+  // also carries the pad compliance).
+  const double c = p.pad_transmission;
   k.spool_segment_stiffness_N_per_m = p.tendon_stiffness_N_per_m / p.spool_segment_fraction;
   k.tip_segment_stiffness_N_per_m =
-      1.0 / ((1.0 - p.spool_segment_fraction) / p.tendon_stiffness_N_per_m +
-             sq(p.pad_transmission_ref) / p.pad_stiffness_N_per_m);
+      1.0 / ((1.0 - p.spool_segment_fraction) / p.tendon_stiffness_N_per_m + sq(c) / p.pad_stiffness_N_per_m);
   k.series_stiffness_N_per_m =
       1.0 / (1.0 / k.spool_segment_stiffness_N_per_m + 1.0 / k.tip_segment_stiffness_N_per_m);
+  k.pad_stiffness_locked_N_per_m = sq(c) * k.series_stiffness_N_per_m;
   k.pretension_stretch_spool_m = p.pretension_N / k.spool_segment_stiffness_N_per_m;
   k.pretension_stretch_tip_m = p.pretension_N / k.tip_segment_stiffness_N_per_m;
-  // Passive limit (§2.2: "passive force as high as 35 N"). The finger pressing on the locked glove pulls
-  // the release tendon out against the capstan friction of the routing, so the spool sees the tip tension
-  // divided by e^{μ_L γ} (nominal lubricated μ: the slip torque is a gear property, not a function of the
-  // lubrication setting). At θ_ref, 35 N at the pad is a tip tension of 35 N / c_ref; the slip torque is
-  // that spool torque times passive_hold_margin, so that 35 N is held, not the slip point, once the finger
-  // has yielded into the tendon compliance (which lowers the transmission, docs/glove-plant.md).
-  const double gamma_ref = glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, alpha_ref);
-  const double tip_tension_ref = static_cast<double>(board::kPassiveHoldForce_N) / p.pad_transmission_ref;
-  k.slip_torque_Nm = p.passive_hold_margin * static_cast<double>(board::kSpoolRadius_m) * tip_tension_ref /
+
+  // Passive limit (§2.2: "passive force as high as 35 N"). A finger pressing on the locked glove pulls the
+  // release tendon out against the capstan friction of the routing, so the spool sees the tip tension
+  // divided by e^{μ_L γ}; the nominal lubricated μ is used because the slip torque is a property of the
+  // gear, not of the lubrication setting. 35 N at the pad at θ_ref is a tip tension of 35 N / c.
+  const double gamma_ref = glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, k.ref_alpha_rad);
+  k.slip_torque_Nm = p.passive_hold_margin * asDouble(board::kSpoolRadius_m) *
+                     (asDouble(board::kPassiveHoldForce_N) / c) /
                      glove::capstanRatio(glove::kMuLubricated<double>, gamma_ref);
 
-  // Finger: phalanx masses ∝ length; diagonal joint inertias in the extended posture (upper bound).
+  // Finger: phalanx masses ∝ length; diagonal joint inertias in the extended posture (an upper bound).
   const std::array<double, 3> len = {k.model.finger.p1_m, k.model.finger.p2_m, k.model.finger.p3_m};
   for (std::size_t j = 0; j < 3; ++j) {
     double inertia = 0.0;
@@ -226,8 +222,8 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
     }
     k.inertia_kg_m2[j] = inertia;
   }
-  // Muscle impedance: index values scaled by (finger length / index length)² so every fingertip has about
-  // the same stiffness (fingertip stiffness ≈ K / L²).
+  // Muscle impedance: index values scaled by (finger length / index length)², so that every fingertip has
+  // about the same stiffness (fingertip stiffness ≈ K / L²).
   const glove::Model<double> index_model = glove::defaultModel<double>(glove::FingerId::kIndex);
   const double l_index = index_model.finger.p1_m + index_model.finger.p2_m + index_model.finger.p3_m;
   const double scale = sq((len[0] + len[1] + len[2]) / l_index);
@@ -268,15 +264,14 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   f.err.current_gain = on * clippedNormal(calib_rng, p.current_gain_error);
   f.err.current_offset_counts = on * clippedNormal(calib_rng, p.current_offset_error_counts);
 
-  // Initial state: the finger at its intent, the tendons at their pretension, worm at rest and locked.
+  // Initial state: the finger at its intent, both tendons at their pretension, worm at rest and locked.
   Vec3<double> theta_d{}, theta_d_dot{};
   intent(f, 0.0, theta_d, theta_d_dot);
   f.theta = theta_d;
   f.theta_dot = theta_d_dot;
-  if (!glove::isUsable(glove::alphaFromTheta(k.model, f.theta, f.alpha0))) {
+  if (!glove::isUsable(glove::alphaFromTheta(k.model, f.theta, f.alpha_last))) {
     throw std::invalid_argument("GlovePlant: initial finger pose not reachable by the glove mechanism");
   }
-  f.alpha_last = f.alpha0;
   Eval e{};
   evaluate(f, 0.0, 0.0, false, e);
   fillTruth(f, e, false);
@@ -302,7 +297,7 @@ double GlovePlant::closureS(const Finger& f, double t, double& s_dot) const {
       // Minimum-jerk reach towards a full fist: an object in the way stops the finger, not the intent.
       const double shape = tau * tau * tau * (10.0 - 15.0 * tau + 6.0 * tau * tau);
       const double shape_dot = 30.0 * tau * tau * (1.0 - tau) * (1.0 - tau) / kGraspDuration_s;
-      s_dot = tau < 1.0 ? (kGraspTargetS - f.s_open) * shape_dot : 0.0;
+      s_dot = (kGraspTargetS - f.s_open) * shape_dot;
       return f.s_open + (kGraspTargetS - f.s_open) * shape;
     }
     case HandScenario::kRandom: {
@@ -325,12 +320,12 @@ double GlovePlant::closureS(const Finger& f, double t, double& s_dot) const {
 }
 
 void GlovePlant::intent(const Finger& f, double t, Vec3<double>& theta_d, Vec3<double>& theta_d_dot) const {
-  const glove::FingerGeometry<double>& g = f.k.model.finger;
   if (config_.scenario == HandScenario::kPush) {
     theta_d = f.k.ref_theta_rad;
     theta_d_dot = {0.0, 0.0, 0.0};
     return;
   }
+  const glove::FingerGeometry<double>& g = f.k.model.finger;
   double s_dot = 0.0;
   const double s = closureS(f, t, s_dot);
   for (std::size_t j = 0; j < 3; ++j) {
@@ -359,20 +354,22 @@ void GlovePlant::intent(const Finger& f, double t, Vec3<double>& theta_d, Vec3<d
 void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const {
   const GlovePlantParams& p = config_.params;
   const GloveFingerConstants& k = f.k;
+  const double c = k.pad_transmission;
   intent(f, t, e.theta_d, e.theta_d_dot);
 
   // Kinematics: the massless glove follows the finger through the closure α = f(θ) (eq 6–8).
   e.kin_ok = glove::isUsable(glove::alphaFromTheta(k.model, f.theta, e.alpha));
   if (!e.kin_ok) e.alpha = f.alpha_last;
   const Mat3<double> Jt = glove::jacobianThetaU(k.model.finger, f.theta);
-  const Mat3<double> Ja = glove::jacobianAlphaU(k.model.mech, e.alpha);
-  Mat3<double> Ja_inv{};
-  // |det J_α^u| = l1 l2 |sin α2| ≥ ~1e-3 m² over the working range (eq 24); 1e-9 only guards a singularity.
-  const bool ja_ok = glove::invert(Ja, 1e-9, Ja_inv) == glove::Status::kOk;
-  const Vec3<double> u_dot = glove::mul(Jt, f.theta_dot);
-  const Vec3<double> alpha_dot = ja_ok ? glove::mul(Ja_inv, u_dot) : Vec3<double>{0.0, 0.0, 0.0};
   e.u = glove::tipPoseFromTheta(k.model.finger, f.theta);
   const Vec3<double> n = glove::padNormal(e.u[2]);
+  // The tendon acts on the fingertip as a pad-normal force c·T (§3.4's model: only f_y, eq 18), so the
+  // tendon path changes with the pad-normal motion of the fingertip: q̇_m = c·n·u̇, and the finger feels
+  // a = ∂q_m/∂θ = c·(J_θ^u)ᵀ n per newton of net tension. The mechanism joint torques are
+  // τ_α = (J_α^u)ᵀ F, i.e. effective moment arms c·(J_α^u)ᵀ n that change with the pose.
+  const Vec3<double> Jtn = glove::mulTransposed(Jt, n);
+  for (std::size_t j = 0; j < 3; ++j) e.a[j] = c * Jtn[j];
+  e.q_m_dot = dot3(e.a, f.theta_dot);
 
   // Tendons. q_m: shortening of the release path (= lengthening of the grasp path) since construction;
   // q_s: release tendon wound on the spool (the grasp tendon is unwound by the same length).
@@ -380,26 +377,19 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
   e.x_release = f.x_release;
   e.x_grasp = f.x_grasp;
   e.slide_release = e.slide_grasp = 0;
-  e.taut = 0.0;
-  e.b_tendon = 0.0;
+  e.wrap_r = glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, e.alpha);
+  e.wrap_g = glove::wrapAngle_rad(k.capstan, glove::Tendon::kGrasp, e.alpha);
+  double taut = 0.0;
   if (f.cables) {
-    double q_m = 0.0, q_m_dot = 0.0;
-    for (std::size_t j = 0; j < 3; ++j) {
-      q_m += k.moment_arm_m[j] * (e.alpha[j] - f.alpha0[j]);
-      q_m_dot += k.moment_arm_m[j] * alpha_dot[j];
-    }
-    const double r_s = static_cast<double>(board::kSpoolRadius_m);
+    const double r_s = asDouble(board::kSpoolRadius_m);
     const double q_s = r_s * f.spool_angle;
-    const double q_s_dot = r_s * f.spool_speed;
-    // Capstan friction (eq 15–16) over the routing, wrap γ(α) from capstan.h.
-    const double ratio_r =
-        glove::capstanRatio(mu_, glove::wrapAngle_rad(k.capstan, glove::Tendon::kRelease, e.alpha));
-    const double ratio_g = glove::capstanRatio(mu_, glove::wrapAngle_rad(k.capstan, glove::Tendon::kGrasp, e.alpha));
-    const TendonState release = solveTendon(k, q_s, q_m, f.x_release, ratio_r);
-    const TendonState grasp = solveTendon(k, -q_s, -q_m, f.x_grasp, ratio_g);
-    // Material damping of the whole tendon (Kelvin–Voigt on its total stretch rate), same force along it.
-    const double damp = p.tendon_damping_N_s_per_m * (q_s_dot - q_m_dot);
-    const auto withDamping = [](double tension, double force) { return tension > 0.0 ? std::max(0.0, tension + force) : 0.0; };
+    const TendonState release = solveTendon(k, q_s, f.q_m, f.x_release, glove::capstanRatio(mu_, e.wrap_r));
+    const TendonState grasp = solveTendon(k, -q_s, -f.q_m, f.x_grasp, glove::capstanRatio(mu_, e.wrap_g));
+    // Material damping of the whole tendon (Kelvin–Voigt on its total stretch rate): the same force along it.
+    const double damp = p.tendon_damping_N_s_per_m * (r_s * f.spool_speed - e.q_m_dot);
+    const auto withDamping = [](double tension, double force) {
+      return tension > 0.0 ? std::max(0.0, tension + force) : 0.0;
+    };
     e.tr_spool = withDamping(release.spool_N, damp);
     e.tr_tip = withDamping(release.tip_N, damp);
     e.tg_spool = withDamping(grasp.spool_N, -damp);
@@ -408,18 +398,12 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
     e.x_grasp = grasp.x_m;
     e.slide_release = release.sliding;
     e.slide_grasp = grasp.sliding;
-    e.taut = (release.tip_N > 0.0 ? 1.0 : 0.0) + (grasp.tip_N > 0.0 ? 1.0 : 0.0);
-    e.b_tendon = e.taut * p.tendon_damping_N_s_per_m;
+    taut = (release.tip_N > 0.0 ? 1.0 : 0.0) + (grasp.tip_N > 0.0 ? 1.0 : 0.0);
   }
   const double net_tip = e.tr_tip - e.tg_tip;
-  // Massless linkage in equilibrium: τ_α = (J_α^u)ᵀ F (eq 18) ⇒ F = (J_α^u)^{-T} τ_α, applied to the finger.
-  // Per unit net tip tension: F₁ = (J_α^u)^{-T} r, pad transmission c_n = n·F₁, finger torques
-  // a = (J_θ^u)ᵀ F₁ = ∂q_m/∂θ (eq 12 chain: the tendon constrains the finger along a only).
-  const Vec3<double> F_unit = ja_ok ? glove::mulTransposed(Ja_inv, k.moment_arm_m) : Vec3<double>{0.0, 0.0, 0.0};
-  const Vec3<double> a = glove::mulTransposed(Jt, F_unit);
-  const double c_n = n[0] * F_unit[0] + n[1] * F_unit[1];
-  for (std::size_t j = 0; j < 3; ++j) e.F[j] = F_unit[j] * net_tip;
-  e.pad_N = c_n * net_tip;
+  e.pad_N = c * net_tip;
+  e.F = {e.pad_N * n[0], e.pad_N * n[1], 0.0};
+  e.tau_alpha = glove::mechanismTorqueFromWrench(glove::jacobianAlphaU(k.model.mech, e.alpha), e.F);
 
   // Finger: muscle impedance towards θ_d (with the passive torque at θ_d fed forward, as the CNS does),
   // passive stiffness/damping, soft range limits, and the glove.
@@ -431,78 +415,71 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
                     k.muscle_damping_Nm_s_per_rad[j] * (e.theta_d_dot[j] - f.theta_dot[j]) +
                     p.passive_stiffness_Nm_per_rad[j] * (e.theta_d[j] - rest);
   }
+  e.push_target_N = 0.0;
   if (config_.scenario == HandScenario::kGrasp) {
-    // Effort saturates at the squeeze force: the joint torques a pad-normal force of that size needs.
-    const Vec3<double> Jtn = glove::mulTransposed(Jt, n);
+    // Effort saturates at the squeeze force: the joint torques that a pad-normal force of that size needs.
     for (std::size_t j = 0; j < 3; ++j) {
       const double limit = std::fabs(Jtn[j]) * config_.squeeze_force_N + kMinEffort_Nm;
       tau_muscle[j] = std::clamp(tau_muscle[j], -limit, limit);
     }
   } else if (config_.scenario == HandScenario::kPush) {
-    // The finger presses into the glove along the direction the tendon constrains at θ_ref (a_ref, where it
-    // is exactly the pad normal) and holds its posture (muscle + passive torque projected off a_ref) in the
-    // two directions the tendon leaves free. Its effort (tension-equivalent along a_ref) is the state
-    // push_effort_N, which the person adjusts from what the fingertip feels (integrate()).
-    const Vec3<double>& a_ref = k.push_direction;
-    const double aa = a_ref[0] * a_ref[0] + a_ref[1] * a_ref[1] + a_ref[2] * a_ref[2];
+    // The finger presses into the pad (along −a) with the effort push_effort_N (a tendon tension, N) and
+    // holds its θ_ref posture (muscle + passive torque projected off a) in the two directions the tendon
+    // leaves free. The person adjusts the effort by feel (integrate()).
+    const double aa = dot3(e.a, e.a);
     Vec3<double> posture = tau_muscle;
     for (std::size_t j = 0; j < 3; ++j) {
       posture[j] -= p.passive_stiffness_Nm_per_rad[j] * (f.theta[j] - degToRad(p.rest_pose_deg[j]));
     }
-    const double along = (a_ref[0] * posture[0] + a_ref[1] * posture[1] + a_ref[2] * posture[2]) / aa;
-    for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= a_ref[j] * (along + f.push_effort_N);
+    const double along = aa > 0.0 ? dot3(e.a, posture) / aa : 0.0;
+    for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= e.a[j] * (along + f.push_effort_N);
     e.push_target_N = config_.push_force_N * std::min(1.0, t / config_.push_ramp_s);
   }
   for (std::size_t j = 0; j < 3; ++j) {
     const double rest = degToRad(p.rest_pose_deg[j]);
     const double kp = p.passive_stiffness_Nm_per_rad[j];
     const double tau_passive = -kp * (f.theta[j] - rest) - p.passive_damping_Nm_s_per_rad * f.theta_dot[j];
-    double tau_limit = 0.0;
-    double k_limit = 0.0, b_limit = 0.0;
     const double over = f.theta[j] > g.theta_max_rad[j]   ? f.theta[j] - g.theta_max_rad[j]
                         : f.theta[j] < g.theta_min_rad[j] ? f.theta[j] - g.theta_min_rad[j]
                                                            : 0.0;
-    if (over != 0.0) {
-      k_limit = p.limit_stiffness_Nm_per_rad;
-      b_limit = p.limit_damping_Nm_s_per_rad;
-      tau_limit = -k_limit * over - b_limit * f.theta_dot[j];
-    }
-    e.tau[j] = tau_muscle[j] + tau_passive + tau_limit + a[j] * net_tip;
+    const double k_limit = over != 0.0 ? p.limit_stiffness_Nm_per_rad : 0.0;
+    const double b_limit = over != 0.0 ? p.limit_damping_Nm_s_per_rad : 0.0;
+    const double tau_limit = -k_limit * over - b_limit * f.theta_dot[j];
+    e.tau[j] = tau_muscle[j] + tau_passive + tau_limit + e.a[j] * net_tip;
     e.k_diag[j] = k.muscle_stiffness_Nm_per_rad[j] + kp + k_limit;
     e.b_diag[j] = k.muscle_damping_Nm_s_per_rad[j] + p.passive_damping_Nm_s_per_rad + b_limit;
   }
-  e.a = a;
-  e.k_tendon = e.taut * k.tip_segment_stiffness_N_per_m;
+  e.k_tendon = taut * k.tip_segment_stiffness_N_per_m;
+  e.b_tendon = taut * p.tendon_damping_N_s_per_m;
 
   // Tendon torque on the spool: the release tendon pulls it back (−), the grasp tendon forward (+).
-  e.tau_load_Nm = -static_cast<double>(board::kSpoolRadius_m) * (e.tr_spool - e.tg_spool);
+  e.tau_load_Nm = -asDouble(board::kSpoolRadius_m) * (e.tr_spool - e.tg_spool);
 
   // Motor: averaged bridge voltage; the electrical time constant (≈ 0.1 ms) is neglected at these steps.
-  const double gear = static_cast<double>(board::kGearRatio);
-  const double kt = static_cast<double>(board::kMotorTorqueConstant_Nm_per_A);
-  e.voltage_V = bridge_on ? duty * static_cast<double>(board::kSupply_V) : 0.0;
+  const double gear = asDouble(board::kGearRatio);
+  const double kt = asDouble(board::kMotorTorqueConstant_Nm_per_A);
+  e.voltage_V = bridge_on ? duty * asDouble(board::kSupply_V) : 0.0;
   if (bridge_on) {
-    const double r_total =
-        static_cast<double>(board::kMotorResistance_Ohm) + static_cast<double>(board::kBridgeOnResistance_Ohm);
-    const double limit = static_cast<double>(board::kBridgeCurrentLimit_A);
+    const double r_total = asDouble(board::kMotorResistance_Ohm) + asDouble(board::kBridgeOnResistance_Ohm);
+    const double limit = asDouble(board::kBridgeCurrentLimit_A);
     e.current_A = std::clamp((e.voltage_V - kt * gear * f.worm_speed) / r_total, -limit, limit);
   } else {
-    // Bridge off: motor terminals open. No current can flow because the self-locking worm never lets the
-    // load spin the motor fast enough to forward-bias the bridge's body diodes.
+    // Bridge off: terminals open. No current can flow: the self-locking worm never lets the load spin the
+    // motor fast enough to forward-bias the bridge's body diodes.
     e.current_A = 0.0;
   }
 }
 
 void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
   const GlovePlantParams& p = config_.params;
-  const double gear = static_cast<double>(board::kGearRatio);
-  const double kt = static_cast<double>(board::kMotorTorqueConstant_Nm_per_A);
+  const double gear = asDouble(board::kGearRatio);
+  const double kt = asDouble(board::kMotorTorqueConstant_Nm_per_A);
 
   // ---- Worm drive. Spool coordinates: ω is the worm-wheel speed, torques are referred to the wheel.
   // Mesh with lead λ and friction angle ρ: steady motion in direction s against a load Q (torque opposing
-  // +rotation) needs the (ideal-ratio) input torque Q·g, with g = 1/η_w when the worm drives the load
-  // (Q·s > 0) and g = η_wb = tan(λ−ρ)/tan λ < 0 when the load would drive it: then the motor must still
-  // push along the motion — the load can never back-drive the motor (self-locking). With inertias:
+  // + rotation) needs the (ideal-ratio) input torque Q·g, with g = 1/η_w when the worm drives the load
+  // (Q·s > 0) and g = η_wb = tan(λ−ρ)/tan λ < 0 when the load would drive it — then the motor must still
+  // push along the motion: the load can never back-drive the motor (self-locking). With the inertias:
   //   ω̇ = (τ_in + g·τ_load) / (J_in + g·J_load).
   const double tau_in = gear * p.spur_efficiency * kt * e.current_A;
   const double tau_coulomb_in = gear * p.spur_efficiency * p.motor_coulomb_friction_Nm;
@@ -522,7 +499,7 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
   double worm_acc = 0.0;
   double dir = 0.0;
   if (f.worm_stuck) {
-    // Break-away thresholds of the input torque for + and − motion (Coulomb friction of the motor added).
+    // Break-away thresholds of the input torque for + and − motion (the motor's Coulomb friction added).
     const double thr_pos = q > 0.0 ? q / eta_f : q * eta_b;
     const double thr_neg = q > 0.0 ? q * eta_b : q / eta_f;
     if (tau_in - tau_coulomb_in > thr_pos) {
@@ -551,7 +528,7 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
   }
   f.worm_angle += h * f.worm_speed;
 
-  // ---- Spool on the worm wheel: rigidly held unless the tendon torque exceeds the passive limit (§2.2).
+  // ---- Spool on the worm wheel: held unless the tendon torque exceeds the passive limit (§2.2).
   if (!f.slipping) {
     const double clutch_torque = p.spool_inertia_kg_m2 * worm_acc - e.tau_load_Nm;
     if (std::fabs(clutch_torque) > f.k.slip_torque_Nm) {
@@ -568,7 +545,7 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
                        p.spool_inertia_kg_m2;
     const double next = f.spool_speed + h * acc;
     if ((next - f.worm_speed) * slip_dir <= 0.0 && std::fabs(e.tau_load_Nm) <= f.k.slip_torque_Nm) {
-      f.slipping = false;  // relative motion stopped and the load is back within the limit: grips again
+      f.slipping = false;  // the relative motion stopped and the load is back within the limit: grips again
       f.spool_speed = f.worm_speed;
     } else {
       f.spool_speed = next;
@@ -576,33 +553,33 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
     f.spool_angle += h * f.spool_speed;
   }
 
-  // ---- kPush: the person regulates the fingertip force by feel — effort integrates the force error with
-  // a 0.15 s time constant (a slow human force loop), never negative, at most twice the nominal effort.
+  // ---- kPush: the person regulates the fingertip force by feel — the effort integrates the force error
+  // with a 0.15 s time constant, never negative, at most twice the nominal effort.
   if (config_.scenario == HandScenario::kPush) {
-    const double c_ref = p.pad_transmission_ref;
-    f.push_effort_N += h * (e.push_target_N - e.pad_N) / (c_ref * kPushForceLoop_s);
-    f.push_effort_N = std::clamp(f.push_effort_N, 0.0, 2.0 * config_.push_force_N / c_ref);
+    const double c = f.k.pad_transmission;
+    f.push_effort_N += h * (e.push_target_N - e.pad_N) / (c * kPushForceLoop_s);
+    f.push_effort_N = std::clamp(f.push_effort_N, 0.0, 2.0 * config_.push_force_N / c);
   }
 
   // ---- Finger: linearly implicit Euler, (M + h·B + h²·K)·Δθ̇ = h·τ, then θ += h·θ̇, with B and K the
-  // diagonal local joint terms plus the tendon's rank-1 terms c·a·aᵀ (solved exactly by Sherman–Morrison).
-  // The distal joint has ≈ 1e-6 kg·m² against tendon/limit stiffnesses of N·m/rad and the capstan
-  // friction's steep velocity dependence, which an explicit step at 0.1 ms would not keep stable.
+  // diagonal local joint terms plus the tendon's rank-1 terms along a (solved exactly by Sherman–Morrison).
+  // The distal joint has ≈ 1e-6 kg·m² against tendon/limit stiffnesses of N·m/rad, which an explicit step
+  // at 0.1 ms would not keep stable.
   Vec3<double> y{}, z{};
-  double ay = 0.0, az = 0.0;
   for (std::size_t j = 0; j < 3; ++j) {
     const double m = f.k.inertia_kg_m2[j] + h * e.b_diag[j] + h * h * e.k_diag[j];
     y[j] = h * e.tau[j] / m;
     z[j] = e.a[j] / m;
-    ay += e.a[j] * y[j];
-    az += e.a[j] * z[j];
   }
-  const double c = h * e.b_tendon + h * h * e.k_tendon;
-  const double corr = c * ay / (1.0 + c * az);
+  const double ct = h * e.b_tendon + h * h * e.k_tendon;
+  const double corr = ct * dot3(e.a, y) / (1.0 + ct * dot3(e.a, z));
   for (std::size_t j = 0; j < 3; ++j) {
     f.theta_dot[j] += y[j] - z[j] * corr;
     f.theta[j] += h * f.theta_dot[j];
   }
+  // Tendon path (non-holonomic: integrated along the motion with the same a as the forces, so the tendon
+  // does exactly the work c·T·(n·u̇) on the finger).
+  f.q_m += h * dot3(e.a, f.theta_dot);
   if (e.kin_ok) f.alpha_last = e.alpha;
   f.x_release = e.x_release;
   f.x_grasp = e.x_grasp;
@@ -616,16 +593,19 @@ void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
   t.alpha_rad = e.alpha;
   t.O_u_tip = e.u;
   t.O_F_tip = e.F;
+  t.tau_alpha_Nm = e.tau_alpha;
   t.pad_force_N = e.pad_N;
   t.tension_release_spool_N = e.tr_spool;
   t.tension_release_tip_N = e.tr_tip;
   t.tension_grasp_spool_N = e.tg_spool;
   t.tension_grasp_tip_N = e.tg_tip;
+  t.wrap_release_rad = e.wrap_r;
+  t.wrap_grasp_rad = e.wrap_g;
   t.release_sliding = e.slide_release;
   t.grasp_sliding = e.slide_grasp;
   t.spool_angle_rad = f.spool_angle;
   t.spool_speed_rad_s = f.spool_speed;
-  t.motor_speed_rad_s = static_cast<double>(board::kGearRatio) * f.worm_speed;
+  t.motor_speed_rad_s = asDouble(board::kGearRatio) * f.worm_speed;
   t.motor_voltage_V = e.voltage_V;
   t.motor_current_A = e.current_A;
   t.bridge_on = bridge_on;
@@ -635,11 +615,6 @@ void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
 }
 
 double GlovePlant::gaussian() { return normal(noise_rng_); }
-
-std::int32_t GlovePlant::toCounts(double value) {
-  const double clamped = std::clamp(value, 0.0, static_cast<double>(board::kAdcMaxCounts));
-  return static_cast<std::int32_t>(std::lround(clamped));
-}
 
 void GlovePlant::sample(Finger& f, double dt_s, SimIo& io) {
   const GlovePlantParams& p = config_.params;
@@ -651,35 +626,33 @@ void GlovePlant::sample(Finger& f, double dt_s, SimIo& io) {
     return;
   }
   const bool noise = config_.noise;
-  // Hall sensors: the board.h nominal curve with this part's gain/offset/mounting errors, noise, 12 bits.
-  const double amp = static_cast<double>(board::kHallAmplitude_counts);
-  const double h3 = static_cast<double>(board::kHallThirdHarmonic);
+  // Hall sensors: board.h's nominal curve with this part's gain/offset/mounting errors, noise, 12 bits.
+  const double amp = asDouble(board::kHallAmplitude_counts);
+  const double h3 = asDouble(board::kHallThirdHarmonic);
   for (std::size_t j = 0; j < 3; ++j) {
-    const double kappa = static_cast<double>(board::kHallHalfFieldAngle_rad) /
-                         static_cast<double>(board::kHallHalfRange_rad[j]);
-    const double x = kappa * (f.truth.alpha_rad[j] + f.err.hall_angle_rad[j] -
-                              static_cast<double>(board::kHallCentre_rad[j]));
+    const double kappa = asDouble(board::kHallHalfFieldAngle_rad) / asDouble(board::kHallHalfRange_rad[j]);
+    const double x = kappa * (f.truth.alpha_rad[j] + f.err.hall_angle_rad[j] - asDouble(board::kHallCentre_rad[j]));
     double v = static_cast<double>(board::kAdcMidCounts) + f.err.hall_offset_counts[j] +
                amp * (1.0 + f.err.hall_gain[j]) * (std::sin(x) - h3 * std::sin(3.0 * x));
     if (noise) v += p.hall_noise_counts * gaussian();
     io.adc[board::hallAdcChannel(i, static_cast<int>(j))] = toCounts(v);
   }
-  // Strain gauge: slow offset drift (exact Ornstein–Uhlenbeck update), noise, amplifier clamp at ±full scale.
+  // Strain gauge: slow offset drift (exact Ornstein–Uhlenbeck update), noise, amplifier clamp at ± full scale.
   if (noise) {
     const double a = std::exp(-dt_s / p.strain_drift_time_s);
     f.strain_drift_N = a * f.strain_drift_N + p.strain_drift_N * std::sqrt(1.0 - a * a) * gaussian();
   }
-  const double cpn = static_cast<double>(board::kStrainCountsPerNewton);
+  const double cpn = asDouble(board::kStrainCountsPerNewton);
   double s = static_cast<double>(board::kStrainZeroCounts) +
              cpn * ((1.0 + f.err.strain_gain) * f.truth.pad_force_N + f.err.strain_offset_N + f.strain_drift_N);
   if (noise) s += p.strain_noise_counts * gaussian();
   s = std::clamp(s, static_cast<double>(board::kStrainMinCounts), static_cast<double>(board::kStrainMaxCounts));
   io.adc[board::strainAdcChannel(i)] = toCounts(s);
   // Current sense.
-  double c = static_cast<double>(board::kCurrentZeroCounts) + f.err.current_offset_counts +
-             static_cast<double>(board::kCurrentCountsPerAmp) * (1.0 + f.err.current_gain) * f.truth.motor_current_A;
-  if (noise) c += p.current_noise_counts * gaussian();
-  io.adc[board::currentAdcChannel(i)] = toCounts(c);
+  double cur = static_cast<double>(board::kCurrentZeroCounts) + f.err.current_offset_counts +
+               asDouble(board::kCurrentCountsPerAmp) * (1.0 + f.err.current_gain) * f.truth.motor_current_A;
+  if (noise) cur += p.current_noise_counts * gaussian();
+  io.adc[board::currentAdcChannel(i)] = toCounts(cur);
 }
 
 void GlovePlant::step(double dt_s, SimIo& io) {
@@ -693,7 +666,7 @@ void GlovePlant::step(double dt_s, SimIo& io) {
   Eval e{};
   for (Finger& f : fingers_) {
     if (!f.enabled) continue;
-    const double raw = static_cast<double>(io.pwm_duty[static_cast<std::size_t>(board::motorPwmChannel(f.index))]);
+    const double raw = asDouble(io.pwm_duty[static_cast<std::size_t>(board::motorPwmChannel(f.index))]);
     const double duty = std::isfinite(raw) ? std::clamp(raw, -1.0, 1.0) : 0.0;
     for (int k = 0; k < n; ++k) {
       evaluate(f, time_s_ + k * h, duty, bridge_on, e);

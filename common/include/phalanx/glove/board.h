@@ -153,11 +153,12 @@ constexpr float strainCountsToForce_N(int32_t counts) {
 // Motor current sense (5)
 // -------------------------------------------------------------------------------------------------------
 // Part class: bidirectional in-line current-sense amplifier with PWM rejection (INA240A1 class, 20 V/V)
-// across a 25 mΩ shunt in series with the motor, REF at mid-supply: 0.5 V/A → ±3.3 A full scale, covering
-// the bridge's 3 A current regulation. Positive = current that drives the motor in the positive direction.
+// across a 20 mΩ shunt in series with the motor, REF at mid-supply: 0.4 V/A → ±4.1 A full scale, covering
+// the bridge's 4 A current regulation. Positive = current that drives the motor in the positive direction.
+// (The bridge's own current-mirror output is unidirectional, hence the separate amplifier.)
 inline constexpr int32_t kCurrentZeroCounts = kAdcMidCounts;
-inline constexpr float kCurrentSenseGain_V_per_A = 20.0f * 0.025f;                             ///< 0.5 V/A
-inline constexpr float kCurrentCountsPerAmp = kCurrentSenseGain_V_per_A * kAdcCountsPerVolt;   ///< 620.6
+inline constexpr float kCurrentSenseGain_V_per_A = 20.0f * 0.020f;                             ///< 0.4 V/A
+inline constexpr float kCurrentCountsPerAmp = kCurrentSenseGain_V_per_A * kAdcCountsPerVolt;   ///< 496.5
 constexpr float currentCountsToAmps_A(int32_t counts) {
   return static_cast<float>(counts - kCurrentZeroCounts) / kCurrentCountsPerAmp;
 }
@@ -171,11 +172,12 @@ inline constexpr float kSupply_V = 9.0f;
 /// the order of 0.1 ms — longer than the 50 µs PWM period (small ripple) and much shorter than the 1 ms
 /// control period (the current follows the averaged voltage within a tick).
 inline constexpr float kPwmFrequency_Hz = 20000.0f;
-/// H-bridge (DRV8871 class: 6.5–45 V, internal current regulation) set to regulate at 3.0 A: the FA-130
-/// stall current at its 3 V rating is ≈ 4.4 A, so 3 A protects the motor at the 9 V supply.
-inline constexpr float kBridgeCurrentLimit_A = 3.0f;
-/// Bridge on-resistance, high side + low side (DRV8871 class, typical).
-inline constexpr float kBridgeOnResistance_Ohm = 0.565f;
+/// H-bridge (DRV8874 class: 4.5–37 V, 6 A peak, cycle-by-cycle current regulation) set to regulate at
+/// 4.0 A: the FA-130 stall current at its 3 V rating is ≈ 4.4 A, so 4 A lets it reach its rated stall
+/// torque in bursts while protecting it at the 9 V supply.
+inline constexpr float kBridgeCurrentLimit_A = 4.0f;
+/// Bridge on-resistance, high side + low side (DRV8874 class, typical).
+inline constexpr float kBridgeOnResistance_Ohm = 0.2f;
 /// Mabuchi FA-130RA-2270 (paper §2.2), datasheet figures at its 1.5 V nominal point: no load 9100 rpm /
 /// 0.20 A, stall 2.6 mN·m / 2.2 A → R = 1.5 V / 2.2 A, K = 2.6 mN·m / (2.2 − 0.2) A ≈ 1.3e-3 and
 /// K_e = (1.5 − 0.2·0.68) V / 953 rad/s ≈ 1.43e-3; the mean is used for both K_t and K_e.
@@ -188,9 +190,11 @@ inline constexpr float kMotorRated_V = 3.0f;
 /// Gearbox ratio, motor : spool (Tamiya 70103 universal gearbox in its 101:1 configuration, §2.2); the last
 /// stage is a non-back-drivable (self-locking) metal worm.
 inline constexpr float kGearRatio = 101.0f;
-/// Tendon spool ("active pulley") radius: a design choice (paper does not give it) — with the 3 A limit it
-/// gives ≈ 10 N of active fingertip force at the mid-grasp pose (§2.2's 10 N).
-inline constexpr float kSpoolRadius_m = 0.003f;
+/// Tendon spool ("active pulley") radius: a design choice (the paper does not give it). With the 4 A limit
+/// and the plant's pad transmission (0.3 N per N of tendon tension) it gives ≈ 10 N of active fingertip
+/// force (§2.2) and a no-load fingertip speed of ≈ 1 m/s, enough to follow 1 s close/open maneuvers
+/// (§4.3); a smaller spool would give more force but less speed and more reflected motor inertia.
+inline constexpr float kSpoolRadius_m = 0.005f;
 /// Maximum active fingertip force (§2.2) and the worm's passive holding force (§2.2: 35 N, male sustained
 /// finger hold) — the simulated worm slips beyond the latter.
 inline constexpr float kMaxActiveForce_N = 10.0f;

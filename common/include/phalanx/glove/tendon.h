@@ -1,33 +1,28 @@
 #pragma once
-/// Tendon routing of one glove finger: the constant-radius pulley moment arms r_i of the antagonistic tendon
-/// pair at the three mechanism joints. One definition shared by the simulated plant (which drives the
-/// mechanism through them) and the firmware (whose feed-forward moves the spool with the finger through them).
+/// Tendon transmission of one glove finger, one definition shared by the simulated plant's design constants
+/// and the firmware's feed-forward. 000 §3.4 models the tendon pair's action on the fingertip as a force normal
+/// to the pad only (τ_i = a_2i f_y, eq 18–19): the net tendon tension T reaches the pad as c·T along n(φ).
+/// The tendon path then changes with the pad-normal motion of the fingertip, q̇ = c·n(φ)·u̇ = r(α)·α̇, i.e.
+/// pose-dependent effective moment arms r(α) = c·(J_α^u(α))ᵀ n(φ) with φ = α1 + α2 + α3 (eq 5).
 /// Freestanding, templated on the scalar like kinematics.h.
 #include "phalanx/glove/kinematics.h"
 
 namespace phalanx::glove {
 
-/// Design of the routing: r is chosen so that at the mid-grasp pose θ_ref the tendon's tip wrench
-/// (J_α^u)^{-T} r T is a pure pad-normal force c_ref·T (000 §3.4 design intent, τ_i = a_2i f_y):
-/// r = c_ref·(J_α^u(α_ref))ᵀ n(φ_ref).
 template <class T>
 struct TendonDesign {
-  Vec3<T> ref_pose_deg = {T(-45), T(-65), T(-45)};  ///< θ_ref: mid-grasp finger pose
-  T pad_transmission_ref = T(0.3);                  ///< c_ref: pad-normal force per N of tip tension at θ_ref
+  T pad_transmission = T(0.3);  ///< c: pad-normal force per N of net tendon tension at the tip (docs/glove-plant.md)
+  /// θ_ref: the mid-grasp finger pose at which the worm's passive holding force (35 N, 000 §2.2) is specified.
+  Vec3<T> ref_pose_deg = {T(-45), T(-65), T(-45)};
 };
 
-/// Moment arms r (m) for a finger model; false if θ_ref is not reachable by the mechanism.
+/// Effective moment arms r(α) (m): tendon path rate per mechanism joint rate at pose α.
 template <class T>
-inline bool tendonMomentArms(const Model<T>& model, const TendonDesign<T>& design, Vec3<T>& r_m) {
-  Vec3<T> theta_ref{};
-  for (std::size_t j = 0; j < 3; ++j) theta_ref[j] = degToRad(design.ref_pose_deg[j]);
-  Vec3<T> alpha_ref{};
-  if (!isUsable(alphaFromTheta(model, theta_ref, alpha_ref))) return false;
-  const Mat3<T> Ja_ref = jacobianAlphaU(model.mech, alpha_ref);
-  const Vec3<T> n_ref = padNormal(tipPoseFromTheta(model.finger, theta_ref)[2]);
-  r_m = mulTransposed(Ja_ref, n_ref);
-  for (T& r : r_m) r *= design.pad_transmission_ref;
-  return true;
+inline Vec3<T> tendonMomentArms(const MechanismGeometry<T>& mech, const Vec3<T>& alpha_rad, T pad_transmission) {
+  const Vec3<T> n = padNormal(alpha_rad[0] + alpha_rad[1] + alpha_rad[2]);
+  Vec3<T> r = mulTransposed(jacobianAlphaU(mech, alpha_rad), n);
+  for (T& v : r) v *= pad_transmission;
+  return r;
 }
 
 }  // namespace phalanx::glove

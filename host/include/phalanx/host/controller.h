@@ -2,6 +2,8 @@
 /// Host-side controllers: turn the newest telemetry into the next full-state command, every cycle.
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -21,6 +23,10 @@ class Controller {
   virtual void summarize(nlohmann::json& /*out*/) const {}
   /// One line for the live terminal view (called at ~10 Hz, may allocate).
   virtual std::string liveLine(const TelemetryFrame& tel) const;
+  /// Device parameters to set once after the handshake, before the first command (e.g. the glove's strain-gauge
+  /// tare with the hand relaxed), and how long the device needs after them.
+  virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }
+  virtual double startupSettleS() const { return 0.0; }
 };
 
 /// Zero force/torque on every channel: the device follows the user.

@@ -26,7 +26,8 @@ class LockstepRig {
   /// The rig does not own device or controller; both must outlive it.
   LockstepRig(fw_sim::SimDevice& device, Controller& controller, const LockstepOptions& options = {});
 
-  /// Open the session (Hello/HelloAck over the pipe). Returns an error text or "".
+  /// Open the session (Hello/HelloAck over the pipe), set the controller's start-up parameters and wait its
+  /// settle time; only then does step() send commands. Returns an error text or "".
   std::string handshake();
   /// One period: plant substeps, firmware tick, host poll + controller + command.
   void step();
@@ -54,6 +55,7 @@ class LockstepRig {
   HostSession session_;
   protocol::Command cmd_{};
   bool host_connected_ = true;
+  bool started_ = false;  ///< commands flow only once handshake() finished the start-up sequence
   std::function<void(sim::SimIo&)> io_hook_;
 };
 

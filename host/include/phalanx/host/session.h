@@ -47,6 +47,7 @@ class HostSession {
   bool sendCommand(protocol::Command& cmd, uint64_t now_ns);
   void sendClearFaults();
   bool sendParamGet(uint16_t id);
+  bool sendParamSet(uint16_t id, float value);
 
   /// Read everything available now. Returns how many telemetry frames arrived; latest() is the newest.
   int poll(uint64_t now_ns);

@@ -1,12 +1,20 @@
 #pragma once
 /// Firmware app for the RML five-finger glove (000: Ma & Ben-Tzvi 2015): per finger a worm-geared DC motor on an
-/// H-bridge, three Hall-effect mechanism-angle sensors and a fingertip strain gauge. Fingertip-force PID with
-/// anti-windup plus a velocity feed-forward that moves the spool with the finger, at the core's tick rate.
+/// H-bridge, three Hall-effect mechanism-angle sensors and a fingertip strain gauge.
+///
+/// Control, per finger and tick (admittance form: the 101:1 self-locking worm drive is a velocity source, not a
+/// torque source, so force is controlled through the tendon's velocity):
+///   v_ff   = r(α)·α̇                          tendon velocity that keeps its length as the finger moves,
+///                                             r(α) = c·(J_α^u)ᵀ n(φ) (glove/tendon.h, eq 5, 9, 18)
+///   v_fb   = PID(F_desired − F_measured)       fingertip-force PID with anti-windup, output in m/s
+///   ω_m    = (v_ff + v_fb) · N / r_spool       motor speed that winds the spool at that velocity
+///   duty   = (K_e·ω_m + c_IR·R·I_measured) / V back-EMF plus IR compensation from the current sense
 /// Freestanding: no heap, no exceptions, single precision.
 #include <cstdint>
 
 #include "phalanx/control/pid.h"
 #include "phalanx/fw/app.h"
+#include "phalanx/glove/kinematics.h"
 
 namespace phalanx::apps {
 
@@ -33,16 +41,28 @@ struct Glove5Calibration {
   int32_t strain_saturation_max = 0;
   float current_counts_per_A = 1.0f;
   float current_zero_counts = 0.0f;
-  /// Spool feed-forward: duty per rad/s of each mechanism joint's rate (tendon routing × gear × back-EMF / supply),
-  /// signed so that it moves the spool with the finger.
-  float ff_duty_per_rad_per_s[kGloveFingers][kGloveJoints] = {};
-  /// +1 if positive duty increases the measured pad force, -1 otherwise.
+  /// Mechanism geometry per finger and the tendon's pad transmission c, for r(α) (glove/tendon.h).
+  glove::MechanismGeometry<float> mech[kGloveFingers] = {};
+  float pad_transmission = 0.3f;
+  /// Motor speed per tendon speed at the spool, N / r_spool (rad/s per m/s).
+  float motor_rad_per_tendon_m = 0.0f;
+  /// Duty per motor rad/s of back-EMF, K_e / V_supply.
+  float duty_per_motor_rad_per_s = 0.0f;
+  /// Duty per ampere of resistive drop, (R_motor + R_bridge) / V_supply.
+  float duty_per_A = 0.0f;
+  /// +1 if positive duty winds the tendon that increases the measured pad force, -1 otherwise.
   float force_per_duty_sign = 1.0f;
 };
 
 struct Glove5Config {
-  control::PidConfig force_pid{};   ///< pad force error (N) → duty
-  float ff_scale = 1.0f;            ///< 0 disables the velocity feed-forward
+  control::PidConfig force_pid{};   ///< pad force error (N) → tendon velocity (m/s); out_min/max: ± max speed
+  float ff_scale = 1.0f;            ///< 0 disables the finger-motion feed-forward
+  float ir_compensation = 0.7f;     ///< c_IR: fraction of the resistive drop compensated (< 1 keeps it stable)
+  /// Bound on the feedback's integrated tendon offset ∫v_fb dt (m): 10 N of pad force needs a few mm of tendon
+  /// stretch, so an offset beyond this means the tendon no longer reaches the pad (transmission near zero at the
+  /// ends of the range) and winding further would only stall the motor against the mechanism.
+  float max_feedback_offset_m = 0.006f;
+  float feedback_offset_leak_s = 0.5f;  ///< the offset bound forgets with this time constant
   float force_filter_hz = 300.0f;
   float velocity_filter_hz = 40.0f;
   float max_duty = 0.9f;
@@ -50,9 +70,10 @@ struct Glove5Config {
   uint16_t current_limit_ticks = 100;
   float active_force_limit_N = 10.0f;  ///< 000 §2.2: maximum active fingertip force
   float strain_full_scale_N = 30.0f;
-  /// Glove joint limits (000 Table 3 ranges with a margin; each ≤ 150°, eq 22), checked while driving.
-  float joint_min_rad[kGloveJoints] = {};
-  float joint_max_rad[kGloveJoints] = {};
+  /// Glove joint limits per finger (the mechanism's range over the finger's Table 2 range, widened by a
+  /// margin; each span ≤ 150°, eq 22), checked while driving.
+  float joint_min_rad[kGloveFingers][kGloveJoints] = {};
+  float joint_max_rad[kGloveFingers][kGloveJoints] = {};
   uint16_t hall_stuck_ticks = 250;  ///< unchanged raw count this long while the finger's other sensors moved
   int32_t hall_motion_counts = 40;  ///< "moved": total raw change of the other two sensors of the finger
 };
@@ -75,6 +96,8 @@ struct GloveFingerState {
   float alpha_rate_rad_per_s[kGloveJoints] = {};
   float force_N = 0.0f;       ///< filtered pad force, positive resists flexion
   float current_A = 0.0f;
+  float tendon_velocity_m_per_s = 0.0f;  ///< commanded, v_ff + v_fb
+  float feedback_offset_m = 0.0f;        ///< leaky ∫ v_fb dt, bounded by max_feedback_offset_m
   float duty = 0.0f;
   control::PidState pid{};
 };

@@ -3,15 +3,16 @@
 /// hand wearing it. docs/glove-plant.md lists every constant with its source and what is not modelled.
 ///
 /// Per finger, from the firmware's PWM duty to the ADC counts it reads back:
-///   H-bridge (duty × 9 V, current regulation) → FA-130 brushed DC motor (current from the averaged voltage,
-///   electrical time constant neglected) → 101:1 gearbox whose last stage is a self-locking worm (forward
-///   efficiency < 50 %, the load cannot back-drive it; beyond the passive limit of 35 N at the fingertip the
-///   locked worm slips) → spool winding an antagonistic tendon pair (release tendon wound by positive duty,
-///   grasp tendon unwound) → tendon + fingertip-pad compliance in series → capstan friction over the routing
-///   (glove/capstan.h, eq 15–16, wrap changing with α; stick, or slide with the ratio e^{±μγ} set by which
-///   end pulls) → joint torques
-///   τ_α = r·(T_release − T_grasp) on the massless glove linkage, which follows the finger (α = f(θ), eq 6–8)
-///   → wrench F = (J_α^u)^{-T} τ_α on the fingertip (eq 18) → finger joints τ_θ = (J_θ^u)ᵀ F.
+///   H-bridge (duty × 9 V, 4 A current regulation) → FA-130 brushed DC motor (current from the averaged
+///   voltage; the electrical time constant is neglected) → 101:1 gearbox whose last stage is a self-locking
+///   worm (forward efficiency < 50 %; the load can never back-drive the motor; beyond the passive limit,
+///   35 N at the fingertip, the locked worm drive slips) → spool winding an antagonistic tendon pair
+///   (positive duty winds the release tendon, unwinds the grasp tendon) → each tendon: spool segment,
+///   capstan contact on the pulleys (glove/capstan.h, eq 15–16, wrap γ(α); the contact sticks, or slides
+///   with T_spool/T_tip = e^{±μγ} depending on which end pulls), tip segment in series with the fingertip
+///   pad → net tip tension T acting on the fingertip as a pad-normal force c·T (the routing's design intent,
+///   §3.4: τ_α = (J_α^u)ᵀ f_y) → finger joints τ_θ = (J_θ^u)ᵀ F. The glove linkage is massless and
+///   follows the finger through the closure α = f(θ) (eq 6–8).
 ///   The finger has three joints with small inertia, passive stiffness/damping and soft range limits, and is
 ///   driven by a "muscle" impedance towards the intended trajectory θ_d(t) of the hand scenario.
 ///   Sensors: 15 Hall angles (of α), 5 pad strain gauges (force along glove::padNormal), 5 motor currents,
@@ -22,7 +23,7 @@
 /// along padNormal → positive current). Frames, θ/α conventions: glove/kinematics.h.
 ///
 /// Real-time rules: no allocation after construction (all state in std::array), deterministic for a seed
-/// (noise from std::mt19937 with portable Box–Muller, scenario randomness from a second seeded stream).
+/// (noise from std::mt19937 with a portable Box–Muller, scenario randomness from a second seeded stream).
 #include <array>
 #include <cstdint>
 #include <random>
@@ -30,6 +31,7 @@
 #include "phalanx/glove/board.h"
 #include "phalanx/glove/capstan.h"
 #include "phalanx/glove/kinematics.h"
+#include "phalanx/glove/tendon.h"
 #include "phalanx/sim/plant.h"
 
 namespace phalanx::sim {
@@ -40,7 +42,7 @@ enum class HandScenario : std::uint8_t {
   kCloseOpen = 1,  ///< full close/open maneuvers, 1 s each (raised cosine) + 0.5 s rest (paper §4.3)
   kGrasp = 2,      ///< reach and squeeze: intent closes past any object, effort saturates at squeeze_force_N
   kRandom = 3,     ///< band-limited random motion (seeded) within Table 2's ranges
-  kPush = 4,       ///< finger at the mid-grasp pose presses into the glove: push_force_N on the pad
+  kPush = 4,       ///< finger at the mid-grasp pose presses into the glove with push_force_N on the pad
 };
 
 /// Tendon/pulley friction condition (paper §4.2).
@@ -50,10 +52,11 @@ enum class TendonLubrication : std::uint8_t {
 };
 
 /// Physical constants of the plant. Defaults are the documented model (docs/glove-plant.md gives each
-/// source); tests and studies may change them. SI units throughout.
+/// source); tests and studies may change them. SI units throughout. Motor R, K, supply, bridge, gear
+/// ratio and spool radius are board.h constants.
 struct GlovePlantParams {
-  // Motor (FA-130 class) and gearbox. R, K_t, supply, bridge: board.h.
-  double rotor_inertia_kg_m2 = 1.2e-7;       ///< rotor + first spur gears, at the motor shaft
+  // Motor (FA-130 class) and gearbox.
+  double rotor_inertia_kg_m2 = 1.0e-7;        ///< rotor (≈ 0.9 g·cm²) + spur gears, at the motor shaft
   double motor_coulomb_friction_Nm = 2.0e-4;  ///< brushes + bearings (≈ K·0.15 A of the 0.2 A no-load current)
   double motor_viscous_Nm_s_per_rad = 7.0e-8; ///< rest of the no-load current at 9100 rpm
   double spur_efficiency = 0.87;              ///< spur stages before the worm (two stages at ≈ 0.93)
@@ -61,17 +64,19 @@ struct GlovePlantParams {
   double worm_friction_coeff = 0.08;          ///< steel worm on brass wheel, greased: ρ = atan μ = 4.6° > λ
   double spool_inertia_kg_m2 = 2.0e-7;        ///< spool + worm wheel + shaft, at the spool
   double worm_wheel_inertia_kg_m2 = 1.0e-7;   ///< worm wheel alone (only while the spool slips on it)
-  double passive_hold_margin = 1.1;           ///< worm slip torque / torque of a 35 N push at θ_ref
+  double passive_hold_margin = 1.0;           ///< worm slip torque / spool torque of a 35 N push at θ_ref
   double slip_kinetic_fraction = 0.85;        ///< kinetic / static slip torque of the overloaded worm drive
   double slip_damping_Nm_s_per_rad = 2.5e-4;  ///< viscous part of the slipping interface (greased)
   // Tendon routing and compliance.
-  double pad_transmission_ref = 0.3;          ///< c_ref: pad normal force per N of tip tension at the ref pose
-  glove::Vec3<double> ref_pose_deg = {-45.0, -65.0, -45.0};  ///< θ_ref (mid-grasp) defining moment arms
+  /// c: pad-normal force per N of net tip tension (the routing design of glove/tendon.h).
+  double pad_transmission = glove::TendonDesign<double>{}.pad_transmission;
+  /// θ_ref (mid-grasp, glove/tendon.h): kPush pose and reference of the passive limit.
+  glove::Vec3<double> ref_pose_deg = glove::TendonDesign<double>{}.ref_pose_deg;
   double tendon_stiffness_N_per_m = 40000.0;  ///< Dyneema, ≈ 0.25 m spool→tip, EA ≈ 10 kN (incl. knots)
+  double spool_segment_fraction = 0.4;        ///< share of the tendon length between spool and pulleys
   double tendon_damping_N_s_per_m = 10.0;     ///< material damping of the tendon (only while taut)
   double pretension_N = 1.0;                  ///< both tendons at rest
   double pad_stiffness_N_per_m = 8000.0;      ///< fingertip pulp + fabric + Velcro under load, pad normal
-  double spool_segment_fraction = 0.4;        ///< share of the tendon length between spool and pulleys
   // Finger (human) — index values; other fingers scale with their length (docs/glove-plant.md).
   double phalanx_mass_per_length_kg_per_m = 0.25;              ///< ≈ 12 / 7 / 5 g for the index
   glove::Vec3<double> muscle_stiffness_Nm_per_rad = {1.0, 0.5, 0.2};  ///< MCP, PIP, DIP (index)
@@ -105,17 +110,16 @@ struct GlovePlantConfig {
   TendonLubrication lubrication = TendonLubrication::kLubricated;
   bool noise = true;               ///< sensor noise and strain drift; false: deterministic, noise-free counts
   bool calibration_errors = true;  ///< per-sensor gain/offset/mounting errors (seeded)
-  std::array<bool, 5> finger_enabled = {true, true, true, true, true};  ///< false: finger not simulated, ADC 0
+  std::array<bool, 5> finger_enabled = {true, true, true, true, true};  ///< false: not simulated, ADC reads 0
   /// true: that finger's tendons are removed (paper §4.3 "without cabling"): the glove linkage is dragged
   /// by the finger with no force, the motor spins unloaded.
   std::array<bool, 5> cables_removed = {false, false, false, false, false};
   HandScenario scenario = HandScenario::kStill;
   double squeeze_force_N = 5.0;  ///< kGrasp: the finger's maximum effort, as a pad-normal force (N)
-  /// kPush: pad force (N, ≥ 0) the finger presses into the glove with (towards flexion at θ_ref), along
-  /// the direction the tendon constrains; the person regulates the effort until the pad force matches
-  /// (or the glove gives way); the other two directions hold the θ_ref posture.
+  /// kPush: pad force (N, ≥ 0) the finger presses into the glove with (towards flexion); the person adjusts
+  /// the effort by feel until the pad force matches (or the glove gives way) and holds the θ_ref posture.
   double push_force_N = 0.0;
-  double push_ramp_s = 0.5;      ///< kPush: linear ramp time of the push force (s)
+  double push_ramp_s = 0.5;      ///< kPush: linear ramp time of the target force (s)
   GlovePlantParams params{};
 };
 
@@ -127,11 +131,14 @@ struct GloveFingerTruth {
   glove::Vec3<double> alpha_rad{};         ///< mechanism joint angles (what the Hall sensors measure)
   glove::Vec3<double> O_u_tip{};           ///< fingertip pose (x m, y m, φ rad) in {O}
   glove::Vec3<double> O_F_tip{};           ///< planar wrench glove → fingertip (f_x N, f_y N, m_z N·m) in {O}
-  double pad_force_N = 0;                  ///< component of O_F_tip along padNormal(φ) (+: towards extension)
+  glove::Vec3<double> tau_alpha_Nm{};      ///< tendon torques on the mechanism joints, (J_α^u)ᵀ F (eq 18)
+  double pad_force_N = 0;                  ///< O_F_tip along padNormal(φ) (+: pushes towards extension)
   double tension_release_spool_N = 0;      ///< release tendon, spool end
   double tension_release_tip_N = 0;        ///< release tendon, link-3 end (after capstan friction)
   double tension_grasp_spool_N = 0;
   double tension_grasp_tip_N = 0;
+  double wrap_release_rad = 0;             ///< capstan wrap γ of each tendon (eq 16, capstan.h)
+  double wrap_grasp_rad = 0;
   int release_sliding = 0;                 ///< capstan contact: +1 slides towards spool, −1 towards tip, 0 sticks
   int grasp_sliding = 0;
   double spool_angle_rad = 0;              ///< + winds the release tendon; 0 at construction
@@ -149,12 +156,13 @@ struct GloveFingerTruth {
 struct GloveFingerConstants {
   glove::Model<double> model{};               ///< glove::defaultModel for this finger
   glove::CapstanModel<double> capstan{};      ///< μ from the config, γ_c = 90°, α range from the model
-  glove::Vec3<double> moment_arm_m{};         ///< r_i: τ_α = r ∘ (T_release − T_grasp) at the tip
-  glove::Vec3<double> ref_theta_rad{};        ///< θ_ref where the tendon force is purely pad-normal
-  glove::Vec3<double> push_direction{};       ///< finger torques per N of net tension at θ_ref (N·m/N)
-  double series_stiffness_N_per_m = 0;        ///< tendon + pad, in tendon-length coordinates (stuck contact)
+  glove::Vec3<double> ref_theta_rad{};        ///< θ_ref (kPush pose, passive-limit reference)
+  glove::Vec3<double> ref_alpha_rad{};
+  double pad_transmission = 0;                ///< c (N of pad force per N of net tip tension)
   double spool_segment_stiffness_N_per_m = 0; ///< spool → capstan contact
-  double tip_segment_stiffness_N_per_m = 0;   ///< capstan contact → link 3, with the pad reflected (c_ref²/k_pad)
+  double tip_segment_stiffness_N_per_m = 0;   ///< capstan contact → link 3, with the pad reflected (c²/k_pad)
+  double series_stiffness_N_per_m = 0;        ///< whole tendon + pad with the contact stuck, along the tendon
+  double pad_stiffness_locked_N_per_m = 0;    ///< c²·series: what the fingertip feels with the spool locked
   double pretension_stretch_spool_m = 0;
   double pretension_stretch_tip_m = 0;
   double slip_torque_Nm = 0;                  ///< static slip torque at the spool (passive limit, §2.2)
@@ -170,15 +178,19 @@ class GlovePlant final : public Plant {
   /// Throws std::invalid_argument for a non-finite or out-of-range configuration value.
   explicit GlovePlant(const GlovePlantConfig& config = GlovePlantConfig{});
 
-  /// Advances the physics by dt_s (s, finite, > 0; subdivided into steps ≤ params.max_substep_s) using the
-  /// duty cycles in io, then samples all sensors into io.adc. Throws std::invalid_argument on a bad dt_s.
-  /// Does not allocate.
+  /// Advances the physics by dt_s (s, finite, in (0, 1]; subdivided into steps ≤ params.max_substep_s)
+  /// using the duty cycles in io, then samples all sensors into io.adc. Throws std::invalid_argument on a
+  /// bad dt_s. Does not allocate.
   void step(double dt_s, SimIo& io) override;
 
   /// Simulated time since construction (s).
   double time_s() const { return time_s_; }
   const GlovePlantConfig& config() const { return config_; }
+  /// Worm forward efficiency η_w = tan λ / tan(λ+ρ) and back efficiency tan(λ−ρ)/tan λ (< 0: self-locking).
+  double wormForwardEfficiency() const { return worm_eff_forward_; }
+  double wormBackEfficiency() const { return worm_eff_backward_; }
 
+  /// Ground truth and derived constants of finger 0..4 (thumb … little). Throw std::out_of_range otherwise.
   const GloveFingerTruth& truth(int finger) const { return fingers_[idx(finger)].truth; }
   const GloveFingerConstants& constants(int finger) const { return fingers_[idx(finger)].k; }
 
@@ -192,7 +204,6 @@ class GlovePlant final : public Plant {
   double padForce_N(int finger) const { return truth(finger).pad_force_N; }
   /// The simulated user's intended finger angles θ_d (rad) at the current time.
   const glove::Vec3<double>& fingerIntent(int finger) const { return truth(finger).theta_d_rad; }
-
   /// Current strain-gauge offset drift (N) — ground truth for tests of tare/drift handling.
   double strainDrift_N(int finger) const { return fingers_[idx(finger)].strain_drift_N; }
 
@@ -206,7 +217,7 @@ class GlovePlant final : public Plant {
     double current_gain = 0;
     double current_offset_counts = 0;
   };
-  /// kRandom: band-limited closure s(t) and per-joint perturbations (sums of sinusoids).
+  /// kRandom: band-limited closure s(t) and per-joint deviations (sums of sinusoids).
   struct RandomMotion {
     static constexpr int kClosureTerms = 4;
     static constexpr int kJointTerms = 3;
@@ -223,8 +234,8 @@ class GlovePlant final : public Plant {
     double s_open = 0.1, s_closed = 0.85, s_still = 0.35, delay_s = 0;  ///< scenario shaping
     // State.
     glove::Vec3<double> theta{}, theta_dot{};
-    glove::Vec3<double> alpha0{};          ///< α at construction (tendon length reference)
     glove::Vec3<double> alpha_last{};      ///< last α that the kinematics solved (fallback)
+    double q_m = 0;                        ///< release-path shortening at the mechanism since start (m)
     double x_release = 0, x_grasp = 0;     ///< cable passed over the pulleys towards the spool (m)
     double worm_speed = 0;                 ///< worm-wheel speed (rad/s, spool coordinates)
     double worm_angle = 0;
@@ -233,27 +244,25 @@ class GlovePlant final : public Plant {
     bool worm_stuck = true;
     bool slipping = false;
     double strain_drift_N = 0;
-    double push_effort_N = 0;              ///< kPush: the person's effort, tension-equivalent along a_ref
+    double push_effort_N = 0;              ///< kPush: the person's effort, as a tendon tension (N)
     GloveFingerTruth truth{};
   };
-
   struct Eval;  // forces and accelerations of one finger at one instant (glove_plant.cpp)
   struct TendonState {
     double spool_N = 0, tip_N = 0, x_m = 0;
     int sliding = 0;
   };
-  static TendonState solveTendon(const GloveFingerConstants& k, double u_s, double u_m, double x_prev, double ratio);
 
   static int idx(int finger);
+  static TendonState solveTendon(const GloveFingerConstants& k, double u_s, double u_m, double x_prev, double ratio);
   void initFinger(Finger& f, int index, std::mt19937& calib_rng, std::mt19937& motion_rng);
-  void intent(const Finger& f, double t, glove::Vec3<double>& theta_d, glove::Vec3<double>& theta_d_dot) const;
   double closureS(const Finger& f, double t, double& s_dot) const;
+  void intent(const Finger& f, double t, glove::Vec3<double>& theta_d, glove::Vec3<double>& theta_d_dot) const;
   void evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const;
   void integrate(Finger& f, const Eval& e, double h);
   static void fillTruth(Finger& f, const Eval& e, bool bridge_on);
   void sample(Finger& f, double dt_s, SimIo& io);
   double gaussian();
-  static std::int32_t toCounts(double value);
 
   GlovePlantConfig config_;
   double mu_ = 0;

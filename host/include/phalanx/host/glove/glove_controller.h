@@ -32,6 +32,9 @@ class GloveController : public Controller {
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
+  /// Tare every strain gauge (glove5 parameter 0x0110) with the hand relaxed before force control starts.
+  std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{0x0110, 1.0f}}; }
+  double startupSettleS() const override { return 0.1; }
 
   const RenderOutput& lastRender() const { return out_; }
   const FingerStats& stats(int finger) const { return stats_[static_cast<size_t>(finger)]; }

@@ -1,0 +1,345 @@
+// Phalanx firmware on the emulated Cortex-M4F board (QEMU mps2-an386): the firmware core and the device app
+// built for the MCU, with the device's simulated plant linked in as the source of sensor values, ticking at
+// 1 kHz from SysTick and talking to the host over a byte link (UART0, or the semihosting console; links.h).
+//
+// Per SysTick interrupt: plant.step(1 ms) writes the sensor image → core.tick() (measured) → link drained.
+// The tick's duration is measured with SysTick deltas: under `qemu -icount shift=N` each instruction takes 2^N ns
+// of virtual time and SysTick counts 25 MHz, so a delta of c counts is c·40/2^N instructions, deterministically.
+// Results go to the debug console (UART1) and are readable with ParamGet 0x0080.. (phalanx/fw_mcu/board_diag.h).
+//
+// Options, from the semihosting command line (qemu -semihosting-config ...,arg=fw,arg=link=semihost,...):
+//   link=uart|semihost   protocol link (default uart)       seconds=N   stop after N s with a STATS line
+//   scenario=still|close-open|grasp|random   seed=N   noise=0|1   (the simulated hand)
+#include <cstddef>
+#include <cstdint>
+
+#include "cmsdk.h"
+#include "links.h"
+#include "phalanx/fw/core.h"
+#include "phalanx/fw_mcu/app_registry.h"
+#include "phalanx/fw_mcu/board_diag.h"
+#include "phalanx/mcu/cortex_m.h"
+#include "phalanx/mcu/tick_stats.h"
+#include "phalanx/sim/board.h"
+#include "sim_devices.h"
+
+#ifndef PHALANX_BUILD_ID
+#define PHALANX_BUILD_ID 0u
+#endif
+
+namespace {
+
+using namespace phalanx;
+using namespace phalanx::mcu;
+using namespace phalanx::mcu::mps2;
+
+constexpr uint32_t kTickHz = 1000;
+constexpr uint32_t kReload = kSysclkHz / kTickHz - 1u;  // 24999
+constexpr uint32_t kNsPerCount = 1000000000u / kSysclkHz;  // 40
+constexpr uint8_t kPrioTick = 0x80;
+constexpr uint8_t kPrioUart = 0xC0;  // below the tick: never preempts it
+
+struct Options {
+  bool semihost_link = false;
+  uint32_t seconds = 0;
+  PlantOptions plant;
+};
+
+using Stats = TickStats<2048, 16>;       // 16-instruction bins up to 32768 instructions
+using PlantStats = TickStats<512, 256>;  // the plant (soft-float double) is an order of magnitude longer
+
+// Objects with a vtable are constructed at init (StaticObject) so that they live in .bss, not in .data (a .data
+// object costs its size twice: RAM and its initial image in flash).
+fw_mcu::StaticObject<CmsdkUartLink> g_uart_obj;
+fw_mcu::StaticObject<SemihostLink> g_semi_obj;
+CmsdkUartLink& uartLink() { return g_uart_obj.get(); }
+SemihostLink& semiLink() { return g_semi_obj.get(); }
+DebugConsole g_console;
+fw_mcu::StaticObject<sim::SimBoard> g_board;
+fw_mcu::StaticObject<fw_mcu::AppType> g_app;
+fw_mcu::StaticObject<PlantType> g_plant;
+fw_mcu::StaticObject<fw::FirmwareCore> g_core;
+Options g_opt;
+volatile uint32_t g_ms = 0;
+volatile bool g_running = false;
+uint32_t g_ns_per_insn = 0;  // 0: SysTick does not count instructions (no -icount)
+uint32_t g_calibration_counts = 0;
+
+class Diagnostics final : public fw_mcu::DiagSource {
+ public:
+  bool diagGet(uint16_t id, float& v) const override {
+    namespace p = fw_mcu::diag_param;
+    switch (id) {
+      case p::kTickCount: v = static_cast<float>(tick.count()); return true;
+      case p::kTickWorst: v = static_cast<float>(tick.worst()); return true;
+      case p::kTickMedian: v = static_cast<float>(tick.median()); return true;
+      case p::kTickP99: v = static_cast<float>(tick.quantile(0.99f)); return true;
+      case p::kTickWorstTimer: v = static_cast<float>(worst_counts); return true;
+      case p::kTickUnitNs: v = static_cast<float>(g_ns_per_insn); return true;
+      case p::kOverruns: v = static_cast<float>(overruns); return true;
+      case p::kPlantWorst: v = static_cast<float>(plant.worst()); return true;
+      case p::kRxOverflows:
+        v = static_cast<float>(g_opt.semihost_link ? semiLink().rxOverflows() : uartLink().rxOverflows());
+        return true;
+      case p::kLinkKind: v = g_opt.semihost_link ? 1.0f : 0.0f; return true;
+      case p::kResetStats: v = 0.0f; return true;
+      default: return false;
+    }
+  }
+  bool diagSet(uint16_t id, float) override {
+    if (id != fw_mcu::diag_param::kResetStats) return false;
+    reset_requested = true;  // applied by the tick itself (single writer of the statistics)
+    return true;
+  }
+  /// Measurement unit: instructions when g_ns_per_insn is known, else SysTick counts.
+  static uint32_t toUnits(uint32_t counts) {
+    return g_ns_per_insn == 0 ? counts : counts * kNsPerCount / g_ns_per_insn;
+  }
+  Stats tick;
+  PlantStats plant;
+  uint32_t worst_counts = 0;
+  uint32_t overruns = 0;
+  bool reset_requested = false;
+};
+fw_mcu::StaticObject<Diagnostics> g_diag_obj;
+Diagnostics& diag() { return g_diag_obj.get(); }
+fw_mcu::StaticObject<fw_mcu::DiagApp> g_diag_app;
+
+hal::ByteLink& link() {
+  return g_opt.semihost_link ? static_cast<hal::ByteLink&>(semiLink()) : static_cast<hal::ByteLink&>(uartLink());
+}
+
+uint32_t countsBetween(uint32_t start, uint32_t end) {
+  // SysTick counts down from kReload; one wrap at most between two reads inside one tick handler.
+  return start >= end ? start - end : start + (kReload + 1u) - end;
+}
+
+bool tokenIs(const char* tok, int len, const char* key, const char*& value, int& value_len) {
+  int i = 0;
+  for (; key[i] != 0; ++i) {
+    if (i >= len || tok[i] != key[i]) return false;
+  }
+  value = tok + i;
+  value_len = len - i;
+  return true;
+}
+
+uint32_t parseU32(const char* s, int len) {
+  uint32_t v = 0;
+  for (int i = 0; i < len && i < 10 && s[i] >= '0' && s[i] <= '9'; ++i) v = v * 10u + static_cast<uint32_t>(s[i] - '0');
+  return v;
+}
+
+Options parseCommandLine() {
+  Options o;
+  static char buf[256];
+  struct {
+    char* ptr;
+    uint32_t len;
+  } block = {buf, sizeof buf - 1};
+  if (semihost(kSysGetCmdline, &block) != 0) return o;
+  const int n = static_cast<int>(block.len < sizeof buf ? block.len : sizeof buf - 1);
+  buf[n] = 0;
+  for (int i = 0; i < n;) {
+    while (i < n && buf[i] == ' ') ++i;
+    int j = i;
+    while (j < n && buf[j] != ' ') ++j;
+    const char* tok = buf + i;
+    const int len = j - i;
+    const char* v = nullptr;
+    int vl = 0;
+    if (tokenIs(tok, len, "link=", v, vl)) o.semihost_link = vl == 8 && v[0] == 's';
+    else if (tokenIs(tok, len, "seconds=", v, vl)) o.seconds = parseU32(v, vl);
+    else if (tokenIs(tok, len, "seed=", v, vl)) o.plant.seed = parseU32(v, vl);
+    else if (tokenIs(tok, len, "noise=", v, vl)) o.plant.noise = vl > 0 && v[0] != '0';
+    else if (tokenIs(tok, len, "scenario=", v, vl)) {
+      const int s = scenarioNumber(v, vl);
+      if (s >= 0) o.plant.scenario = static_cast<uint8_t>(s);
+    }
+    i = j;
+  }
+  return o;
+}
+
+/// Nanoseconds of virtual time per instruction, from a loop of known length timed with SysTick: 2^shift under
+/// `-icount shift=N` (deterministic), anything else when QEMU runs in real time (then reported as 0).
+uint32_t calibrateNsPerInstruction() {
+  using namespace cm4;
+  reg(kSysTickCsr) = 0;
+  reg(kSysTickRvr) = 0x00FFFFFFu;
+  reg(kSysTickCvr) = 0;
+  reg(kSysTickCsr) = 0x5u;  // enabled, core clock, no interrupt
+  uint32_t n = 10000;
+  for (int i = 0; i < 1000 && sysTickValue() == 0; ++i) {
+  }  // the counter loads the reload value on its first clock
+  const uint32_t v0 = sysTickValue();
+  __asm volatile("1: subs %0, %0, #1\n bne 1b" : "+r"(n) : : "cc");  // 2 instructions per iteration
+  const uint32_t v1 = sysTickValue();
+  reg(kSysTickCsr) = 0;
+  const uint32_t ns = ((v0 - v1) & 0x00FFFFFFu) * kNsPerCount;  // for 20000 instructions (+ the two reads)
+  g_calibration_counts = (v0 - v1) & 0x00FFFFFFu;
+  for (uint32_t p = 1; p <= 1024; p <<= 1) {
+    const uint32_t expect = 20000u * p;
+    if (ns + ns / 20u >= expect && ns <= expect + expect / 20u) return p;  // within 5 %
+  }
+  return 0;
+}
+
+void printStats(const char* tag) {
+  g_console.str(tag)
+      .str(" ticks=").u32(diag().tick.count())
+      .str(" worst=").u32(diag().tick.worst())
+      .str(" median=").u32(diag().tick.median())
+      .str(" p99=").u32(diag().tick.quantile(0.99f))
+      .str(" unit=").str(g_ns_per_insn != 0 ? "instructions" : "systick-counts")
+      .str(" ns_per_insn=").u32(g_ns_per_insn)
+      .str(" worst_systick_counts=").u32(diag().worst_counts)
+      .str(" overruns=").u32(diag().overruns)
+      .str(" plant_worst=").u32(diag().plant.worst())
+      .str(" plant_median=").u32(diag().plant.median())
+      .str(" rx_overflows=").u32(g_opt.semihost_link ? semiLink().rxOverflows() : uartLink().rxOverflows())
+      .str(" tx_dropped=").u32(g_core.get().counters().tx_dropped)
+      .str(" commands=").u32(g_core.get().counters().commands_applied)
+      .str(" faults=").hex16(g_core.get().faultBits())
+      .str(" stack_used=").u32(cm4::stackHighWater())
+      .end();
+}
+
+[[noreturn]] void exitQemu(bool ok) {
+  semihost(kSysExit, reinterpret_cast<const void*>(static_cast<uintptr_t>(ok ? kAdpStoppedApplicationExit
+                                                                              : kAdpStoppedRunTimeError)));
+  for (;;) cm4::waitForInterrupt();
+}
+
+void controlTick() {
+  sim::SimIo& io = g_board.get().io();
+  fw::FirmwareCore& core = g_core.get();
+  if (diag().reset_requested) {
+    diag().tick.reset();
+    diag().plant.reset();
+    diag().worst_counts = 0;
+    diag().overruns = 0;
+    diag().reset_requested = false;
+  }
+  const uint32_t p0 = cm4::sysTickValue();
+  g_plant.get().step(1.0 / kTickHz, io);
+  const uint32_t p1 = cm4::sysTickValue();
+  g_board.get().clock().advanceUs(1000000u / kTickHz);
+  const bool was_active = io.pwm_enabled;
+  const bool was_open = core.sessionOpen();
+  const uint16_t faults_before = core.faultBits();
+  const uint64_t deadline_us = core.commandDeadlineUs();
+
+  const uint32_t t0 = cm4::sysTickValue();
+  core.tick();
+  const uint32_t t1 = cm4::sysTickValue();
+
+  const uint32_t counts = countsBetween(t0, t1);
+  if (cm4::sysTickPending()) ++diag().overruns;  // the next period began before this tick finished
+  diag().tick.add(Diagnostics::toUnits(counts));
+  diag().plant.add(Diagnostics::toUnits(countsBetween(p0, p1)));
+  if (counts > diag().worst_counts) diag().worst_counts = counts;
+
+  if (g_opt.semihost_link) semiLink().flush();
+  else uartLink().kick();
+
+  // Device-side reports, observing the simulated power stage itself (as firmware-sim does).
+  if (!was_open && core.sessionOpen()) g_console.str("SESSION opened t_us=").u64(g_board.get().clock().nowUs()).end();
+  if (was_active && !io.pwm_enabled) {
+    g_console.str("SAFE t_us=").u64(g_board.get().clock().nowUs())
+        .str(" deadline_us=").u64(deadline_us)
+        .str(" period_us=").u32(1000000u / kTickHz)
+        .str(" faults=").hex16(core.faultBits())
+        .end();
+  }
+  if (core.faultBits() != faults_before) g_console.str("FAULTS ").hex16(core.faultBits()).end();
+  if (g_opt.seconds != 0 && g_ms >= g_opt.seconds * kTickHz) {
+    io.pwm_enabled = false;
+    g_board.get().board().pwm->disableAll();
+    printStats("STATS");
+    g_console.str("EXIT ok").end();
+    exitQemu(true);
+  }
+}
+
+}  // namespace
+
+extern "C" void SysTick_Handler() {
+  g_ms = g_ms + 1u;
+  if (g_running) controlTick();
+}
+extern "C" void Uart0Rx_Handler() {
+  if (g_uart_obj.constructed()) uartLink().onRxInterrupt();
+}
+extern "C" void Uart0Tx_Handler() {
+  if (g_uart_obj.constructed()) uartLink().onTxInterrupt();
+}
+
+uint32_t phalanx::mcu::mps2::millis() { return g_ms; }
+
+/// Faults: power stage off first, then say why, then stop the emulator with a failure status.
+extern "C" [[noreturn]] void phalanx_fatal(const char* why) {
+  cm4::disableInterrupts();
+  if (g_board.constructed()) {
+    g_board.get().board().pwm->disableAll();
+    g_board.get().board().gpio->setDriveEnable(false);
+  }
+  g_console.init(kUart1Base);
+  g_console.str("FATAL ").str(why)
+      .str(" cfsr=").u32(cm4::reg(cm4::kScbCfsr))
+      .str(" hfsr=").u32(cm4::reg(cm4::kScbHfsr))
+      .str(" bfar=").u32(cm4::reg(0xE000ED38u))
+      .end();
+  exitQemu(false);
+}
+
+extern "C" [[noreturn]] void phalanx_board_main() {
+  g_console.init(kUart1Base);
+  g_opt = parseCommandLine();
+  g_ns_per_insn = calibrateNsPerInstruction();
+
+  g_diag_obj.emplace();
+  g_uart_obj.emplace();
+  g_semi_obj.emplace();
+  if (!g_opt.semihost_link) uartLink().init(kUart0Base, 115200u);
+  fw_mcu::AppType& app = fw_mcu::constructApp(g_app);
+  g_plant.emplace(plantConfig(g_opt.plant));
+  sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, link());
+  fw_mcu::DiagApp& diag_app = g_diag_app.emplace(app, diag());
+  // The plant produces a first sensor image before the app's first sense().
+  g_plant.get().step(1.0 / kTickHz, board.io());
+  fw::CoreConfig cfg;
+  cfg.tick_rate_hz = kTickHz;
+  cfg.firmware_build_id = PHALANX_BUILD_ID;
+  g_core.emplace(board.board(), diag_app, cfg);
+
+  g_console.str("BOOT phalanx-mcu board=mps2-an386 app=").str(fw_mcu::kAppName)
+      .str(" link=").str(g_opt.semihost_link ? "semihost" : "uart")
+      .str(" tick_hz=").u32(kTickHz)
+      .str(" ns_per_insn=").u32(g_ns_per_insn)
+      .str(" calibration_counts=").u32(g_calibration_counts)
+      .str(" seconds=").u32(g_opt.seconds)
+      .end();
+
+  cm4::setSysTickPriority(kPrioTick);
+  cm4::setIrqPriority(kUart0RxIrq, kPrioUart);
+  cm4::setIrqPriority(kUart0TxIrq, kPrioUart);
+  if (!g_opt.semihost_link) {
+    cm4::enableIrq(kUart0RxIrq);
+    cm4::enableIrq(kUart0TxIrq);
+  }
+  g_running = true;
+  cm4::startSysTick(kReload);
+  for (;;) {
+    if (g_opt.semihost_link) semiLink().receiveBlocking();
+    else cm4::waitForInterrupt();
+  }
+}
+
+/// Called instead of a C++ throw by the simulated plant (plant_no_throw.h); never expected with the image's
+/// fixed, valid plant configuration.
+extern "C" [[noreturn]] void phalanx_plant_throw(const char* file, int line) {
+  g_console.init(kUart1Base);
+  g_console.str("PLANT-THROW ").str(file).str(":").u32(static_cast<uint32_t>(line)).end();
+  phalanx_fatal("simulated plant rejected its configuration");
+}
