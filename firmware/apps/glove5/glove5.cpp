@@ -125,13 +125,7 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
     v_ff *= cfg_.ff_scale;
     const float gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
     const float sign = cal_.force_per_duty_sign;
-    float v_fb = sign * control::pidStep(cfg_.force_pid, s.pid, sign * s.force_N, sign * desired_N, dt_s, 0.0f, gain);
-    s.feedback_offset_m -= s.feedback_offset_m * dt_s / cfg_.feedback_offset_leak_s;
-    if ((s.feedback_offset_m >= cfg_.max_feedback_offset_m && v_fb > 0.0f) ||
-        (s.feedback_offset_m <= -cfg_.max_feedback_offset_m && v_fb < 0.0f)) {
-      v_fb = 0.0f;
-    }
-    s.feedback_offset_m += v_fb * dt_s;
+    const float v_fb = sign * control::pidStep(cfg_.force_pid, s.pid, sign * s.force_N, sign * desired_N, dt_s, 0.0f, gain);
     s.tendon_velocity_m_per_s = v_ff + v_fb;
     const float motor_rad_per_s = s.tendon_velocity_m_per_s * cal_.motor_rad_per_tendon_m;
     const float duty = motor_rad_per_s * cal_.duty_per_motor_rad_per_s + cfg_.ir_compensation * cal_.duty_per_A * s.current_A;
@@ -145,7 +139,6 @@ void Glove5App::safe() {
   for (auto& s : finger_) {
     control::pidReset(s.pid);
     s.duty = 0.0f;
-    s.feedback_offset_m = 0.0f;
   }
   for (auto& n : overcurrent_ticks_) n = 0;
 }

@@ -43,18 +43,23 @@ Glove5Calibration glove5DefaultCalibration() {
 
 Glove5Config glove5DefaultConfig() {
   Glove5Config c;
-  // Gains in (m/s of tendon) per N of force error, chosen by sweeping kp 0.05–1.5 and c_IR 0–0.95 in the lockstep
-  // free-motion bench (docs/glove-firmware.md): the feed-forward carries the motion, the P term the residual.
+  // Gains in (m/s of tendon) per N of force error. Chosen in the lockstep benches (`phalanx bench glove-free-motion`
+  // and `glove-grasp`, with sensor noise) from a sweep of kp 0.05–1.5, c_IR 0–0.95 and the two filters: kp = 1 with
+  // c_IR = 0.85 gives the lowest free-motion peak (0.10 N) but makes the motor chatter on sensor noise until the
+  // current limit trips during a sustained grasp; kp = 0.5, c_IR = 0.6 holds the grasp within 5 % at 0.17 N peak.
+  // The feed-forward carries the finger's motion, the P term the residual.
   // No integral term: the self-locking worm already integrates (duty sets spool speed), and an integrator
   // limit-cycles against the worm's dead band (glove-plant.md).
-  c.force_pid.kp = 1.0f;
+  c.force_pid.kp = 0.5f;
   c.force_pid.ki = 0.0f;
   c.force_pid.kd = 0.0f;
   c.force_pid.d_cutoff_hz = 100.0f;
-  c.force_pid.out_min = -0.25f;  // tendon speed limit (m/s): above the fastest §4.3 finger motion
-  c.force_pid.out_max = 0.25f;
+  c.force_pid.out_min = -1.0f;  // m/s: must be able to cancel the feed-forward of the fastest finger motion
+  c.force_pid.out_max = 1.0f;
   c.force_pid.i_limit = 0.0f;
-  c.ir_compensation = 0.85f;
+  c.ir_compensation = 0.6f;
+  c.force_filter_hz = 100.0f;
+  c.velocity_filter_hz = 20.0f;
   c.max_duty = 1.0f;  // transients only: the bridge's current regulation protects the motor (board.h)
   c.current_limit_A = 2.5f;  // below the bridge's 3 A regulation (board.h)
   c.current_limit_ticks = 200;

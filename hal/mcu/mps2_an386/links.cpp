@@ -47,6 +47,7 @@ void SemihostLink::receiveBlocking() {
   const int32_t c = semihost(kSysReadC, nullptr);
   if (c < 0) return;
   rx_.push(static_cast<uint8_t>(c));
+  rx_bytes_ = rx_bytes_ + 1u;
   last_rx_ms_ = millis();
   heard_ = true;
 }

@@ -50,6 +50,7 @@ class SemihostLink final : public hal::ByteLink {
   /// From the tick interrupt only: write out what the tick queued.
   void flush();
   uint32_t rxOverflows() const { return rx_.overflows(); }
+  uint32_t rxBytes() const { return rx_bytes_; }
 
   static constexpr uint32_t kHostSilentMs = 100;
 
@@ -58,6 +59,7 @@ class SemihostLink final : public hal::ByteLink {
   ByteRing<1024> tx_;
   volatile uint32_t last_rx_ms_ = 0;
   volatile bool heard_ = false;
+  volatile uint32_t rx_bytes_ = 0;
 };
 
 /// Polled output on UART1 for boot, safe-state and statistics lines (never on the protocol link).

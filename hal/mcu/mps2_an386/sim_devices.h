@@ -13,12 +13,14 @@ struct PlantOptions {
   uint32_t seed = 1;
   uint8_t scenario = 2;  ///< sim::HandScenario (kGrasp, as firmware-sim's default)
   bool noise = true;
+  uint32_t substep_us = 0;  ///< plant integration step (0: the plant's default, 100 µs)
 };
 inline sim::GlovePlantConfig plantConfig(const PlantOptions& o) {
   sim::GlovePlantConfig c;
   c.seed = o.seed;
   c.noise = o.noise;
   c.scenario = static_cast<sim::HandScenario>(o.scenario);
+  if (o.substep_us != 0) c.params.max_substep_s = static_cast<double>(o.substep_us) * 1e-6;
   return c;
 }
 /// "still" | "close-open" | "grasp" | "random" → scenario number, or −1.

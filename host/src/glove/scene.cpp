@@ -217,13 +217,17 @@ void GloveScene::renderFinger(std::size_t i, const FingerInput& in, FingerOutput
 }
 
 void loadDemoScene(GloveScene& scene, DemoScene which) {
+  // Contact is rendered at the fingertips only (the phalanges pass through objects), so the ball must meet the
+  // fingertip pads: its centre is one radius palmar of the middle fingertip pad (tip − R·n(φ)) at 35 % of the
+  // close synergy, where index and ring pads meet it too. docs/glove-model.md.
+  const Vec3d ball_center_m{0.034, -0.067, 0.0};
   scene.clearObjects();
   switch (which) {
     case DemoScene::kRigidBall:
-      scene.addObject(rigidBall({0.055, -0.045, 0.0}));
+      scene.addObject(rigidBall(ball_center_m));
       break;
     case DemoScene::kSoftBall:
-      scene.addObject(softBall({0.055, -0.045, 0.0}));
+      scene.addObject(softBall(ball_center_m));
       break;
     case DemoScene::kWall:
       scene.addObject(plane({0.0, -0.040, 0.0}, {0.0, 1.0, 0.0}));

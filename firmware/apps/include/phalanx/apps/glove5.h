@@ -58,11 +58,6 @@ struct Glove5Config {
   control::PidConfig force_pid{};   ///< pad force error (N) → tendon velocity (m/s); out_min/max: ± max speed
   float ff_scale = 1.0f;            ///< 0 disables the finger-motion feed-forward
   float ir_compensation = 0.7f;     ///< c_IR: fraction of the resistive drop compensated (< 1 keeps it stable)
-  /// Bound on the feedback's integrated tendon offset ∫v_fb dt (m): 10 N of pad force needs a few mm of tendon
-  /// stretch, so an offset beyond this means the tendon no longer reaches the pad (transmission near zero at the
-  /// ends of the range) and winding further would only stall the motor against the mechanism.
-  float max_feedback_offset_m = 0.006f;
-  float feedback_offset_leak_s = 0.5f;  ///< the offset bound forgets with this time constant
   float force_filter_hz = 300.0f;
   float velocity_filter_hz = 40.0f;
   float max_duty = 0.9f;
@@ -97,7 +92,6 @@ struct GloveFingerState {
   float force_N = 0.0f;       ///< filtered pad force, positive resists flexion
   float current_A = 0.0f;
   float tendon_velocity_m_per_s = 0.0f;  ///< commanded, v_ff + v_fb
-  float feedback_offset_m = 0.0f;        ///< leaky ∫ v_fb dt, bounded by max_feedback_offset_m
   float duty = 0.0f;
   control::PidState pid{};
 };

@@ -1,0 +1,256 @@
+#!/usr/bin/env python3
+"""Run the Phalanx firmware image for the emulated Cortex-M4F board (QEMU mps2-an386) and drive it with the host
+daemon over a pseudo-terminal, exactly as a real board on a serial port.
+
+  qemu_board.py session   -- the CI check: handshake + several-second 1 kHz session with `phalanx run`, then the
+                             daemon killed with SIGKILL: the firmware must report its outputs safe (debug console)
+                             within two ticks of the command deadline, and a reconnecting session must see the
+                             latched command-timeout in the telemetry fault bits.
+  qemu_board.py bench     -- the cycle benchmark: the same session under `-icount shift=N` (deterministic
+                             instruction counting); prints the control tick's worst case and median in instructions.
+  qemu_board.py run       -- start the board and print the pty path (for manual use with phalanxd).
+
+The debug console (UART1) is QEMU's stdout; the protocol link is either CMSDK UART0 (-serial pty) or the
+semihosting console on a pty chardev (--link semihost; see hal/mcu/mps2_an386/links.h for why both exist).
+"""
+import argparse
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+DEFAULT_ELF = os.path.join(ROOT, "build", "mcu-mps2-an386", "phalanx-mps2_an386-glove5.elf")
+BIN = os.path.join(ROOT, "build", "host", "bin")
+
+
+class Board:
+    """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
+
+    def __init__(self, elf, link, seconds=0, icount=None, plant_every=1, extra=()):
+        args = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none"]
+        sh = ["enable=on", "target=native", "arg=fw", f"arg=link={link}", f"arg=seconds={seconds}",
+              f"arg=plant_every={plant_every}"] + [f"arg={e}" for e in extra]
+        if link == "uart":
+            args += ["-serial", "pty", "-serial", "stdio"]
+        else:
+            args += ["-serial", "null", "-serial", "stdio", "-chardev", "pty,id=link"]
+            sh.insert(2, "chardev=link")
+        args += ["-semihosting-config", ",".join(sh)]
+        if icount is not None:
+            args += ["-icount", f"shift={icount}"]
+        args += ["-kernel", elf]
+        self.cmd = args
+        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
+        self.lines = []
+        self.lock = threading.Lock()
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+        self.pty = None
+        m = self.wait_for(r"char device redirected to (/dev/pts/\d+)", 10)
+        if m:
+            self.pty = m.group(1)
+        if not self.wait_for(r"^BOOT ", 30):
+            raise RuntimeError("firmware did not boot:\n" + self.text())
+
+    def _read(self):
+        for line in self.proc.stdout:
+            with self.lock:
+                self.lines.append(line.rstrip("\n"))
+
+    def text(self):
+        with self.lock:
+            return "\n".join(self.lines)
+
+    def wait_for(self, pattern, timeout_s, start=0):
+        rx = re.compile(pattern)
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            with self.lock:
+                for line in self.lines[start:]:
+                    m = rx.search(line)
+                    if m:
+                        return m
+            if self.proc.poll() is not None and not self.reader.is_alive():
+                break
+            time.sleep(0.02)
+        return None
+
+    def line_count(self):
+        with self.lock:
+            return len(self.lines)
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.reader.join(2)
+
+
+def run_phalanx(pty, seconds, rate_hz, timeout_s):
+    cmd = [os.path.join(BIN, "phalanx"), "run", "--device", f"serial:{pty}", "--seconds", str(seconds),
+           "--rate-hz", str(rate_hz), "--json", "--no-realtime"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
+    try:
+        summary = json.loads(r.stdout) if r.stdout.strip() else {}
+    except json.JSONDecodeError:
+        summary = {"unparsed_stdout": r.stdout}
+    return r.returncode, summary, r.stderr
+
+
+class Checks:
+    def __init__(self):
+        self.passed = 0
+        self.failed = 0
+
+    def check(self, ok, what, detail=""):
+        if ok:
+            self.passed += 1
+            print(f"  ok   {what}")
+        else:
+            self.failed += 1
+            print(f"  FAIL {what} {detail}")
+        return ok
+
+
+def parse_kv(line):
+    return {k: v for k, v in re.findall(r"(\w+)=(\S+)", line)}
+
+
+def session(args):
+    c = Checks()
+    board = Board(args.elf, args.link, plant_every=args.plant_every, extra=args.extra)
+    try:
+        print(f"board up: link={args.link} pty={board.pty} plant_every={args.plant_every}")
+        c.check(board.pty is not None, "QEMU exposed the protocol link as a pty")
+        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds + 30)
+        expected_cycles = int(args.seconds * args.rate_hz)
+        print(f"phalanx run: rc={rc} cycles={s.get('cycles')} telemetry={s.get('telemetry')} "
+              f"commands={s.get('commands')} rtt={s.get('round_trip', {}).get('p50_us')}us "
+              f"faults_seen={s.get('faults_seen')} final_mode={s.get('final_mode')}")
+        c.check(rc == 0, "handshake and session completed (phalanx run exit 0)", err.strip()[-400:])
+        c.check(s.get("device_type") == "glove5", "device answered the handshake as glove5", s.get("device_type"))
+        c.check(s.get("firmware_tick_hz") == 1000, "firmware reports a 1 kHz tick", s.get("firmware_tick_hz"))
+        c.check(s.get("cycles", 0) >= expected_cycles - 10, f"host ran {expected_cycles} cycles at {args.rate_hz} Hz",
+                s.get("cycles"))
+        tel = s.get("telemetry", {})
+        # The device sends one telemetry frame per 1 kHz tick; the host counts gaps in its sequence.
+        c.check(tel.get("lost", 1) == 0, "no telemetry frame lost", tel)
+        c.check(tel.get("received", 0) >= 0.9 * args.seconds * 1000, "telemetry arrived at ~1 kHz", tel)
+        cmds = s.get("commands", {})
+        c.check(cmds.get("rejected_by_device", 1) == 0, "device rejected no command", cmds)
+        c.check(cmds.get("lost_seen_by_device", 1) == 0, "device saw no gap in the command sequence", cmds)
+        c.check(cmds.get("unsent_link_full", 1) == 0, "host never found the link full", cmds)
+        rx = s.get("host_rx_errors", {})
+        c.check(rx.get("crc", 1) == 0 and rx.get("framing", 1) == 0, "no CRC or framing error on the host", rx)
+        c.check(s.get("final_mode") == "safe", "session left the device safe", s.get("final_mode"))
+
+        if args.kill_test:
+            mark = board.line_count()
+            daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
+                                       "--no-realtime"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            time.sleep(2.0)
+            alive = daemon.poll() is None
+            c.check(alive, "phalanxd drives the device", "" if alive else daemon.stderr.read()[-400:])
+            daemon.send_signal(signal.SIGKILL)
+            daemon.wait()
+            m = board.wait_for(r"^SAFE .*", 5, start=mark)
+            c.check(m is not None, "firmware reported its outputs safe after the daemon was killed")
+            if m:
+                kv = parse_kv(m.group(0))
+                t_us, dl_us, per_us = int(kv["t_us"]), int(kv["deadline_us"]), int(kv["period_us"])
+                faults = int(kv["faults"], 16)
+                print(f"  device: {m.group(0)}")
+                c.check(t_us > dl_us, "safe state came from the command watchdog (after the deadline)")
+                c.check(t_us - dl_us <= 2 * per_us, "safe within two ticks of the command deadline",
+                        f"{t_us - dl_us} us")
+                c.check(faults & 0x1, "command-timeout fault latched on the device", hex(faults))
+            # Reconnect: the latched fault is visible in the telemetry fault bits before the host clears it.
+            rc2, s2, err2 = run_phalanx(board.pty, 1, args.rate_hz, 30)
+            print(f"reconnect: rc={rc2} faults_at_start={s2.get('faults_at_start')}")
+            c.check(rc2 == 0 and "command-timeout" in str(s2.get("faults_at_start", "")),
+                    "reconnecting host reads the latched command-timeout in telemetry", err2.strip()[-300:])
+    finally:
+        board.stop()
+    print(f"qemu session ({args.link}): {c.passed} passed, {c.failed} failed")
+    return 0 if c.failed == 0 else 1
+
+
+def bench(args):
+    board = Board(args.elf, args.link, seconds=args.seconds + 3, icount=args.shift, plant_every=args.plant_every,
+                  extra=args.extra)
+    try:
+        boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
+        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
+        m = board.wait_for(r"^STATS .*", args.seconds * 20 + 60)
+    finally:
+        board.stop()
+    if not m:
+        print("no STATS line from the firmware:\n" + board.text())
+        return 1
+    kv = parse_kv(m.group(0))
+    result = {
+        "image": os.path.relpath(args.elf, ROOT),
+        "qemu": f"-icount shift={args.shift}",
+        "ns_per_instruction": int(boot.get("ns_per_insn", 0)),
+        "link": args.link,
+        "host_session": {"rc": rc, "cycles": s.get("cycles"), "telemetry": s.get("telemetry"),
+                         "commands_sent": s.get("commands", {}).get("sent")},
+        "tick_instructions": {"count": int(kv["ticks"]), "worst": int(kv["worst"]), "median": int(kv["median"]),
+                              "p99": int(kv["p99"])},
+        "budget_instructions": args.budget,
+        "plant_instructions": {"worst": int(kv["plant_worst"]), "median": int(kv["plant_median"])},
+        "commands_applied": int(kv["commands"]),
+        "stack_used_bytes": int(kv["stack_used"]),
+    }
+    print(json.dumps(result, indent=2))
+    ok = result["tick_instructions"]["worst"] <= args.budget and result["commands_applied"] > 0
+    print(f"cycle bench: worst {result['tick_instructions']['worst']} / median "
+          f"{result['tick_instructions']['median']} instructions per tick (budget {args.budget}): "
+          f"{'1 passed, 0 failed' if ok else '0 passed, 1 failed'}")
+    return 0 if ok else 1
+
+
+def run(args):
+    board = Board(args.elf, args.link, seconds=args.seconds, icount=args.shift, plant_every=args.plant_every,
+                  extra=args.extra)
+    print(f"PTY {board.pty}", flush=True)
+    try:
+        while board.proc.poll() is None:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        board.stop()
+        print(board.text())
+    return 0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("mode", choices=["session", "bench", "run"])
+    ap.add_argument("--elf", default=DEFAULT_ELF)
+    ap.add_argument("--link", choices=["uart", "semihost"], default="semihost")
+    ap.add_argument("--seconds", type=int, default=4)
+    ap.add_argument("--rate-hz", type=int, default=1000)
+    ap.add_argument("--plant-every", type=int, default=1)
+    ap.add_argument("--shift", type=int, default=2, help="bench/run: -icount shift (2^shift ns per instruction)")
+    ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
+    ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")
+    ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
+    args = ap.parse_args()
+    if args.mode == "run" and args.shift < 0:
+        args.shift = None
+    return {"session": session, "bench": bench, "run": run}[args.mode](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
