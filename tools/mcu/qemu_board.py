@@ -10,8 +10,9 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
                              instruction counting); prints the control tick's worst case and median in instructions.
   qemu_board.py run       -- start the board and print the pty path (for manual use with phalanxd).
 
-The debug console (UART1) is QEMU's stdout; the protocol link is either CMSDK UART0 (-serial pty) or the
-semihosting console on a pty chardev (--link semihost; see hal/mcu/mps2_an386/links.h for why both exist).
+The protocol link is the CMSDK UART0 exposed with `-serial pty`; the debug console (UART1) is QEMU's stdout.
+QEMU's UART model carries about 12 kB/s host → device while 1 kHz telemetry flows back (docs/firmware-mcu.md),
+so the host loop runs at 200 Hz here while the firmware ticks and sends telemetry at 1 kHz.
 """
 import argparse
 import json
@@ -31,18 +32,16 @@ BIN = os.path.join(ROOT, "build", "host", "bin")
 class Board:
     """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
 
-    def __init__(self, elf, link, seconds=0, icount=None, plant_every=1, extra=()):
-        args = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none"]
-        sh = ["enable=on", "target=native", "arg=fw", f"arg=link={link}", f"arg=seconds={seconds}",
-              f"arg=plant_every={plant_every}"] + [f"arg={e}" for e in extra]
-        if link == "uart":
-            args += ["-serial", "pty", "-serial", "stdio"]
-        else:
-            args += ["-serial", "null", "-serial", "stdio", "-chardev", "pty,id=link"]
-            sh.insert(2, "chardev=link")
-        args += ["-semihosting-config", ",".join(sh)]
+    def __init__(self, elf, seconds=0, icount=None, extra=()):
+        # UART0 (the protocol link) on a pty, UART1 (debug console) on stdout; semihosting only for the
+        # command line and the exit status.
+        args = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none",
+                "-serial", "pty", "-serial", "stdio"]
+        sh = ["enable=on", "target=native", "arg=fw", f"arg=seconds={seconds}"] + [f"arg={e}" for e in extra]
         if icount is not None:
             args += ["-icount", f"shift={icount}"]
+            sh.append(f"arg=icount_shift={icount}")
+        args += ["-semihosting-config", ",".join(sh)]
         args += ["-kernel", elf]
         self.cmd = args
         self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
@@ -95,9 +94,9 @@ class Board:
         self.reader.join(2)
 
 
-def run_phalanx(pty, seconds, rate_hz, timeout_s):
+def run_phalanx(pty, seconds, rate_hz, timeout_s, command_timeout_ms=50):
     cmd = [os.path.join(BIN, "phalanx"), "run", "--device", f"serial:{pty}", "--seconds", str(seconds),
-           "--rate-hz", str(rate_hz), "--json", "--no-realtime"]
+           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json", "--no-realtime"]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
     try:
         summary = json.loads(r.stdout) if r.stdout.strip() else {}
@@ -127,9 +126,9 @@ def parse_kv(line):
 
 def session(args):
     c = Checks()
-    board = Board(args.elf, args.link, plant_every=args.plant_every, extra=args.extra)
+    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra)
     try:
-        print(f"board up: link={args.link} pty={board.pty} plant_every={args.plant_every}")
+        print(f"board up: pty={board.pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
         c.check(board.pty is not None, "QEMU exposed the protocol link as a pty")
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds + 30)
         expected_cycles = int(args.seconds * args.rate_hz)
@@ -144,18 +143,21 @@ def session(args):
         tel = s.get("telemetry", {})
         # The device sends one telemetry frame per 1 kHz tick; the host counts gaps in its sequence.
         c.check(tel.get("lost", 1) == 0, "no telemetry frame lost", tel)
-        c.check(tel.get("received", 0) >= 0.9 * args.seconds * 1000, "telemetry arrived at ~1 kHz", tel)
+        c.check(tel.get("received", 0) >= 0.8 * args.seconds * 1000, "telemetry arrived at ~1 kHz", tel)
+        c.check(s.get("faults_seen") == "none", "no fault during the session", s.get("faults_seen"))
+        p50 = s.get("round_trip", {}).get("p50_us", 1e9)
+        c.check(p50 < 3 * 1e6 / args.rate_hz, "command round trip within three host periods", f"{p50} us")
         cmds = s.get("commands", {})
         c.check(cmds.get("rejected_by_device", 1) == 0, "device rejected no command", cmds)
         c.check(cmds.get("lost_seen_by_device", 1) == 0, "device saw no gap in the command sequence", cmds)
         c.check(cmds.get("unsent_link_full", 1) == 0, "host never found the link full", cmds)
         rx = s.get("host_rx_errors", {})
         c.check(rx.get("crc", 1) == 0 and rx.get("framing", 1) == 0, "no CRC or framing error on the host", rx)
-        c.check(s.get("final_mode") == "safe", "session left the device safe", s.get("final_mode"))
 
         if args.kill_test:
             mark = board.line_count()
             daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
+                                       "--rate-hz", str(args.rate_hz), "--command-timeout-ms", "50",
                                        "--no-realtime"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             time.sleep(2.0)
             alive = daemon.poll() is None
@@ -180,13 +182,12 @@ def session(args):
                     "reconnecting host reads the latched command-timeout in telemetry", err2.strip()[-300:])
     finally:
         board.stop()
-    print(f"qemu session ({args.link}): {c.passed} passed, {c.failed} failed")
+    print(f"qemu session: {c.passed} passed, {c.failed} failed")
     return 0 if c.failed == 0 else 1
 
 
 def bench(args):
-    board = Board(args.elf, args.link, seconds=args.seconds + 3, icount=args.shift, plant_every=args.plant_every,
-                  extra=args.extra)
+    board = Board(args.elf, seconds=args.seconds + 3, icount=args.shift, extra=["plant_period_ms=1"] + args.extra)
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
@@ -201,7 +202,7 @@ def bench(args):
         "image": os.path.relpath(args.elf, ROOT),
         "qemu": f"-icount shift={args.shift}",
         "ns_per_instruction": int(boot.get("ns_per_insn", 0)),
-        "link": args.link,
+        "host_rate_hz": args.rate_hz,
         "host_session": {"rc": rc, "cycles": s.get("cycles"), "telemetry": s.get("telemetry"),
                          "commands_sent": s.get("commands", {}).get("sent")},
         "tick_instructions": {"count": int(kv["ticks"]), "worst": int(kv["worst"]), "median": int(kv["median"]),
@@ -220,8 +221,7 @@ def bench(args):
 
 
 def run(args):
-    board = Board(args.elf, args.link, seconds=args.seconds, icount=args.shift, plant_every=args.plant_every,
-                  extra=args.extra)
+    board = Board(args.elf, seconds=args.seconds, icount=args.shift, extra=args.extra)
     print(f"PTY {board.pty}", flush=True)
     try:
         while board.proc.poll() is None:
@@ -238,10 +238,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", choices=["session", "bench", "run"])
     ap.add_argument("--elf", default=DEFAULT_ELF)
-    ap.add_argument("--link", choices=["uart", "semihost"], default="semihost")
     ap.add_argument("--seconds", type=int, default=4)
-    ap.add_argument("--rate-hz", type=int, default=1000)
-    ap.add_argument("--plant-every", type=int, default=1)
+    ap.add_argument("--rate-hz", type=int, default=100, help="host loop rate (the firmware always ticks at 1 kHz)")
+    ap.add_argument("--plant-period-ms", type=int, default=200,
+                    help="at most one plant step (1 ms of physics) per this many ms (bench: 1)")
     ap.add_argument("--shift", type=int, default=2, help="bench/run: -icount shift (2^shift ns per instruction)")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
     ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")

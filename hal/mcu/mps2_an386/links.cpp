@@ -38,25 +38,6 @@ void CmsdkUartLink::onTxInterrupt() {
   uart(base_, kUartCtrl) = tx_.empty() ? (ctrl & ~kCtrlTxIntEn) : (ctrl | kCtrlTxIntEn);
 }
 
-size_t SemihostLink::writeSpace() const {
-  if (!heard_ || millis() - last_rx_ms_ > kHostSilentMs) return 0;
-  return tx_.space();
-}
-
-void SemihostLink::receiveBlocking() {
-  const int32_t c = semihost(kSysReadC, nullptr);
-  if (c < 0) return;
-  rx_.push(static_cast<uint8_t>(c));
-  rx_bytes_ = rx_bytes_ + 1u;
-  last_rx_ms_ = millis();
-  heard_ = true;
-}
-
-void SemihostLink::flush() {
-  uint8_t b = 0;
-  for (size_t i = 0; i < tx_.capacity() && tx_.pop(b); ++i) semihost(kSysWriteC, &b);
-}
-
 void DebugConsole::init(uint32_t base) {
   base_ = base;
   uart(base_, kUartBaudDiv) = kSysclkHz / 115200u;

@@ -6,10 +6,9 @@
 /// UART (the tick only pends that interrupt, so the ring has one consumer). Both UART interrupts sit below
 /// SysTick in priority, so they never preempt (or inflate the measurement of) a control tick.
 ///
-/// SemihostLink: the same interface over QEMU's semihosting console (SYS_READC / SYS_WRITEC on a chardev).
-/// It exists because QEMU's CMSDK UART model accepts one byte per host main-loop iteration (measured on this
-/// project's machines: 20–28 kB/s), below the 61 kB/s of a 1 kHz command stream; QEMU's semihosting console
-/// buffers 1 KiB per iteration and keeps up. See docs/firmware-mcu.md.
+/// QEMU's model of this UART has a one-byte receive buffer and takes one byte per iteration of QEMU's main loop:
+/// measured here at 20–28 kB/s host → device when idle and about 12 kB/s while the device sends 1 kHz telemetry
+/// (70 kB/s) the other way; docs/firmware-mcu.md has the numbers and what they mean for the host loop rate.
 #include <cstddef>
 #include <cstdint>
 
@@ -36,30 +35,6 @@ class CmsdkUartLink final : public hal::ByteLink {
   ByteRing<512> rx_;
   ByteRing<1024> tx_;
   uint32_t uart_overruns_ = 0;
-};
-
-class SemihostLink final : public hal::ByteLink {
- public:
-  size_t read(uint8_t* dst, size_t max_len) override { return rx_.read(dst, max_len); }
-  size_t write(const uint8_t* src, size_t len) override { return writeSpace() >= len ? tx_.write(src, len) : 0; }
-  /// Zero while the host has been silent for kHostSilentMs: QEMU writes the console with a blocking write, so
-  /// the link stops sending when nobody is reading rather than stall the emulated CPU on a full pty.
-  size_t writeSpace() const override;
-  /// Thread mode only: block (the CPU halts like WFI; interrupts still run) until one byte arrives.
-  void receiveBlocking();
-  /// From the tick interrupt only: write out what the tick queued.
-  void flush();
-  uint32_t rxOverflows() const { return rx_.overflows(); }
-  uint32_t rxBytes() const { return rx_bytes_; }
-
-  static constexpr uint32_t kHostSilentMs = 100;
-
- private:
-  ByteRing<1024> rx_;
-  ByteRing<1024> tx_;
-  volatile uint32_t last_rx_ms_ = 0;
-  volatile bool heard_ = false;
-  volatile uint32_t rx_bytes_ = 0;
 };
 
 /// Polled output on UART1 for boot, safe-state and statistics lines (never on the protocol link).

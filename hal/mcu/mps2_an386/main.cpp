@@ -1,15 +1,21 @@
 // Phalanx firmware on the emulated Cortex-M4F board (QEMU mps2-an386): the firmware core and the device app
 // built for the MCU, with the device's simulated plant linked in as the source of sensor values, ticking at
-// 1 kHz from SysTick and talking to the host over a byte link (UART0, or the semihosting console; links.h).
+// 1 kHz from SysTick and talking to the host over CMSDK UART0 (links.h).
 //
-// Per SysTick interrupt: plant.step(1 ms) writes the sensor image → core.tick() (measured) → link drained.
+// Interrupt priorities: SysTick (the control tick, measured) > UART0 RX/TX > PendSV (the simulated plant).
+// The tick reads the sensor image the plant last wrote; the plant integrates in PendSV, one millisecond of
+// physics per step, as fast as the CPU allows up to real time (plant_time ≤ firmware_time). The plant is double
+// precision, which the M4F computes in software (about 120k–250k instructions per simulated millisecond,
+// measured below), so under QEMU's real-time emulation it typically runs slower than real time: the hand moves
+// in slow motion while the firmware and its link keep a true 1 kHz. STATS reports the plant's real-time factor.
 // The tick's duration is measured with SysTick deltas: under `qemu -icount shift=N` each instruction takes 2^N ns
 // of virtual time and SysTick counts 25 MHz, so a delta of c counts is c·40/2^N instructions, deterministically.
 // Results go to the debug console (UART1) and are readable with ParamGet 0x0080.. (phalanx/fw_mcu/board_diag.h).
 //
-// Options, from the semihosting command line (qemu -semihosting-config ...,arg=fw,arg=link=semihost,...):
-//   link=uart|semihost   protocol link (default uart)       seconds=N   stop after N s with a STATS line
-//   scenario=still|close-open|grasp|random   seed=N   noise=0|1   (the simulated hand)
+// Options, from the semihosting command line (qemu -semihosting-config enable=on,arg=fw,arg=seconds=5,...):
+//   seconds=N   stop after N s with a STATS line and exit QEMU (0: run until killed)
+//   icount_shift=N   the -icount shift QEMU was started with: tick durations are then reported in instructions
+//   scenario=still|close-open|grasp|random   seed=N   noise=0|1   substep_us=N   (the simulated hand)
 #include <cstddef>
 #include <cstdint>
 
@@ -39,15 +45,16 @@ constexpr uint32_t kNsPerCount = 1000000000u / kSysclkHz;  // 40
 constexpr uint8_t kPrioTick = 0x80;
 constexpr uint8_t kPrioUart = 0xC0;  // below the tick: never preempts it
 
+constexpr uint8_t kPrioPlant = 0xF0;  // PendSV, lowest: everything preempts the physics
+constexpr uint32_t kPlantMaxLagMs = 50;  // beyond this the plant skips ahead (slow motion) instead of catching up
+
 struct Options {
-  bool semihost_link = false;
   uint32_t seconds = 0;
-  /// Step the plant (1 ms of physics) on every Nth tick only. The plant integrates in double precision, which the
-  /// M4F does in software: about 120k–250k instructions per simulated millisecond, several times what QEMU's
-  /// TCG executes in a millisecond of real time on a 2-core CI machine. N > 1 keeps the firmware and its link at
-  /// a true 1 kHz while the simulated hand moves N times slower (physics in slow motion, sensors refreshed every
-  /// N ticks). N = 1 (default) is full fidelity, for runs where real time does not matter (-icount benchmarks).
-  uint32_t plant_every = 1;
+  int32_t icount_shift = -1;
+  /// At most one plant step (1 ms of physics) per this many ms of firmware time. 1: the plant tries to keep real
+  /// time. Larger values cap the CPU the physics takes (slow motion) so the UART keeps its throughput in
+  /// real-time emulation, where every instruction the plant runs delays QEMU's delivery of received bytes.
+  uint32_t plant_period_ms = 1;
   PlantOptions plant;
 };
 
@@ -57,9 +64,7 @@ using PlantStats = TickStats<512, 1024>;  // the plant (soft-float double) is an
 // Objects with a vtable are constructed at init (StaticObject) so that they live in .bss, not in .data (a .data
 // object costs its size twice: RAM and its initial image in flash).
 fw_mcu::StaticObject<CmsdkUartLink> g_uart_obj;
-fw_mcu::StaticObject<SemihostLink> g_semi_obj;
 CmsdkUartLink& uartLink() { return g_uart_obj.get(); }
-SemihostLink& semiLink() { return g_semi_obj.get(); }
 DebugConsole g_console;
 fw_mcu::StaticObject<sim::SimBoard> g_board;
 fw_mcu::StaticObject<fw_mcu::AppType> g_app;
@@ -67,6 +72,7 @@ fw_mcu::StaticObject<PlantType> g_plant;
 fw_mcu::StaticObject<fw::FirmwareCore> g_core;
 Options g_opt;
 volatile uint32_t g_ms = 0;
+volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached
 volatile bool g_running = false;
 uint32_t g_ns_per_insn = 0;  // 0: SysTick does not count instructions (no -icount)
 uint32_t g_calibration_counts = 0;
@@ -84,10 +90,8 @@ class Diagnostics final : public fw_mcu::DiagSource {
       case p::kTickUnitNs: v = static_cast<float>(g_ns_per_insn); return true;
       case p::kOverruns: v = static_cast<float>(overruns); return true;
       case p::kPlantWorst: v = static_cast<float>(plant.worst()); return true;
-      case p::kRxOverflows:
-        v = static_cast<float>(g_opt.semihost_link ? semiLink().rxOverflows() : uartLink().rxOverflows());
-        return true;
-      case p::kLinkKind: v = g_opt.semihost_link ? 1.0f : 0.0f; return true;
+      case p::kRxOverflows: v = static_cast<float>(uartLink().rxOverflows()); return true;
+      case p::kLinkKind: v = 0.0f; return true;
       case p::kResetStats: v = 0.0f; return true;
       default: return false;
     }
@@ -111,9 +115,6 @@ fw_mcu::StaticObject<Diagnostics> g_diag_obj;
 Diagnostics& diag() { return g_diag_obj.get(); }
 fw_mcu::StaticObject<fw_mcu::DiagApp> g_diag_app;
 
-hal::ByteLink& link() {
-  return g_opt.semihost_link ? static_cast<hal::ByteLink&>(semiLink()) : static_cast<hal::ByteLink&>(uartLink());
-}
 
 uint32_t countsBetween(uint32_t start, uint32_t end) {
   // SysTick counts down from kReload; one wrap at most between two reads inside one tick handler.
@@ -154,12 +155,14 @@ Options parseCommandLine() {
     const int len = j - i;
     const char* v = nullptr;
     int vl = 0;
-    if (tokenIs(tok, len, "link=", v, vl)) o.semihost_link = vl == 8 && v[0] == 's';
-    else if (tokenIs(tok, len, "seconds=", v, vl)) o.seconds = parseU32(v, vl);
+    if (tokenIs(tok, len, "seconds=", v, vl)) o.seconds = parseU32(v, vl);
+    else if (tokenIs(tok, len, "icount_shift=", v, vl)) o.icount_shift = static_cast<int32_t>(parseU32(v, vl));
     else if (tokenIs(tok, len, "seed=", v, vl)) o.plant.seed = parseU32(v, vl);
     else if (tokenIs(tok, len, "noise=", v, vl)) o.plant.noise = vl > 0 && v[0] != '0';
     else if (tokenIs(tok, len, "substep_us=", v, vl)) o.plant.substep_us = parseU32(v, vl);
-    else if (tokenIs(tok, len, "plant_every=", v, vl)) o.plant_every = parseU32(v, vl) == 0 ? 1u : parseU32(v, vl);
+    else if (tokenIs(tok, len, "plant_period_ms=", v, vl)) {
+      o.plant_period_ms = parseU32(v, vl) == 0 ? 1u : parseU32(v, vl);
+    }
     else if (tokenIs(tok, len, "scenario=", v, vl)) {
       const int s = scenarioNumber(v, vl);
       if (s >= 0) o.plant.scenario = static_cast<uint8_t>(s);
@@ -186,11 +189,12 @@ uint32_t calibrateNsPerInstruction() {
   reg(kSysTickCsr) = 0;
   const uint32_t ns = ((v0 - v1) & 0x00FFFFFFu) * kNsPerCount;  // for 20000 instructions (+ the two reads)
   g_calibration_counts = (v0 - v1) & 0x00FFFFFFu;
-  for (uint32_t p = 1; p <= 1024; p <<= 1) {
-    const uint32_t expect = 20000u * p;
-    if (ns + ns / 20u >= expect && ns <= expect + expect / 20u) return p;  // within 5 %
-  }
-  return 0;
+  // Trust the declared shift only if the loop took exactly that long (±5 %): in real-time emulation (no
+  // -icount) the loop's duration is host speed, not an instruction count.
+  if (g_opt.icount_shift < 0 || g_opt.icount_shift > 10) return 0;
+  const uint32_t p = 1u << g_opt.icount_shift;
+  const uint32_t expect = 20000u * p;
+  return (ns + ns / 20u >= expect && ns <= expect + expect / 20u) ? p : 0u;
 }
 
 void printStats(const char* tag) {
@@ -205,8 +209,8 @@ void printStats(const char* tag) {
       .str(" overruns=").u32(diag().overruns)
       .str(" plant_worst=").u32(diag().plant.worst())
       .str(" plant_median=").u32(diag().plant.median())
-      .str(" rx_overflows=").u32(g_opt.semihost_link ? semiLink().rxOverflows() : uartLink().rxOverflows())
-      .str(" semihost_rx_bytes=").u32(g_opt.semihost_link ? semiLink().rxBytes() : 0u)
+      .str(" plant_ms=").u32(g_plant_ms)
+      .str(" rx_overflows=").u32(uartLink().rxOverflows())
       .str(" tx_dropped=").u32(g_core.get().counters().tx_dropped)
       .str(" commands=").u32(g_core.get().counters().commands_applied)
       .str(" faults=").hex16(g_core.get().faultBits())
@@ -230,14 +234,6 @@ void controlTick(uint32_t entry_value) {
     diag().overruns = 0;
     diag().reset_requested = false;
   }
-  static uint32_t plant_phase = 0;
-  if (++plant_phase >= g_opt.plant_every) {
-    plant_phase = 0;
-    const uint32_t p0 = cm4::sysTickValue();
-    g_plant.get().step(1.0 / kTickHz, io);
-    const uint32_t p1 = cm4::sysTickValue();
-    diag().plant.add(Diagnostics::toUnits(countsBetween(p0, p1)));
-  }
   g_board.get().clock().advanceUs(1000000u / kTickHz);
   const bool was_active = io.pwm_enabled;
   const bool was_open = core.sessionOpen();
@@ -255,8 +251,8 @@ void controlTick(uint32_t entry_value) {
   diag().tick.add(Diagnostics::toUnits(counts));
   if (counts > diag().worst_counts) diag().worst_counts = counts;
 
-  if (g_opt.semihost_link) semiLink().flush();
-  else uartLink().kick();
+  uartLink().kick();
+  cm4::reg(cm4::kScbIcsr) = 1u << 28;  // PENDSVSET: let the plant catch up after the tick
 
   // Device-side reports, observing the simulated power stage itself (as firmware-sim does).
   if (!was_open && core.sessionOpen()) g_console.str("SESSION opened t_us=").u64(g_board.get().clock().nowUs()).end();
@@ -278,6 +274,24 @@ void controlTick(uint32_t entry_value) {
 }
 
 }  // namespace
+
+/// The simulated plant, one millisecond of physics per invocation, chained while it is behind the firmware's
+/// clock. Preempted by the tick and the UART; its duration below therefore includes their time when they hit.
+extern "C" void PendSV_Handler() {
+  static uint32_t last_step_ms = 0;
+  if (!g_running) return;
+  const uint32_t now = g_ms;
+  if (now - g_plant_ms > kPlantMaxLagMs) g_plant_ms = now - kPlantMaxLagMs;
+  if (g_plant_ms >= now || now - last_step_ms < g_opt.plant_period_ms) return;
+  last_step_ms = now;
+  const uint32_t p0 = cm4::sysTickValue();
+  const uint32_t ms0 = g_ms;
+  g_plant.get().step(1.0 / kTickHz, g_board.get().io());
+  const uint32_t p1 = cm4::sysTickValue();
+  if (g_ms == ms0) diag().plant.add(Diagnostics::toUnits(countsBetween(p0, p1)));  // only unpreempted steps
+  g_plant_ms = g_plant_ms + 1u;
+  if (g_plant_ms < g_ms && g_opt.plant_period_ms == 1) cm4::reg(cm4::kScbIcsr) = 1u << 28;
+}
 
 extern "C" void SysTick_Handler() {
   g_ms = g_ms + 1u;
@@ -316,11 +330,10 @@ extern "C" [[noreturn]] void phalanx_board_main() {
 
   g_diag_obj.emplace();
   g_uart_obj.emplace();
-  g_semi_obj.emplace();
-  if (!g_opt.semihost_link) uartLink().init(kUart0Base, 115200u);
+  uartLink().init(kUart0Base, 115200u);
   fw_mcu::AppType& app = fw_mcu::constructApp(g_app);
   g_plant.emplace(plantConfig(g_opt.plant));
-  sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, link());
+  sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, uartLink());
   fw_mcu::DiagApp& diag_app = g_diag_app.emplace(app, diag());
   // The plant produces a first sensor image before the app's first sense().
   g_plant.get().step(1.0 / kTickHz, board.io());
@@ -330,27 +343,24 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   g_core.emplace(board.board(), diag_app, cfg);
 
   g_console.str("BOOT phalanx-mcu board=mps2-an386 app=").str(fw_mcu::kAppName)
-      .str(" link=").str(g_opt.semihost_link ? "semihost" : "uart")
+      .str(" link=uart0")
       .str(" tick_hz=").u32(kTickHz)
       .str(" ns_per_insn=").u32(g_ns_per_insn)
       .str(" calibration_counts=").u32(g_calibration_counts)
       .str(" seconds=").u32(g_opt.seconds)
-      .str(" plant_every=").u32(g_opt.plant_every)
+      .str(" plant_period_ms=").u32(g_opt.plant_period_ms)
+      .str(" icount_shift=").u32(static_cast<uint32_t>(g_opt.icount_shift < 0 ? 0 : g_opt.icount_shift))
       .end();
 
   cm4::setSysTickPriority(kPrioTick);
+  cm4::reg(cm4::kScbShpr3) = (cm4::reg(cm4::kScbShpr3) & 0xFF00FFFFu) | (static_cast<uint32_t>(kPrioPlant) << 16);
   cm4::setIrqPriority(kUart0RxIrq, kPrioUart);
   cm4::setIrqPriority(kUart0TxIrq, kPrioUart);
-  if (!g_opt.semihost_link) {
-    cm4::enableIrq(kUart0RxIrq);
-    cm4::enableIrq(kUart0TxIrq);
-  }
+  cm4::enableIrq(kUart0RxIrq);
+  cm4::enableIrq(kUart0TxIrq);
   g_running = true;
   cm4::startSysTick(kReload);
-  for (;;) {
-    if (g_opt.semihost_link) semiLink().receiveBlocking();
-    else cm4::waitForInterrupt();
-  }
+  for (;;) cm4::waitForInterrupt();
 }
 
 /// Called instead of a C++ throw by the simulated plant (plant_no_throw.h); never expected with the image's

@@ -6,6 +6,7 @@
 
 extern "C" [[noreturn]] void phalanx_fatal(const char* why);
 extern "C" void SysTick_Handler();
+extern "C" void PendSV_Handler();
 extern "C" void Uart0Rx_Handler();
 extern "C" void Uart0Tx_Handler();
 extern "C" void phalanx_initial_sp();  // = __stack_top__ (linker script); a function type makes its address a constant
@@ -29,7 +30,7 @@ using Handler = void (*)();
 extern "C" __attribute__((section(".isr_vector"), used)) const Handler g_vectors[16 + 32] = {
     phalanx_initial_sp, Reset_Handler,      NMI_Handler,        HardFault_Handler,  MemManage_Handler,
     BusFault_Handler,   UsageFault_Handler, nullptr,            nullptr,            nullptr,
-    nullptr,            Unexpected_Handler, Unexpected_Handler, nullptr,            Unexpected_Handler,
+    nullptr,            Unexpected_Handler, Unexpected_Handler, nullptr,            PendSV_Handler,
     SysTick_Handler,
     // IRQ 0..31
     Uart0Rx_Handler,    Uart0Tx_Handler,    Unexpected_Handler, Unexpected_Handler, Unexpected_Handler,
