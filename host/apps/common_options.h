@@ -1,6 +1,8 @@
 #pragma once
 // Command-line options shared by `phalanxd` and `phalanx run` (one definition, two front ends).
 #include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
 
 #include "phalanx/host/daemon.h"
 
@@ -26,6 +28,29 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");
   app.add_flag("--live", opt.live_view, "live per-finger view on the terminal");
   app.add_flag("--json", json, "print the end-of-session summary as JSON on stdout");
+}
+
+/// End-of-session summary: the whole JSON with --json, else the lines a person reads first.
+inline void printSummary(const nlohmann::json& s, bool json) {
+  if (json) {
+    std::cout << s.dump(2) << std::endl;
+    return;
+  }
+  if (s.contains("error")) return;  // already reported on stderr
+  const auto num = [&](const char* a, const char* b) { return s[a][b].get<double>(); };
+  std::printf("session: %s (%s), %s, %.1f s, %llu cycles, %llu overruns\n", s["device"].get<std::string>().c_str(),
+              s["device_type"].get<std::string>().c_str(), s["controller"].get<std::string>().c_str(),
+              s["seconds"].get<double>(), s["cycles"].get<unsigned long long>(), s["overruns"].get<unsigned long long>());
+  std::printf("link: telemetry %llu received, %llu lost; round trip p50 %.0f us, p99 %.0f us, p99.9 %.0f us\n",
+              s["telemetry"]["received"].get<unsigned long long>(), s["telemetry"]["lost"].get<unsigned long long>(),
+              num("round_trip", "p50_us"), num("round_trip", "p99_us"), num("round_trip", "p999_us"));
+  std::printf("loop: period jitter p50 %.0f us, p99 %.0f us; faults seen: %s; final mode: %s\n",
+              num("period_jitter", "p50_us"), num("period_jitter", "p99_us"),
+              s["faults_seen"].get<std::string>().c_str(), s["final_mode"].get<std::string>().c_str());
+  if (s.contains("recording")) {
+    std::printf("recorded %llu rows to %s\n", s["recording"]["rows"].get<unsigned long long>(),
+                s["recording"]["path"].get<std::string>().c_str());
+  }
 }
 
 }  // namespace phalanx::host

@@ -68,10 +68,6 @@ int main(int argc, char** argv) {
   installStopSignals();
   nlohmann::json summary;
   const int rc = runSession(opt, summary);
-  if (json) {
-    std::cout << summary.dump(2) << std::endl;
-  } else {
-    std::cout << summary.dump(2) << std::endl;
-  }
+  printSummary(summary, json);
   return rc;
 }

@@ -32,10 +32,6 @@ int main(int argc, char** argv) {
   installStopSignals();
   nlohmann::json summary;
   const int rc = runSession(opt, summary);
-  if (json) {
-    std::cout << summary.dump(2) << std::endl;
-  } else if (rc == 0) {
-    std::fprintf(stderr, "phalanxd: session ended: %s\n", summary.dump().c_str());
-  }
+  printSummary(summary, json);
   return rc;
 }

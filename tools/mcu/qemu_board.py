@@ -211,6 +211,11 @@ def bench(args):
         "plant_instructions": {"worst": int(kv["plant_worst"]), "median": int(kv["plant_median"])},
         "commands_applied": int(kv["commands"]),
         "stack_used_bytes": int(kv["stack_used"]),
+        "worst_by_receive_work": {"no_bytes": int(kv["worst_no_rx"]), "up_to_one_frame": int(kv["worst_rx_le_frame"]),
+                                  "more": int(kv["worst_rx_more"])},
+        "overruns": int(kv["overruns"]),
+        "plant_ms_simulated": int(kv["plant_ms"]),
+        "firmware_stats_line": m.group(0),
     }
     print(json.dumps(result, indent=2))
     ok = result["tick_instructions"]["worst"] <= args.budget and result["commands_applied"] > 0

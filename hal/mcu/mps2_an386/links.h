@@ -21,9 +21,15 @@ namespace phalanx::mcu::mps2 {
 class CmsdkUartLink final : public hal::ByteLink {
  public:
   void init(uint32_t base, uint32_t baud);
-  size_t read(uint8_t* dst, size_t max_len) override { return rx_.read(dst, max_len); }
+  size_t read(uint8_t* dst, size_t max_len) override {
+    const size_t n = rx_.read(dst, max_len);
+    bytes_read_ += static_cast<uint32_t>(n);
+    return n;
+  }
   size_t write(const uint8_t* src, size_t len) override { return tx_.space() >= len ? tx_.write(src, len) : 0; }
   size_t writeSpace() const override { return tx_.space(); }
+  /// Bytes handed to the core so far (for the per-tick receive-work breakdown).
+  uint32_t bytesRead() const { return bytes_read_; }
   /// After the tick: let the TX interrupt start draining.
   void kick();
   void onRxInterrupt();
@@ -35,6 +41,7 @@ class CmsdkUartLink final : public hal::ByteLink {
   ByteRing<512> rx_;
   ByteRing<1024> tx_;
   uint32_t uart_overruns_ = 0;
+  uint32_t bytes_read_ = 0;
 };
 
 /// Polled output on UART1 for boot, safe-state and statistics lines (never on the protocol link).

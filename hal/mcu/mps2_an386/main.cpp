@@ -42,6 +42,7 @@ using namespace phalanx::mcu::mps2;
 constexpr uint32_t kTickHz = 1000;
 constexpr uint32_t kReload = kSysclkHz / kTickHz - 1u;  // 24999
 constexpr uint32_t kNsPerCount = 1000000000u / kSysclkHz;  // 40
+constexpr size_t kMaxRxBytesPerTick = protocol::kMaxEncodedFrame;
 constexpr uint8_t kPrioTick = 0x80;
 constexpr uint8_t kPrioUart = 0xC0;  // below the tick: never preempts it
 
@@ -73,6 +74,7 @@ fw_mcu::StaticObject<fw::FirmwareCore> g_core;
 Options g_opt;
 volatile uint32_t g_ms = 0;
 volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached
+volatile uint32_t g_tick_isr_counts = 0;  // SysTick counts spent in the tick handler (for the plant's own time)
 volatile bool g_running = false;
 uint32_t g_ns_per_insn = 0;  // 0: SysTick does not count instructions (no -icount)
 uint32_t g_calibration_counts = 0;
@@ -107,6 +109,8 @@ class Diagnostics final : public fw_mcu::DiagSource {
   }
   Stats tick;
   PlantStats plant;
+  /// Worst tick by the receive work it did: no byte, up to one maximum frame, more.
+  uint32_t worst_rx0 = 0, worst_rx1 = 0, worst_rx_more = 0;
   uint32_t worst_counts = 0;
   uint32_t overruns = 0;
   bool reset_requested = false;
@@ -203,6 +207,9 @@ void printStats(const char* tag) {
       .str(" worst=").u32(diag().tick.worst())
       .str(" median=").u32(diag().tick.median())
       .str(" p99=").u32(diag().tick.quantile(0.99f))
+      .str(" worst_no_rx=").u32(diag().worst_rx0)
+      .str(" worst_rx_le_frame=").u32(diag().worst_rx1)
+      .str(" worst_rx_more=").u32(diag().worst_rx_more)
       .str(" unit=").str(g_ns_per_insn != 0 ? "instructions" : "systick-counts")
       .str(" ns_per_insn=").u32(g_ns_per_insn)
       .str(" worst_systick_counts=").u32(diag().worst_counts)
@@ -240,15 +247,21 @@ void controlTick(uint32_t entry_value) {
   const uint16_t faults_before = core.faultBits();
   const uint64_t deadline_us = core.commandDeadlineUs();
 
+  const uint32_t rx0 = uartLink().bytesRead();
   const uint32_t t0 = cm4::sysTickValue();
   core.tick();
   const uint32_t t1 = cm4::sysTickValue();
+  const uint32_t rx_bytes = uartLink().bytesRead() - rx0;
 
   const uint32_t counts = countsBetween(t0, t1);
   // The counter reloads at each period start; a value above the one seen at entry means it reloaded while
   // this handler ran: the work did not fit its period.
   if (cm4::sysTickValue() > entry_value) ++diag().overruns;
-  diag().tick.add(Diagnostics::toUnits(counts));
+  const uint32_t units = Diagnostics::toUnits(counts);
+  diag().tick.add(units);
+  uint32_t& by_rx = rx_bytes == 0 ? diag().worst_rx0
+                    : rx_bytes <= protocol::kMaxEncodedFrame ? diag().worst_rx1 : diag().worst_rx_more;
+  if (units > by_rx) by_rx = units;
   if (counts > diag().worst_counts) diag().worst_counts = counts;
 
   uartLink().kick();
@@ -284,11 +297,17 @@ extern "C" void PendSV_Handler() {
   if (now - g_plant_ms > kPlantMaxLagMs) g_plant_ms = now - kPlantMaxLagMs;
   if (g_plant_ms >= now || now - last_step_ms < g_opt.plant_period_ms) return;
   last_step_ms = now;
-  const uint32_t p0 = cm4::sysTickValue();
   const uint32_t ms0 = g_ms;
+  const uint32_t p0 = cm4::sysTickValue();
+  const uint32_t isr0 = g_tick_isr_counts;
   g_plant.get().step(1.0 / kTickHz, g_board.get().io());
   const uint32_t p1 = cm4::sysTickValue();
-  if (g_ms == ms0) diag().plant.add(Diagnostics::toUnits(countsBetween(p0, p1)));  // only unpreempted steps
+  const uint32_t ms1 = g_ms;
+  // Elapsed SysTick counts across reloads, minus the time the tick handler took meanwhile (UART interrupts are
+  // left in: a few hundred instructions per received byte at most).
+  const int64_t elapsed = static_cast<int64_t>(ms1 - ms0) * (kReload + 1) + static_cast<int64_t>(p0) - p1;
+  const int64_t own = elapsed - static_cast<int64_t>(g_tick_isr_counts - isr0);
+  if (own > 0) diag().plant.add(Diagnostics::toUnits(static_cast<uint32_t>(own)));
   g_plant_ms = g_plant_ms + 1u;
   if (g_plant_ms < g_ms && g_opt.plant_period_ms == 1) cm4::reg(cm4::kScbIcsr) = 1u << 28;
 }
@@ -297,6 +316,7 @@ extern "C" void SysTick_Handler() {
   g_ms = g_ms + 1u;
   const uint32_t entry_value = cm4::sysTickValue();
   if (g_running) controlTick(entry_value);
+  g_tick_isr_counts = g_tick_isr_counts + countsBetween(entry_value, cm4::sysTickValue());
 }
 extern "C" void Uart0Rx_Handler() {
   if (g_uart_obj.constructed()) uartLink().onRxInterrupt();
@@ -340,6 +360,10 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = kTickHz;
   cfg.firmware_build_id = PHALANX_BUILD_ID;
+  // Bound the receive work of one tick to one maximum frame (70 bytes; at most two frame completions): that
+  // bounds the worst-case tick, and 70 bytes per 1 ms tick still exceeds a 1 kHz command stream (61 bytes per
+  // command). Bursts wait in the 512-byte receive ring for the next ticks.
+  cfg.max_rx_bytes_per_tick = static_cast<uint16_t>(kMaxRxBytesPerTick);
   g_core.emplace(board.board(), diag_app, cfg);
 
   g_console.str("BOOT phalanx-mcu board=mps2-an386 app=").str(fw_mcu::kAppName)
