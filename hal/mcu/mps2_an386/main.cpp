@@ -74,7 +74,6 @@ fw_mcu::StaticObject<fw::FirmwareCore> g_core;
 Options g_opt;
 volatile uint32_t g_ms = 0;
 volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached
-volatile uint32_t g_tick_isr_counts = 0;  // SysTick counts spent in the tick handler (for the plant's own time)
 volatile bool g_running = false;
 uint32_t g_ns_per_insn = 0;  // 0: SysTick does not count instructions (no -icount)
 uint32_t g_calibration_counts = 0;
@@ -201,6 +200,25 @@ uint32_t calibrateNsPerInstruction() {
   return (ns + ns / 20u >= expect && ns <= expect + expect / 20u) ? p : 0u;
 }
 
+/// The plant's cost per simulated millisecond, measured at boot with interrupts off (SysTick free-running, no
+/// wrap within one step at shift ≤ 4), so that no tick or UART interrupt is counted in it.
+void measurePlant(sim::SimIo& io, int steps) {
+  using namespace cm4;
+  reg(kSysTickCsr) = 0;
+  reg(kSysTickRvr) = 0x00FFFFFFu;
+  reg(kSysTickCvr) = 0;
+  reg(kSysTickCsr) = 0x5u;
+  for (int i = 0; i < 1000 && sysTickValue() == 0; ++i) {
+  }
+  for (int i = 0; i < steps; ++i) {
+    const uint32_t v0 = sysTickValue();
+    g_plant.get().step(1.0 / kTickHz, io);
+    const uint32_t v1 = sysTickValue();
+    diag().plant.add(Diagnostics::toUnits((v0 - v1) & 0x00FFFFFFu));
+  }
+  reg(kSysTickCsr) = 0;
+}
+
 void printStats(const char* tag) {
   g_console.str(tag)
       .str(" ticks=").u32(diag().tick.count())
@@ -231,7 +249,7 @@ void printStats(const char* tag) {
   for (;;) cm4::waitForInterrupt();
 }
 
-void controlTick(uint32_t entry_value) {
+void controlTick() {
   sim::SimIo& io = g_board.get().io();
   fw::FirmwareCore& core = g_core.get();
   if (diag().reset_requested) {
@@ -253,10 +271,10 @@ void controlTick(uint32_t entry_value) {
   const uint32_t t1 = cm4::sysTickValue();
   const uint32_t rx_bytes = uartLink().bytesRead() - rx0;
 
-  const uint32_t counts = countsBetween(t0, t1);
-  // The counter reloads at each period start; a value above the one seen at entry means it reloaded while
-  // this handler ran: the work did not fit its period.
-  if (cm4::sysTickValue() > entry_value) ++diag().overruns;
+  const uint32_t counts = countsBetween(t0, t1);  // the tick is far shorter than a period: one wrap at most
+  // COUNTFLAG (cleared by the read at handler entry) is set again if the counter reached zero while this
+  // handler ran: the work did not fit its period.
+  if ((cm4::reg(cm4::kSysTickCsr) & (1u << 16)) != 0) ++diag().overruns;
   const uint32_t units = Diagnostics::toUnits(counts);
   diag().tick.add(units);
   uint32_t& by_rx = rx_bytes == 0 ? diag().worst_rx0
@@ -289,7 +307,7 @@ void controlTick(uint32_t entry_value) {
 }  // namespace
 
 /// The simulated plant, one millisecond of physics per invocation, chained while it is behind the firmware's
-/// clock. Preempted by the tick and the UART; its duration below therefore includes their time when they hit.
+/// clock. Preempted by the tick and the UART. (Its cost is measured once at boot, uninterrupted: measurePlant.)
 extern "C" void PendSV_Handler() {
   static uint32_t last_step_ms = 0;
   if (!g_running) return;
@@ -297,26 +315,15 @@ extern "C" void PendSV_Handler() {
   if (now - g_plant_ms > kPlantMaxLagMs) g_plant_ms = now - kPlantMaxLagMs;
   if (g_plant_ms >= now || now - last_step_ms < g_opt.plant_period_ms) return;
   last_step_ms = now;
-  const uint32_t ms0 = g_ms;
-  const uint32_t p0 = cm4::sysTickValue();
-  const uint32_t isr0 = g_tick_isr_counts;
   g_plant.get().step(1.0 / kTickHz, g_board.get().io());
-  const uint32_t p1 = cm4::sysTickValue();
-  const uint32_t ms1 = g_ms;
-  // Elapsed SysTick counts across reloads, minus the time the tick handler took meanwhile (UART interrupts are
-  // left in: a few hundred instructions per received byte at most).
-  const int64_t elapsed = static_cast<int64_t>(ms1 - ms0) * (kReload + 1) + static_cast<int64_t>(p0) - p1;
-  const int64_t own = elapsed - static_cast<int64_t>(g_tick_isr_counts - isr0);
-  if (own > 0) diag().plant.add(Diagnostics::toUnits(static_cast<uint32_t>(own)));
   g_plant_ms = g_plant_ms + 1u;
   if (g_plant_ms < g_ms && g_opt.plant_period_ms == 1) cm4::reg(cm4::kScbIcsr) = 1u << 28;
 }
 
 extern "C" void SysTick_Handler() {
   g_ms = g_ms + 1u;
-  const uint32_t entry_value = cm4::sysTickValue();
-  if (g_running) controlTick(entry_value);
-  g_tick_isr_counts = g_tick_isr_counts + countsBetween(entry_value, cm4::sysTickValue());
+  (void)cm4::reg(cm4::kSysTickCsr);  // clears COUNTFLAG
+  if (g_running) controlTick();
 }
 extern "C" void Uart0Rx_Handler() {
   if (g_uart_obj.constructed()) uartLink().onRxInterrupt();
@@ -355,8 +362,10 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   g_plant.emplace(plantConfig(g_opt.plant));
   sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, uartLink());
   fw_mcu::DiagApp& diag_app = g_diag_app.emplace(app, diag());
-  // The plant produces a first sensor image before the app's first sense().
-  g_plant.get().step(1.0 / kTickHz, board.io());
+  // The plant produces a first sensor image before the app's first sense(); under -icount its cost per
+  // simulated millisecond is measured over the first 200 ms of physics.
+  if (g_ns_per_insn != 0) measurePlant(board.io(), 200);
+  else g_plant.get().step(1.0 / kTickHz, board.io());
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = kTickHz;
   cfg.firmware_build_id = PHALANX_BUILD_ID;

@@ -24,6 +24,7 @@
 
 #include "phalanx/glove/capstan.h"
 #include "phalanx/glove/kinematics.h"
+#include "phalanx/glove/tendon.h"
 
 namespace phalanx::host::glove {
 
@@ -103,9 +104,8 @@ struct SceneConfig {
   /// Below this pad-normal speed the sliding direction (and so the capstan factor) is unknown (static
   /// friction); the feed-forward then uses no friction factor. 5 mm/s ≈ 2.5 % of the §4.3 closing speed.
   double slide_deadband_m_per_s = 0.005;
-  /// Tendon tension at link 3 per newton of pad force (–). 1 = tendon ends at the pad and pulls along its
-  /// normal; a placeholder until identified on the device (the paper gives no pulley radii).
-  double tendon_tension_per_pad_force = 1.0;
+  /// Tendon tension at link 3 per newton of pad force: 1/c of the shared tendon model (glove/tendon.h).
+  double tendon_tension_per_pad_force = 1.0 / phalanx::glove::TendonDesign<double>{}.pad_transmission;
 };
 
 /// Per-cycle input of one finger, from telemetry.
@@ -188,7 +188,7 @@ class GloveScene {
 enum class DemoScene : std::uint8_t { kNone = 0, kRigidBall = 1, kSoftBall = 2, kWall = 3 };
 
 /// Replaces the objects of `scene` with a demo scene, placed for `hand`'s side: a ball under the palm at
-/// H (55, −45, 0) mm that the closing fingers wrap around, or a table 40 mm below the MCP joints.
+/// H (34, −67, 0) mm that the closing fingertip pads meet, or a table 40 mm below the MCP joints.
 void loadDemoScene(GloveScene& scene, DemoScene which);
 
 }  // namespace phalanx::host::glove
