@@ -322,7 +322,8 @@ extern "C" void PendSV_Handler() {
 
 extern "C" void SysTick_Handler() {
   g_ms = g_ms + 1u;
-  (void)cm4::reg(cm4::kSysTickCsr);  // clears COUNTFLAG
+  const uint32_t csr = cm4::reg(cm4::kSysTickCsr);  // reading clears COUNTFLAG
+  static_cast<void>(csr);
   if (g_running) controlTick();
 }
 extern "C" void Uart0Rx_Handler() {
