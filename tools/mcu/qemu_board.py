@@ -208,7 +208,6 @@ def bench(args):
         "tick_instructions": {"count": int(kv["ticks"]), "worst": int(kv["worst"]), "median": int(kv["median"]),
                               "p99": int(kv["p99"])},
         "budget_instructions": args.budget,
-        "plant_instructions": {"worst": int(kv["plant_worst"]), "median": int(kv["plant_median"])},
         "commands_applied": int(kv["commands"]),
         "stack_used_bytes": int(kv["stack_used"]),
         "worst_by_receive_work": {"no_bytes": int(kv["worst_no_rx"]), "up_to_one_frame": int(kv["worst_rx_le_frame"]),

@@ -60,7 +60,6 @@ struct Options {
 };
 
 using Stats = TickStats<2048, 16>;       // 16-instruction bins up to 32768 instructions
-using PlantStats = TickStats<512, 1024>;  // the plant (soft-float double) is an order of magnitude longer
 
 // Objects with a vtable are constructed at init (StaticObject) so that they live in .bss, not in .data (a .data
 // object costs its size twice: RAM and its initial image in flash).
@@ -90,7 +89,7 @@ class Diagnostics final : public fw_mcu::DiagSource {
       case p::kTickWorstTimer: v = static_cast<float>(worst_counts); return true;
       case p::kTickUnitNs: v = static_cast<float>(g_ns_per_insn); return true;
       case p::kOverruns: v = static_cast<float>(overruns); return true;
-      case p::kPlantWorst: v = static_cast<float>(plant.worst()); return true;
+      case p::kPlantMs: v = static_cast<float>(g_plant_ms); return true;
       case p::kRxOverflows: v = static_cast<float>(uartLink().rxOverflows()); return true;
       case p::kLinkKind: v = 0.0f; return true;
       case p::kResetStats: v = 0.0f; return true;
@@ -107,7 +106,6 @@ class Diagnostics final : public fw_mcu::DiagSource {
     return g_ns_per_insn == 0 ? counts : counts * kNsPerCount / g_ns_per_insn;
   }
   Stats tick;
-  PlantStats plant;
   /// Worst tick by the receive work it did: no byte, up to one maximum frame, more.
   uint32_t worst_rx0 = 0, worst_rx1 = 0, worst_rx_more = 0;
   uint32_t worst_counts = 0;
@@ -200,25 +198,6 @@ uint32_t calibrateNsPerInstruction() {
   return (ns + ns / 20u >= expect && ns <= expect + expect / 20u) ? p : 0u;
 }
 
-/// The plant's cost per simulated millisecond, measured at boot with interrupts off (SysTick free-running, no
-/// wrap within one step at shift ≤ 4), so that no tick or UART interrupt is counted in it.
-void measurePlant(sim::SimIo& io, int steps) {
-  using namespace cm4;
-  reg(kSysTickCsr) = 0;
-  reg(kSysTickRvr) = 0x00FFFFFFu;
-  reg(kSysTickCvr) = 0;
-  reg(kSysTickCsr) = 0x5u;
-  for (int i = 0; i < 1000 && sysTickValue() == 0; ++i) {
-  }
-  for (int i = 0; i < steps; ++i) {
-    const uint32_t v0 = sysTickValue();
-    g_plant.get().step(1.0 / kTickHz, io);
-    const uint32_t v1 = sysTickValue();
-    diag().plant.add(Diagnostics::toUnits((v0 - v1) & 0x00FFFFFFu));
-  }
-  reg(kSysTickCsr) = 0;
-}
-
 void printStats(const char* tag) {
   g_console.str(tag)
       .str(" ticks=").u32(diag().tick.count())
@@ -232,8 +211,6 @@ void printStats(const char* tag) {
       .str(" ns_per_insn=").u32(g_ns_per_insn)
       .str(" worst_systick_counts=").u32(diag().worst_counts)
       .str(" overruns=").u32(diag().overruns)
-      .str(" plant_worst=").u32(diag().plant.worst())
-      .str(" plant_median=").u32(diag().plant.median())
       .str(" plant_ms=").u32(g_plant_ms)
       .str(" rx_overflows=").u32(uartLink().rxOverflows())
       .str(" tx_dropped=").u32(g_core.get().counters().tx_dropped)
@@ -254,7 +231,6 @@ void controlTick() {
   fw::FirmwareCore& core = g_core.get();
   if (diag().reset_requested) {
     diag().tick.reset();
-    diag().plant.reset();
     diag().worst_counts = 0;
     diag().overruns = 0;
     diag().reset_requested = false;
@@ -307,7 +283,7 @@ void controlTick() {
 }  // namespace
 
 /// The simulated plant, one millisecond of physics per invocation, chained while it is behind the firmware's
-/// clock. Preempted by the tick and the UART. (Its cost is measured once at boot, uninterrupted: measurePlant.)
+/// clock. Preempted by the tick and the UART.
 extern "C" void PendSV_Handler() {
   static uint32_t last_step_ms = 0;
   if (!g_running) return;
@@ -363,10 +339,8 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   g_plant.emplace(plantConfig(g_opt.plant));
   sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, uartLink());
   fw_mcu::DiagApp& diag_app = g_diag_app.emplace(app, diag());
-  // The plant produces a first sensor image before the app's first sense(); under -icount its cost per
-  // simulated millisecond is measured over the first 200 ms of physics.
-  if (g_ns_per_insn != 0) measurePlant(board.io(), 200);
-  else g_plant.get().step(1.0 / kTickHz, board.io());
+  // The plant produces a first sensor image before the app's first sense().
+  g_plant.get().step(1.0 / kTickHz, board.io());
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = kTickHz;
   cfg.firmware_build_id = PHALANX_BUILD_ID;
