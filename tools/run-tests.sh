@@ -21,3 +21,6 @@ if command -v clang++ >/dev/null; then
   echo "== decoder fuzz (libFuzzer, 60 s) =="
   tools/fuzz.sh 60
 fi
+
+echo "== MCU firmware: Cortex-M4F cross builds within budget + QEMU mps2-an386 session with phalanxd =="
+tools/mcu/ci.sh
