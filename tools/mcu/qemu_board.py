@@ -162,13 +162,18 @@ def session(args):
         c.check(rx.get("crc", 1) == 0 and rx.get("framing", 1) == 0, "no CRC or framing error on the host", rx)
 
         if args.kill_test:
+            start_mark = board.line_count()
             daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
                                        "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS),
                                        "--no-realtime"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True)
-            time.sleep(2.0)
+            # Kill only once the device reports its power stage driven by this daemon's commands, and after a
+            # while of steady commanding.
+            active = board.wait_for(r"^ACTIVE ", 15, start=start_mark) is not None
+            time.sleep(1.5)
             alive = daemon.poll() is None
-            c.check(alive, "phalanxd drives the device", "" if alive else daemon.stderr.read()[-400:])
+            c.check(alive and active, "phalanxd drives the device (outputs active)",
+                    "" if alive else daemon.stderr.read()[-400:])
             mark = board.line_count()  # only what the device reports after the kill counts
             daemon.send_signal(signal.SIGKILL)
             daemon.wait()

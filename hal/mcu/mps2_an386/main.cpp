@@ -263,6 +263,7 @@ void controlTick() {
 
   // Device-side reports, observing the simulated power stage itself (as firmware-sim does).
   if (!was_open && core.sessionOpen()) g_console.str("SESSION opened t_us=").u64(g_board.get().clock().nowUs()).end();
+  if (!was_active && io.pwm_enabled) g_console.str("ACTIVE t_us=").u64(g_board.get().clock().nowUs()).end();
   if (was_active && !io.pwm_enabled) {
     g_console.str("SAFE t_us=").u64(g_board.get().clock().nowUs())
         .str(" deadline_us=").u64(deadline_us)

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The QEMU-hosted firmware against the host daemon over the emulated UART (needs the host build and the
+# mps2-an386 image): handshake, a several-second session with the firmware ticking at 1 kHz, then phalanxd
+# killed with SIGKILL — the firmware must report its outputs safe within two ticks of the command deadline, and
+# a reconnecting host must read the latched command-timeout. Extra arguments go to qemu_board.py session.
+# Usage: tools/mcu/session-test.sh [--seconds 4] [--rate-hz 100]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+exec python3 tools/mcu/qemu_board.py session "$@"
