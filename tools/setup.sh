@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
 # Install exactly what is missing for building and testing Phalanx on Debian 12. Idempotent: a second run
-# installs nothing. Usage: tools/setup.sh
+# installs nothing. Usage: tools/setup.sh [extra Debian packages…]   (with arguments: only those packages)
 set -euo pipefail
 
+if [ $# -gt 0 ]; then
+  PACKAGES=("$@")
+else
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
   nlohmann-json3-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev
   clang libclang-rt-14-dev valgrind
 )
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

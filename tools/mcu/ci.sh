@@ -8,5 +8,8 @@ start=$(date +%s)
 tools/mcu/install-toolchain.sh
 tools/mcu/build.sh
 tools/mcu/session-test.sh --seconds 4
-tools/mcu/cycle-bench.sh --seconds 3
+# Target (issue 6): worst-case glove tick ≤ 17000 instructions; measured 14,380–16,480 across runs. CI fails
+# above 18000 (a regression guard) so run-to-run variation near the target does not turn CI red; the bench
+# prints the worst case against both.
+tools/mcu/cycle-bench.sh --seconds 3 --budget 18000
 echo "mcu stage: $(( $(date +%s) - start )) s"
