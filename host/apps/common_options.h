@@ -9,6 +9,8 @@
 namespace phalanx::host {
 
 inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_path, bool& no_rt, bool& json) {
+  // The last occurrence wins, so wrapper scripts' defaults can be overridden (tools/run-glove.sh --seconds 30).
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
   app.add_option("--config", config_path, "YAML configuration file (command-line options override it)")
       ->check(CLI::ExistingFile);
   app.add_option("--device", opt.device, "sim:glove5 | sim:sea_finger | sim:pantograph | serial:/dev/ttyACM0[@baud]");
