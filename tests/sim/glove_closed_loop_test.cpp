@@ -23,6 +23,20 @@ sim::GlovePlantConfig plantConfig(sim::HandScenario scenario) {
   return c;
 }
 
+/// The simulated glove, the host's glove controller (rendering or transparent) and the lockstep rig joining them.
+struct GloveRig {
+  GloveRig(const sim::GlovePlantConfig& plant, bool transparent)
+      : device(plant), controller(controllerConfig(transparent)), rig(device, controller) {}
+  static GloveControllerConfig controllerConfig(bool transparent) {
+    GloveControllerConfig c;
+    c.transparent = transparent;
+    return c;
+  }
+  fw_sim::Glove5SimDevice device;
+  GloveController controller;
+  host::LockstepRig rig;
+};
+
 }  // namespace
 
 // Issue target: ≤ 50 mN; the paper measured ≈ 100 mN at 300 Hz. Measured here: 0.165 N in telemetry, 0.14 N true
@@ -55,11 +69,9 @@ TEST(GloveGrasp, RenderedForceIsWithinTenPercentOfKxAtSteadyContact) {
 TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {
   auto cfg = plantConfig(sim::HandScenario::kPush);
   cfg.push_force_N = 33.0;
-  fw_sim::Glove5SimDevice device(cfg);
-  GloveControllerConfig ccfg;
-  ccfg.transparent = true;
-  GloveController controller(ccfg);
-  host::LockstepRig rig(device, controller);
+  GloveRig g(cfg, true);
+  auto& device = g.device;
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.setHostConnected(false);  // no commands: outputs stay off
   const double spool0 = device.glovePlant().spoolAngle_rad(1);
@@ -70,11 +82,9 @@ TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {
 }
 
 TEST(GloveFaults, LinkLossGoesSafeAndNoForceLimitIsExceeded) {
-  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kCloseOpen));
-  GloveControllerConfig ccfg;
-  ccfg.transparent = true;
-  GloveController controller(ccfg);
-  host::LockstepRig rig(device, controller);
+  GloveRig g(plantConfig(sim::HandScenario::kCloseOpen), true);
+  auto& device = g.device;
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.run(1.5);
   ASSERT_TRUE(rig.board().io().pwm_enabled) << "faults " << rig.core().faultBits();
@@ -90,11 +100,8 @@ TEST(GloveFaults, LinkLossGoesSafeAndNoForceLimitIsExceeded) {
 }
 
 TEST(GloveFaults, AStuckHallSensorIsDetectedAndDrivesTheOutputsSafe) {
-  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kCloseOpen));
-  GloveControllerConfig ccfg;
-  ccfg.transparent = true;
-  GloveController controller(ccfg);
-  host::LockstepRig rig(device, controller);
+  GloveRig g(plantConfig(sim::HandScenario::kCloseOpen), true);
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.run(0.5);
   ASSERT_TRUE(rig.board().io().pwm_enabled);
@@ -108,9 +115,8 @@ TEST(GloveFaults, AStuckHallSensorIsDetectedAndDrivesTheOutputsSafe) {
 }
 
 TEST(GloveFaults, ADisconnectedHallSensorIsARangeFault) {
-  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kStill));
-  GloveController controller({});
-  host::LockstepRig rig(device, controller);
+  GloveRig g(plantConfig(sim::HandScenario::kStill), false);
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.run(0.2);
   rig.setIoHook([](sim::SimIo& io) { io.adc[4] = 0; });  // pulled to ground
@@ -120,9 +126,8 @@ TEST(GloveFaults, ADisconnectedHallSensorIsARangeFault) {
 }
 
 TEST(GloveFaults, StrainGaugeSaturationGoesSafe) {
-  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kStill));
-  GloveController controller({});
-  host::LockstepRig rig(device, controller);
+  GloveRig g(plantConfig(sim::HandScenario::kStill), false);
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.run(0.2);
   rig.setIoHook([](sim::SimIo& io) { io.adc[static_cast<size_t>(glove::board::strainAdcChannel(2))] = glove::board::kStrainMaxCounts; });
@@ -133,9 +138,8 @@ TEST(GloveFaults, StrainGaugeSaturationGoesSafe) {
 }
 
 TEST(GloveFaults, AnEstopPressLatchesAndStopsTheMotors) {
-  fw_sim::Glove5SimDevice device(plantConfig(sim::HandScenario::kGrasp));
-  GloveController controller({});
-  host::LockstepRig rig(device, controller);
+  GloveRig g(plantConfig(sim::HandScenario::kGrasp), false);
+  auto& rig = g.rig;
   ASSERT_EQ(rig.handshake(), "");
   rig.run(1.0);
   rig.board().io().estop_pressed = true;

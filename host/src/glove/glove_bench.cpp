@@ -53,14 +53,19 @@ double peakAbs(const std::vector<double>& v) {
   return p;
 }
 
+sim::GlovePlantConfig plantConfig(const GloveBenchOptions& o, sim::HandScenario scenario) {
+  sim::GlovePlantConfig plant;
+  plant.seed = o.seed;
+  plant.noise = o.noise;
+  plant.scenario = scenario;
+  return plant;
+}
+
 }  // namespace
 
 nlohmann::json benchFreeMotion(const GloveBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 6.5;
-  sim::GlovePlantConfig plant;
-  plant.seed = o.seed;
-  plant.noise = o.noise;
-  plant.scenario = sim::HandScenario::kCloseOpen;
+  sim::GlovePlantConfig plant = plantConfig(o, sim::HandScenario::kCloseOpen);
   GloveControllerConfig ctl;
   ctl.transparent = true;
   const double settle_s = 0.3;
@@ -98,10 +103,7 @@ nlohmann::json benchFreeMotion(const GloveBenchOptions& o) {
 
 nlohmann::json benchGrasp(const GloveBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 3.0;
-  sim::GlovePlantConfig plant;
-  plant.seed = o.seed;
-  plant.noise = o.noise;
-  plant.scenario = sim::HandScenario::kGrasp;
+  const sim::GlovePlantConfig plant = plantConfig(o, sim::HandScenario::kGrasp);
   GloveControllerConfig ctl;
   ctl.scene = DemoScene::kRigidBall;
   const double steady_from_s = seconds - 1.0;

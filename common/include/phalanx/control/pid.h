@@ -75,6 +75,5 @@ struct LowPass {
   }
 };
 
-inline bool isFinite(float v) { return std::isfinite(v); }
 
 }  // namespace phalanx::control
