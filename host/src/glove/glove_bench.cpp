@@ -21,6 +21,7 @@ struct Trace {
   std::array<std::vector<double>, kNumFingers> true_force;            // plant truth
   std::array<std::vector<double>, kNumFingers> setpoint;
   std::array<std::vector<bool>, kNumFingers> contact;
+  std::array<std::vector<double>, kNumFingers> true_current;          // plant truth, motor current
   uint16_t faults = 0;
 };
 
@@ -42,6 +43,7 @@ Trace run(sim::GlovePlantConfig plant, const GloveControllerConfig& ctl_cfg, dou
       tr.true_force[f].push_back(device.glovePlant().padForce_N(static_cast<int>(f)));
       tr.setpoint[f].push_back(rig.lastCommand().setpoint[f]);
       tr.contact[f].push_back(controller.lastRender()[f].in_contact);
+      tr.true_current[f].push_back(device.glovePlant().truth(static_cast<int>(f)).motor_current_A);
     }
   }
   return tr;
@@ -141,6 +143,9 @@ nlohmann::json benchGrasp(const GloveBenchOptions& o) {
       finger["mean_measured_force_N"] = meas;
       finger["truth"]["mean_pad_force_N"] = truth;
       finger["relative_error"] = rel;
+      double i2 = 0.0;
+      for (double i : tr.true_current[f]) i2 += i * i;
+      finger["truth"]["motor_current_rms_A"] = std::sqrt(i2 / samples);
       if (static_cast<double>(n) > 0.9 * samples) {
         worst_rel = std::fmax(worst_rel, rel);
         ++fingers_in_contact;

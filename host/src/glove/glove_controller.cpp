@@ -41,6 +41,12 @@ void GloveController::update(const TelemetryFrame& tel, double, double dt_s, pro
   for (size_t f = 0; f < kNumFingers; ++f) {
     const double setpoint = config_.transparent ? 0.0 : out_[f].force_setpoint_N;
     cmd.setpoint[f] = static_cast<float>(setpoint);
+    double gain = 1.0;
+    if (!config_.transparent && out_[f].in_contact && out_[f].contact_object >= 0 && config_.contact_gain_ref_N_per_m > 0.0) {
+      const double k = scene_.object(static_cast<std::size_t>(out_[f].contact_object)).material.stiffness_N_per_m;
+      if (k > config_.contact_gain_ref_N_per_m) gain = config_.contact_gain_ref_N_per_m / k;
+    }
+    cmd.gain_scale_permille[f] = static_cast<uint16_t>(std::lround(gain * 1000.0));
     FingerStats& s = stats_[f];
     const double measured = static_cast<double>(tel.value[kForceSample0 + f]);
     s.peak_force_N = std::fmax(s.peak_force_N, std::fabs(measured));

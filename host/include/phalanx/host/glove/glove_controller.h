@@ -12,6 +12,12 @@ struct GloveControllerConfig {
   DemoScene scene = DemoScene::kRigidBall;
   bool transparent = false;        ///< true: zero force in every finger (mode transparent), scene ignored
   double rate_cutoff_hz = 40.0;    ///< low-pass on the α differences that give α̇
+  /// Force-loop gain in contact, sent as the command's gain scale: min(1, k_ref / k_object); 0 disables.
+  /// In contact the firmware's admittance loop closes through the rendered stiffness (setpoint k·x moves with the
+  /// glove), so its loop gain grows with k; with the full gain a rigid ball (2000 N/m) limit-cycles at ≈ 20 Hz
+  /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 200 N/m keeps the grasp error ≤ 4 % at
+  /// 0.5–1.4 A RMS (docs/glove-firmware.md).
+  double contact_gain_ref_N_per_m = 200.0;
 };
 
 /// Per-finger session figures, for the summary.
