@@ -43,14 +43,14 @@ Glove5Calibration glove5DefaultCalibration() {
 
 Glove5Config glove5DefaultConfig() {
   Glove5Config c;
-  // Gains in (m/s of tendon) per N of force error. Chosen in the lockstep benches (`phalanx bench glove-free-motion`
-  // and `glove-grasp`, with sensor noise) from a sweep of kp 0.05–1.5, c_IR 0–0.95 and the two filters: kp = 1 with
-  // c_IR = 0.85 gives the lowest free-motion peak (0.10 N) but makes the motor chatter on sensor noise until the
-  // current limit trips during a sustained grasp; kp = 0.5, c_IR = 0.6 holds the grasp within 5 % at 0.17 N peak.
-  // The feed-forward carries the finger's motion, the P term the residual.
+  // Gains in (m/s of tendon) per N of force error, chosen in the lockstep benches (`phalanx bench glove-free-motion`
+  // and `glove-grasp`, with sensor noise; sweep in docs/glove-firmware.md): kp = 0.75 gives a 0.11 N free-motion
+  // peak; more gain only turns gauge noise into motor current. In contact the host scales the gain down by the
+  // rendered stiffness (GloveControllerConfig::contact_gain_ref_N_per_m). The feed-forward carries the finger's
+  // motion, the P term the residual.
   // No integral term: the self-locking worm already integrates (duty sets spool speed), and an integrator
   // limit-cycles against the worm's dead band (glove-plant.md).
-  c.force_pid.kp = 0.5f;
+  c.force_pid.kp = 0.75f;
   c.force_pid.ki = 0.0f;
   c.force_pid.kd = 0.0f;
   c.force_pid.d_cutoff_hz = 100.0f;
