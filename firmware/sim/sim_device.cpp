@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "phalanx/fw_sim/glove5_sim.h"
+#include "phalanx/fw_sim/sea_finger_sim.h"
 
 namespace phalanx::fw_sim {
 bool parseHandScenario(const std::string& name, sim::HandScenario& out) {
@@ -30,11 +31,23 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
       return nullptr;
     }
   }
+  if (name == "sea_rig") {
+    sim::SeaPlantConfig cfg;
+    cfg.seed = options.seed;
+    cfg.noise = options.noise;
+    cfg.variant = sim::SeaVariant::kRig;
+    try {
+      return std::make_unique<SeaFingerSimDevice>(cfg);
+    } catch (const std::invalid_argument& e) {
+      error = std::string("SEA plant configuration: ") + e.what();
+      return nullptr;
+    }
+  }
   if (name == "sea_finger" || name == "pantograph") {
     error = "the simulated " + name + " is not built yet (only glove5 is available)";
     return nullptr;
   }
-  error = "unknown device '" + name + "' (glove5, sea_finger, pantograph)";
+  error = "unknown device '" + name + "' (glove5, sea_finger, sea_rig, pantograph)";
   return nullptr;
 }
 

@@ -7,6 +7,7 @@
 #include "common_options.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
+#include "phalanx/host/sea/sea_bench.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -38,10 +39,38 @@ int main(int argc, char** argv) {
   CLI::App* grasp = bench->add_subcommand("glove-grasp", "grasp the rigid virtual ball (000 eq 1)");
   add_bench_options(grasp);
 
+  phalanx::host::sea::SeaBenchOptions sea_opt;
+  auto add_sea_options = [&](CLI::App* sc) {
+    sc->option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+    sc->add_option("--seconds", sea_opt.seconds, "scenario length (0: its default)")->check(CLI::Range(0.0, 600.0));
+    sc->add_option("--seed", sea_opt.seed, "simulation seed");
+    sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
+    sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+    sc->add_option("--controller", sea_opt.controller, "both | paper (001 plain PID, eq 7-8) | ours")
+        ->check(CLI::IsMember({"both", "paper", "ours"}));
+    sc->add_option("--plant-backlash-scale", sea_opt.plant_backlash_scale,
+                   "scale the simulated cable play (model mismatch)")->check(CLI::Range(0.0, 5.0));
+  };
+  CLI::App* sea_sine = bench->add_subcommand("sea-rig-sine", "SEA test rig, sinusoidal torque (001 §7.1.1-7.1.2, eq 15)");
+  add_sea_options(sea_sine);
+  sea_sine->add_option("--peak-Nm", sea_opt.peak_Nm, "peak torque (paper: 0.15 or 0.3)")->check(CLI::Range(0.0, 0.4));
+  sea_sine->add_option("--hz", sea_opt.hz, "frequency (paper: 0.5)")->check(CLI::Range(0.01, 20.0));
+  CLI::App* sea_chirp = bench->add_subcommand("sea-rig-chirp", "SEA test rig, linear chirp, -3 dB bandwidth (001 §7.1.3, eq 16-17)");
+  add_sea_options(sea_chirp);
+  sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
+  sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (sea_sine->parsed() || sea_chirp->parsed()) {
+    sea_opt.noise = !bench_no_noise;
+    const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
+                                                     : phalanx::host::sea::benchRigChirp(sea_opt);
+    std::cout << result.dump(2) << std::endl;
+    return 0;
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;

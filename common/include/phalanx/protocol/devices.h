@@ -59,13 +59,16 @@ constexpr DeviceLayout kGlove5Layout{
      SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce,
      SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty}};
 
-/// sea_finger: samples 0..4 joint angle sensors, 5..6 motor angles (MCP, PIP), 7..8 SEA torque (eq 7),
-/// 9..10 motor duty. Setpoints 0..1: exoskeleton joint torque in N·m.
+/// sea_finger: samples 0..4 joint angle sensors (moving-averaged, sensor frame; 0 = exoskeleton MCP joint θ_1r,
+/// 1 = exoskeleton PIP joint θ_6r, 4 = redundant), 5..6 motor angles θ_m (MCP, PIP, since zeroing), 7..8 SEA
+/// joint torque estimate (eq 7, through the cable-play model with the default controller), 9..10 motor duty,
+/// 11..12 test-rig load-cell torque (§7.1; ≈ 0 when no load cell is wired). Setpoints 0..1: exoskeleton joint
+/// torque in N·m (docs/sea-firmware.md).
 constexpr DeviceLayout kSeaFingerLayout{
-    DeviceType::kSeaFinger, "sea_finger", 2, 1.0f, 11,
+    DeviceType::kSeaFinger, "sea_finger", 2, 1.0f, 13,
     {SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
      SampleKind::kAngle, SampleKind::kAngle, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kDuty,
-     SampleKind::kDuty}};
+     SampleKind::kDuty, SampleKind::kTorque, SampleKind::kTorque}};
 
 /// pantograph: samples 0..5 joint angles, 6..11 motor torque. Setpoints 0..5: motor torque in N·m.
 constexpr DeviceLayout kPantographLayout{

@@ -1,0 +1,31 @@
+#pragma once
+/// The simulated sea_finger: the firmware's SeaFingerApp together with the SEA plant (hal/sim SeaPlant).
+/// Variants: "sea_rig" (§7.1 test rig, joints clamped to load cells).
+#include "phalanx/apps/sea_finger.h"
+#include "phalanx/fw_sim/sim_device.h"
+#include "phalanx/sea/board.h"
+#include "phalanx/sim/sea_plant.h"
+
+namespace phalanx::fw_sim {
+
+class SeaFingerSimDevice : public SimDevice {
+ public:
+  /// Throws std::invalid_argument for a bad plant configuration (SeaPlant's contract).
+  explicit SeaFingerSimDevice(const sim::SeaPlantConfig& plant_config,
+                              const apps::SeaFingerCalibration& calibration = apps::seaFingerDefaultCalibration(),
+                              const apps::SeaFingerConfig& config = apps::seaFingerDefaultConfig())
+      : app_(calibration, config), plant_(plant_config) {}
+  fw::DeviceApp& app() override { return app_; }
+  sim::Plant& plant() override { return plant_; }
+  uint8_t pwmCount() const override { return sea::board::kPwmChannelCount; }
+  uint8_t adcCount() const override { return sea::board::kAdcChannelCount; }
+  uint8_t encoderCount() const override { return sea::board::kEncoderChannelCount; }
+  sim::SeaPlant& seaPlant() { return plant_; }
+  apps::SeaFingerApp& seaApp() { return app_; }
+
+ private:
+  apps::SeaFingerApp app_;
+  sim::SeaPlant plant_;
+};
+
+}  // namespace phalanx::fw_sim

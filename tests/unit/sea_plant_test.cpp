@@ -1,0 +1,203 @@
+// Physics sanity of the simulated Bowden-cable SEA plant (hal/sim SeaPlant): the spring law of eq 2, the cable
+// going slack beyond its pretension, the load-dependent play, the rig's load cell, the drive and the sensors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "phalanx/sea/board.h"
+#include "phalanx/sim/sea_plant.h"
+
+using namespace phalanx;
+namespace board = phalanx::sea::board;
+
+namespace {
+
+sim::SeaPlantConfig quietConfig() {
+  sim::SeaPlantConfig c;
+  c.noise = false;
+  return c;
+}
+
+/// Drives both motors with `duty` for `seconds` (bridge on).
+void drive(sim::SeaPlant& plant, sim::SimIo& io, double duty0, double duty1, double seconds) {
+  io.pwm_enabled = true;
+  io.drive_enable = true;
+  io.pwm_duty[0] = static_cast<float>(duty0);
+  io.pwm_duty[1] = static_cast<float>(duty1);
+  const int steps = static_cast<int>(std::lround(seconds * 1000.0));
+  for (int i = 0; i < steps; ++i) plant.step(1e-3, io);
+}
+
+/// Closed-loop helper on the truth: a stiff P loop on the motor angle (duty), to place the motor.
+void moveMotorTo(sim::SeaPlant& plant, sim::SimIo& io, int sea, double target_rad, double seconds = 1.0) {
+  io.pwm_enabled = true;
+  io.drive_enable = true;
+  const int steps = static_cast<int>(std::lround(seconds * 1000.0));
+  for (int i = 0; i < steps; ++i) {
+    const auto& t = plant.truth(sea);
+    const double duty = 2.0 * (target_rad - t.motor_angle_rad) - 0.02 * t.motor_speed_rad_s;
+    io.pwm_duty[static_cast<size_t>(sea)] = static_cast<float>(std::fmax(-0.5, std::fmin(0.5, duty)));
+    plant.step(1e-3, io);
+  }
+}
+
+}  // namespace
+
+TEST(SeaPlant, SpringTorqueFollowsEq2WhileBothCablesAreTaut) {
+  auto cfg = quietConfig();
+  for (auto& ch : cfg.params.channel) {
+    ch.backlash_base_m = 0.0;
+    ch.backlash_per_Nm_m = 0.0;
+  }
+  sim::SeaPlant plant(cfg);
+  sim::SimIo io;
+  for (double target : {0.3, -0.5, 0.6}) {
+    moveMotorTo(plant, io, 0, target);
+    const auto& t = plant.truth(0);
+    const auto& ch = cfg.params.channel[0];
+    const double k = ch.spring_stiffness_N_per_m, rj = ch.joint_pulley_radius_m, rm = ch.motor_pulley_radius_m;
+    ASSERT_EQ(k, 2816.0);
+    ASSERT_NEAR(rj, 0.010, 1e-9);
+    ASSERT_NEAR(rm, 0.0075, 1e-9);
+    const double eq2 = 2.0 * k * (rm * t.motor_angle_rad - rj * t.joint_angle_rad) * rj;
+    EXPECT_NEAR(t.joint_torque_Nm, eq2, 1e-12) << target;
+    EXPECT_NEAR(plant.idealSeaTorque_Nm(0), eq2, 1e-12);
+    EXPECT_GT(t.tension1_N, 0.0);
+    EXPECT_GT(t.tension2_N, 0.0);
+    EXPECT_NEAR(t.tension1_N + t.tension2_N, 2.0 * 20.0, 1e-9) << "the pretension is shared while both are taut";
+    // Joint held by the clamp: the load cell carries exactly the SEA torque (quasi-static joint).
+    EXPECT_NEAR(t.load_cell_torque_Nm, t.joint_torque_Nm, 1e-12);
+    EXPECT_NEAR(t.joint_angle_rad, t.joint_torque_Nm / 30.0, 1e-12);
+  }
+}
+
+TEST(SeaPlant, OneCableGoesSlackBeyondThePretension) {
+  auto cfg = quietConfig();
+  cfg.params.channel[0].pretension_N = 5.0;
+  cfg.params.channel[0].backlash_base_m = 0.0;
+  cfg.params.channel[0].backlash_per_Nm_m = 0.0;
+  sim::SeaPlant plant(cfg);
+  sim::SimIo io;
+  moveMotorTo(plant, io, 0, 0.6);  // k d ≈ 12 N > T_0 = 5 N
+  const auto& t = plant.truth(0);
+  EXPECT_EQ(t.tension1_N, 0.0);
+  EXPECT_NEAR(t.joint_torque_Nm, (5.0 + 2816.0 * t.spring_deflection_m) * cfg.params.channel[0].joint_pulley_radius_m, 1e-12);
+  EXPECT_LT(t.joint_torque_Nm, plant.idealSeaTorque_Nm(0)) << "eq 2 over-estimates once a cable is slack";
+}
+
+TEST(SeaPlant, CablePlayDelaysTheSpringByItsLoadDependentWidthOnReversal) {
+  auto cfg = quietConfig();
+  cfg.params.channel[0].backlash_base_m = 1.0e-3;
+  cfg.params.channel[0].backlash_per_Nm_m = 2.0e-3;
+  sim::SeaPlant plant(cfg);
+  sim::SimIo io;
+  moveMotorTo(plant, io, 0, 0.5);
+  const auto& t = plant.truth(0);
+  // Dragged forward: the spring side trails the motor side by half the play.
+  const double b = 1.0e-3 + 2.0e-3 * std::fabs(t.joint_torque_Nm);
+  EXPECT_NEAR(t.backlash_m, b, 1e-9);
+  EXPECT_NEAR(t.cable_motor_m - t.cable_spring_m, 0.5 * b, 1e-6);
+  // Reverse by less than the play: the spring side (and the torque) does not move.
+  const double x_e = t.cable_spring_m;
+  const double tau = t.joint_torque_Nm;
+  moveMotorTo(plant, io, 0, 0.5 - 0.8 * b / 0.0075);
+  EXPECT_NEAR(plant.truth(0).cable_spring_m, x_e, 1e-12);
+  EXPECT_NEAR(plant.truth(0).joint_torque_Nm, tau, 1e-12);
+  // Reverse past it: now the spring follows, leading the motor by half the play.
+  moveMotorTo(plant, io, 0, 0.5 - 3.0 * b / 0.0075);
+  const auto& t2 = plant.truth(0);
+  EXPECT_LT(t2.cable_spring_m, x_e - 1e-4);
+  EXPECT_NEAR(t2.cable_spring_m - t2.cable_motor_m, 0.5 * t2.backlash_m, 1e-6);
+}
+
+TEST(SeaPlant, LoadCellAndJointSensorCountsDecodeToTheTruth) {
+  sim::SeaPlant plant(quietConfig());
+  sim::SimIo io;
+  moveMotorTo(plant, io, 0, 0.4);
+  plant.step(1e-3, io);
+  const auto& t = plant.truth(0);
+  const double lc = (io.adc[board::kAdcFirstLoadCell] - board::kAdcMidCounts) / static_cast<double>(board::kLoadCellCountsPerNm);
+  EXPECT_NEAR(lc, t.load_cell_torque_Nm, 0.6 / static_cast<double>(board::kLoadCellCountsPerNm));
+  EXPECT_GT(t.load_cell_torque_Nm, 0.1);
+  const double joint = (io.adc[board::kAdcFirstJoint] - board::kAdcMidCounts) / static_cast<double>(board::kJointCountsPerRad);
+  EXPECT_NEAR(joint, t.joint_angle_rad, 0.6 / static_cast<double>(board::kJointCountsPerRad));
+  const double motor = io.encoder[0] * static_cast<double>(board::kMotorRadPerCount);
+  EXPECT_LE(motor, t.motor_angle_rad + 1e-12);
+  EXPECT_GT(motor, t.motor_angle_rad - static_cast<double>(board::kMotorRadPerCount));
+}
+
+TEST(SeaPlant, SensorNoiseHasTheConfiguredSpreadAndIsSeeded) {
+  sim::SeaPlantConfig cfg;  // noise on
+  sim::SeaPlant a(cfg), b(cfg);
+  sim::SimIo io_a, io_b;
+  double sum = 0.0, sum2 = 0.0;
+  const int n = 4000;
+  for (int i = 0; i < n; ++i) {
+    a.step(1e-3, io_a);
+    b.step(1e-3, io_b);
+    ASSERT_EQ(io_a.adc, io_b.adc) << "same seed, same counts";
+    const double x = io_a.adc[board::kAdcFirstJoint] - board::kAdcMidCounts;
+    sum += x;
+    sum2 += x * x;
+  }
+  const double sd = std::sqrt(sum2 / n - (sum / n) * (sum / n));
+  EXPECT_NEAR(sd, 2.0, 0.2);  // 2 counts (plus rounding, ≈ 0.29 counts)
+}
+
+TEST(SeaPlant, UnloadedMotorReachesItsNoLoadSpeed) {
+  auto cfg = quietConfig();
+  for (auto& ch : cfg.params.channel) {
+    ch.spring_stiffness_N_per_m = 1e-6;  // springs practically absent
+    ch.pretension_N = 0.0;
+    ch.sheath_friction = 0.0;
+  }
+  sim::SeaPlant plant(cfg);
+  sim::SimIo io;
+  drive(plant, io, 0.5, 0.0, 0.3);
+  const auto& p = cfg.params;
+  const double nkt = p.gear_ratio * p.torque_constant_Nm_per_A;
+  const double r = p.motor_resistance_Ohm + p.bridge_on_resistance_Ohm;
+  const double coulomb = nkt * p.no_load_current_A;
+  // Steady state: N k_t (V − N k_t ω)/R = Coulomb friction (+ the gear loss on that torque).
+  const double tau_m = coulomb / p.gear_efficiency;
+  const double omega = (0.5 * p.supply_V - tau_m * r / nkt) / nkt;
+  EXPECT_NEAR(plant.truth(0).motor_speed_rad_s, omega, 0.01 * omega);
+  EXPECT_NEAR(plant.truth(0).motor_current_A, tau_m / nkt, 0.005);
+}
+
+TEST(SeaPlant, DisabledBridgeCarriesNoCurrentAndTheSpringBackDrivesTheMotor) {
+  sim::SeaPlant plant(quietConfig());
+  sim::SimIo io;
+  moveMotorTo(plant, io, 0, 0.7);
+  const double tau_loaded = plant.truth(0).joint_torque_Nm;
+  ASSERT_GT(tau_loaded, 0.2);
+  io.pwm_enabled = false;
+  for (int i = 0; i < 2000; ++i) plant.step(1e-3, io);
+  const auto& t = plant.truth(0);
+  EXPECT_EQ(t.motor_current_A, 0.0);
+  EXPECT_FALSE(t.bridge_on);
+  // The drive stops where the spring torque at the pulley no longer beats the friction (motor + sheath).
+  const auto& p = quietConfig().params;
+  const double hold_pulley = p.gear_ratio * p.torque_constant_Nm_per_A * p.no_load_current_A +
+                             0.0075 * 0.2 * (t.tension1_N + t.tension2_N);
+  EXPECT_LT(std::fabs(t.joint_torque_Nm), hold_pulley * 0.010 / 0.0075 + 1e-9);
+  EXPECT_LT(t.joint_torque_Nm, 0.5 * tau_loaded);
+}
+
+TEST(SeaPlant, RejectsBadConfigurationAndBadSteps) {
+  auto cfg = quietConfig();
+  cfg.params.channel[1].spring_stiffness_N_per_m = -1.0;
+  EXPECT_THROW(sim::SeaPlant{cfg}, std::invalid_argument);
+  cfg = quietConfig();
+  cfg.params.gear_efficiency = 1.5;
+  EXPECT_THROW(sim::SeaPlant{cfg}, std::invalid_argument);
+  cfg = quietConfig();
+  cfg.params.supply_V = std::nan("");
+  EXPECT_THROW(sim::SeaPlant{cfg}, std::invalid_argument);
+  sim::SeaPlant plant(quietConfig());
+  sim::SimIo io;
+  EXPECT_THROW(plant.step(0.0, io), std::invalid_argument);
+  EXPECT_THROW(plant.step(std::nan(""), io), std::invalid_argument);
+  EXPECT_THROW((void)plant.truth(2), std::out_of_range);
+}
