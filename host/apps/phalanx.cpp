@@ -7,6 +7,7 @@
 #include "common_options.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
+#include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -38,10 +39,22 @@ int main(int argc, char** argv) {
   CLI::App* grasp = bench->add_subcommand("glove-grasp", "grasp the rigid virtual ball (000 eq 1)");
   add_bench_options(grasp);
 
+  phalanx::host::pen::PenSplitBenchOptions pen_split_opt;
+  CLI::App* pen_split = bench->add_subcommand("pen-split", "pen force split over the workspace: accuracy, effort, saturation (004 Fig. 18)");
+  pen_split->add_option("--seed", pen_split_opt.seed, "random-wrench seed");
+  pen_split->add_option("--grid", pen_split_opt.grid, "samples per workspace axis (grid^5 poses)")->check(CLI::Range(2, 15));
+  pen_split->add_option("--wrenches-per-pose", pen_split_opt.wrenches_per_pose, "random wrenches per pose and class")
+      ->check(CLI::Range(1, 1000));
+  pen_split->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  }
+  if (pen_split->parsed()) {
+    std::cout << phalanx::host::pen::benchSplit(pen_split_opt).dump(2) << std::endl;
+    return 0;
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
