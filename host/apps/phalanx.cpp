@@ -8,6 +8,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/sea/sea_bench.h"
+#include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -60,6 +61,14 @@ int main(int argc, char** argv) {
   sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
   sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
 
+  phalanx::host::pen::PenSplitBenchOptions pen_split_opt;
+  CLI::App* pen_split = bench->add_subcommand("pen-split", "pen force split over the workspace: accuracy, effort, saturation (004 Fig. 18)");
+  pen_split->add_option("--seed", pen_split_opt.seed, "random-wrench seed");
+  pen_split->add_option("--grid", pen_split_opt.grid, "samples per workspace axis (grid^5 poses)")->check(CLI::Range(2, 15));
+  pen_split->add_option("--wrenches-per-pose", pen_split_opt.wrenches_per_pose, "random wrenches per pose and class")
+      ->check(CLI::Range(1, 1000));
+  pen_split->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -70,6 +79,10 @@ int main(int argc, char** argv) {
     const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
                                                      : phalanx::host::sea::benchRigChirp(sea_opt);
     std::cout << result.dump(2) << std::endl;
+    return 0;
+  }
+  if (pen_split->parsed()) {
+    std::cout << phalanx::host::pen::benchSplit(pen_split_opt).dump(2) << std::endl;
     return 0;
   }
   if (bench->parsed()) {
