@@ -298,6 +298,7 @@ nlohmann::json benchWall(const PenWallBenchOptions& o) {
     bool all_ok = true;
     nlohmann::json per_phase;  // the same, per press phase (Table X gives a maximum stiffness per axis)
     std::map<std::string, bool> phase_ok;
+    std::vector<double> stable_ks;
     nlohmann::json runs = nlohmann::json::array();
     for (double k : {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 24.0, 28.0, 32.0, 40.0, 48.0, 64.0}) {
       PenWallBenchOptions oo = o;
@@ -325,9 +326,13 @@ nlohmann::json benchWall(const PenWallBenchOptions& o) {
                       {"wall_energy_generated_mJ", r.value("wall_energy_generated_J", 0.0) * 1e3}});
       all_ok = all_ok && ok;
       if (all_ok) largest = k;
+      if (ok) stable_ks.push_back(k);
     }
     out[braking ? "with_braking" : "without_braking"] = {
-        {"largest_stable_K_N_per_cm", largest}, {"largest_stable_K_per_press_phase_N_per_cm", per_phase}, {"runs", runs}};
+        {"largest_stable_K_N_per_cm", largest},
+        {"stable_K_values_N_per_cm", stable_ks},
+        {"largest_stable_K_per_press_phase_N_per_cm", per_phase},
+        {"runs", runs}};
   }
   return out;
 }
