@@ -69,6 +69,22 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000));
   pen_split->add_flag("--json", json, "JSON output (the default; kept for scripts)");
 
+  phalanx::host::pen::PenWallBenchOptions pen_wall_opt;
+  bool pen_wall_no_braking = false, pen_wall_no_noise = false;
+  CLI::App* pen_wall = bench->add_subcommand("pen-wall", "pen tip pressed into the stiff box walls and corners, PD+B in lockstep (004 Fig. 19-20)");
+  pen_wall->add_option("--stiffness-N-per-cm", pen_wall_opt.stiffness_N_per_cm, "horizontal wall stiffness (floor: 0.7x)")
+      ->check(CLI::Range(0.1, 200.0));
+  pen_wall->add_option("--damping-scale", pen_wall_opt.damping_scale, "x the paper's box damping")->check(CLI::Range(0.0, 100.0));
+  pen_wall->add_flag("--no-braking", pen_wall_no_braking, "no braking pulse at contact onset");
+  bool pen_wall_no_cap = false;
+  pen_wall->add_flag("--no-brake-cap", pen_wall_no_cap, "the paper's braking pulse without the momentum cap");
+  pen_wall->add_option("--velocity-filter-hz", pen_wall_opt.velocity_filter_hz, "end-velocity low-pass cutoff")
+      ->check(CLI::Range(1.0, 500.0));
+  pen_wall->add_flag("--sweep", pen_wall_opt.sweep, "also sweep the stiffness with and without braking");
+  pen_wall->add_option("--seed", pen_wall_opt.seed, "simulation seed");
+  pen_wall->add_flag("--no-noise", pen_wall_no_noise, "simulated sensors without noise");
+  pen_wall->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -79,6 +95,13 @@ int main(int argc, char** argv) {
     const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
                                                      : phalanx::host::sea::benchRigChirp(sea_opt);
     std::cout << result.dump(2) << std::endl;
+    return 0;
+  }
+  if (pen_wall->parsed()) {
+    pen_wall_opt.braking = !pen_wall_no_braking;
+    pen_wall_opt.noise = !pen_wall_no_noise;
+    pen_wall_opt.brake_momentum_cap = !pen_wall_no_cap;
+    std::cout << phalanx::host::pen::benchWall(pen_wall_opt).dump(2) << std::endl;
     return 0;
   }
   if (pen_split->parsed()) {

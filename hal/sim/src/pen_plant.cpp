@@ -34,29 +34,6 @@ bool solve3(const pp::Mat3<double>& A, const V3& b, V3& x) {
   return true;
 }
 
-// Inverse of an SPD 5×5 by Gauss–Jordan; returns false if a pivot is not positive.
-bool invert5(std::array<std::array<double, 5>, 5> a, std::array<std::array<double, 5>, 5>& inv) {
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; j < 5; ++j) inv[i][j] = i == j ? 1.0 : 0.0;
-  for (int c = 0; c < 5; ++c) {
-    const double p = a[c][c];
-    if (!(p > 0.0)) return false;
-    for (int j = 0; j < 5; ++j) {
-      a[c][j] /= p;
-      inv[c][j] /= p;
-    }
-    for (int r = 0; r < 5; ++r) {
-      if (r == c) continue;
-      const double f = a[r][c];
-      for (int j = 0; j < 5; ++j) {
-        a[r][j] -= f * a[c][j];
-        inv[r][j] -= f * inv[c][j];
-      }
-    }
-  }
-  return true;
-}
-
 void requireFinite(double v, const char* what) {
   if (!std::isfinite(v)) throw std::invalid_argument(std::string("pen plant: non-finite ") + what);
 }
@@ -68,15 +45,8 @@ PenPlant::PenPlant(const PenPlantConfig& config)
   const PenPlantParams& p = config_.params;
   for (const auto& row : p.D_paper)
     for (double v : row) requireFinite(v, "mass matrix entry");
-  // eq 29 → SI: translational block ×1e-5·100 (N per cm/s² → kg), cross terms ×1e-5 (N per rad/s² and N·cm per
-  // cm/s² are both N·s² = kg·m), rotational block ×1e-5·1e-2 (N·cm per rad/s² → kg·m²).
-  for (int i = 0; i < 5; ++i) {
-    for (int j = 0; j < 5; ++j) {
-      const double s = (i < 3 && j < 3) ? 1e-3 : ((i >= 3 && j >= 3) ? 1e-7 : 1e-5);
-      D_[i][j] = p.D_paper[i][j] * s;
-    }
-  }
-  if (!invert5(D_, D_inv_)) throw std::invalid_argument("pen plant: mass matrix not positive definite");
+  D_ = pp::massMatrixSI<double>(p.D_paper);  // eq 29 → SI
+  if (!pp::invertSpd5(D_, D_inv_)) throw std::invalid_argument("pen plant: mass matrix not positive definite");
   for (double v : {p.coulomb_smoothing_rad_s, p.viscous_Nm_s_per_rad, p.weight_near_kg, p.weight_far_kg,
                    p.gravity_m_s2, p.hand_mass_kg, p.grip_stiffness_N_per_m, p.grip_damping_N_s_per_m,
                    p.arm_stiffness_N_per_m, p.arm_damping_N_s_per_m, p.grip_rot_stiffness_Nm_per_rad,
@@ -150,14 +120,14 @@ void PenPlant::evaluate(const PenVec5& x, const PenVec5& xd, const std::array<do
   pp::JointVec<double> q;
   if (pp::computeInverse(model_, pose, q) != pp::Status::kOk) return;
   if (!pp::isUsable(pp::computeForward(model_, q, e.kin))) return;
-  // End positions p = c ± (l6/2)·a(θx, θz); ∂a/∂θx, ∂a/∂θz.
-  const double sx = std::sin(x[3]), cx = std::cos(x[3]), sz = std::sin(x[4]), cz = std::cos(x[4]);
-  const V3 da_dx{sz * sx, -cz * sx, cx};
-  const V3 da_dz{-cz * cx, -sz * cx, 0.0};
-  const double h = 0.5 * model_.l6_m;
+  // End positions p = c ± (l6/2)·a(θx, θz): ṗ = G·ẋ, Q = Gᵀf (virtual work).
+  std::array<pp::Mat35<double>, 2> G{pp::endJacobian(model_, pp::kBottom, x[3], x[4]),
+                                     pp::endJacobian(model_, pp::kTop, x[3], x[4])};
   for (std::size_t k = 0; k < 2; ++k) {
-    const double sgn = k == pp::kBottom ? -1.0 : 1.0;
-    for (std::size_t i = 0; i < 3; ++i) e.v_end[k][i] = xd[i] + sgn * h * (da_dx[i] * xd[3] + da_dz[i] * xd[4]);
+    for (std::size_t i = 0; i < 3; ++i) {
+      e.v_end[k][i] = 0.0;
+      for (std::size_t j = 0; j < 5; ++j) e.v_end[k][i] += G[k][i][j] * xd[j];
+    }
     V3 qd{};
     if (!solve3(e.kin.pantograph[k].J, e.v_end[k], qd)) return;
     for (std::size_t i = 0; i < 3; ++i) e.q_dot[3 * k + i] = qd[i];
@@ -175,15 +145,12 @@ void PenPlant::evaluate(const PenVec5& x, const PenVec5& xd, const std::array<do
     pp::Mat3<double> Jt{};
     for (std::size_t r = 0; r < 3; ++r)
       for (std::size_t c = 0; c < 3; ++c) Jt[r][c] = e.kin.pantograph[k].J[c][r];
-    const double sgn = k == pp::kBottom ? -1.0 : 1.0;
     for (int which = 0; which < 2; ++which) {
       const pp::JointVec<double>& tau = which == 0 ? e.tau_motor : e.tau_fric;
       PenVec5& Q = which == 0 ? e.Q_motor : e.Q_fric;
       V3 f{};
       if (!solve3(Jt, {tau[3 * k], tau[3 * k + 1], tau[3 * k + 2]}, f)) return;
-      for (std::size_t i = 0; i < 3; ++i) Q[i] += f[i];
-      Q[3] += sgn * h * pp::dot(f, da_dx);
-      Q[4] += sgn * h * pp::dot(f, da_dz);
+      for (std::size_t j = 0; j < 5; ++j) Q[j] += G[k][0][j] * f[0] + G[k][1][j] * f[1] + G[k][2][j] * f[2];
     }
   }
   if (config_.gravity) e.Q_grav[1] = -weightKg(x[2]) * p.gravity_m_s2;

@@ -6,7 +6,9 @@ namespace phalanx::host::pen {
 
 namespace pp = phalanx::pen;
 
-PenScene::PenScene(const PenSceneConfig& config) : config_(config) {}
+PenScene::PenScene(const PenSceneConfig& config) : config_(config), model_(pp::defaultModel<double>()) {
+  pp::invertSpd5(pp::massMatrixSI<double>(), D_inv_);  // eq 29 is positive definite (tests/unit/pen_plant_test)
+}
 
 void PenScene::reset() {
   primed_ = false;
@@ -16,6 +18,40 @@ void PenScene::reset() {
   clicked_ = false;
   clicks_ = 0;
   marks_ = 0;
+}
+
+void PenScene::capBrake(const pp::Data<double>& kin, double dt_s, PenRenderOutput& out) {
+  if (brake_count_[0] + brake_count_[1] == 0) return;
+  double scale = 1.0;
+  if (config_.brake_momentum_cap && dt_s > 0.0) {
+    // Velocity change of each end after one period of the brake forces alone: Δv_end = G_end·D⁻¹·Σ G_kᵀ f_k·T.
+    std::array<pp::Mat35<double>, 2> G{pp::endJacobian(model_, pp::kBottom, kin.pose.theta_x_rad, kin.pose.theta_z_rad),
+                                       pp::endJacobian(model_, pp::kTop, kin.pose.theta_x_rad, kin.pose.theta_z_rad)};
+    std::array<double, 5> Q{};
+    for (std::size_t k = 0; k < 2; ++k)
+      for (std::size_t j = 0; j < 5; ++j)
+        for (std::size_t i = 0; i < 3; ++i) Q[j] += G[k][i][j] * out.end[k].brake_force_N[i];
+    std::array<double, 5> dx{};
+    for (std::size_t i = 0; i < 5; ++i)
+      for (std::size_t j = 0; j < 5; ++j) dx[i] += D_inv_[i][j] * Q[j] * dt_s;
+    for (std::size_t k = 0; k < 2; ++k) {
+      Vec3d dv{};
+      for (std::size_t i = 0; i < 3; ++i)
+        for (std::size_t j = 0; j < 5; ++j) dv[i] += G[k][i][j] * dx[j];
+      for (int n = 0; n < brake_count_[k]; ++n) {
+        const double v_n = brake_vn_[k][static_cast<std::size_t>(n)];
+        const double dv_n = pp::dot(dv, brake_normal_[k][static_cast<std::size_t>(n)]);
+        if (dv_n > -v_n && dv_n > 0.0) scale = std::fmin(scale, -v_n / dv_n);  // stop the end, do not reverse it
+      }
+    }
+  }
+  out.brake_scale = scale;
+  for (std::size_t k = 0; k < 2; ++k) {
+    for (std::size_t i = 0; i < 3; ++i) {
+      out.end[k].brake_force_N[i] *= scale;
+      out.end[k].force_N[i] += out.end[k].brake_force_N[i];
+    }
+  }
 }
 
 double PenScene::weightKg(double z_m) const {
@@ -33,12 +69,17 @@ void PenScene::wall(std::size_t end, double depth, double v_n, const Vec3d& norm
   }
   double f = g.stiffness_N_per_m * depth - g.damping_N_s_per_m * v_n;
   if (f < 0.0) f = 0.0;
+  EndContact& c = out.end[end];
   if (!was && config_.braking && v_n < 0.0) {
-    f += -g.brake_N_s_per_m * v_n;  // braking pulse: one control period at contact onset
-    out.end[end].brake_applied = true;
+    // Braking pulse [22]: one control period at contact onset, proportional to the approach velocity.
+    const double fb = -g.brake_N_s_per_m * v_n;
+    for (std::size_t i = 0; i < 3; ++i) c.brake_force_N[i] += fb * normal[i];
+    c.brake_applied = true;
+    const int n = brake_count_[end]++;
+    brake_normal_[end][static_cast<std::size_t>(n)] = normal;
+    brake_vn_[end][static_cast<std::size_t>(n)] = v_n;
   }
   was = true;
-  EndContact& c = out.end[end];
   c.in_contact = true;
   c.penetration_m = depth > c.penetration_m ? depth : c.penetration_m;
   for (std::size_t i = 0; i < 3; ++i) c.force_N[i] += f * normal[i];
@@ -57,6 +98,7 @@ void PenScene::render(const pp::Data<double>& kin, double dt_s, PenRenderOutput&
     out.v_end_m_s[e] = v_filt_[e];
   }
   primed_ = true;
+  brake_count_ = {0, 0};
 
   for (std::size_t e = 0; e < 2; ++e) {
     const Vec3d& p = out.p_end_m[e];
@@ -101,6 +143,7 @@ void PenScene::render(const pp::Data<double>& kin, double dt_s, PenRenderOutput&
     const Vec3d& v = out.v_end_m_s[pp::kBottom];
     if (std::sqrt(pp::dot(v, v)) > 0.005) ++marks_;
   }
+  capBrake(kin, dt_s, out);
   out.button_clicked = clicked_;
   out.clicks = clicks_;
   out.marks = marks_;

@@ -21,6 +21,7 @@
 #include <random>
 
 #include "phalanx/pen/board.h"
+#include "phalanx/pen/dynamics.h"
 #include "phalanx/pen/kinematics.h"
 #include "phalanx/sim/plant.h"
 
@@ -38,11 +39,7 @@ enum class PenHandScenario : std::uint8_t {
 
 struct PenPlantParams {
   /// Mass matrix of eq 29 in the paper's units (N, cm/s², N·cm, rad/s²) × 1e-5, rows (x, y, z, rot x, rot z).
-  std::array<std::array<double, 5>, 5> D_paper{{{190, 0.197, -0.179, 0.333, 1.52},
-                                                {0.197, 226, -0.035, -346, -0.515},
-                                                {-0.179, -0.035, 156, -0.642, -0.335},
-                                                {0.333, -346, -0.642, 10300, 12},
-                                                {1.52, -0.515, -0.335, 12, 12600}}};
+  std::array<std::array<double, 5>, 5> D_paper = phalanx::pen::kMassMatrixEq29;
   // Joint friction: Coulomb from Table X's minimum force, viscous from motor data class.
   std::array<double, 6> coulomb_Nm{4.5e-3, 1.0e-3, 1.0e-3, 4.5e-3, 1.0e-3, 1.0e-3};
   double coulomb_smoothing_rad_s = 0.02;   ///< tanh velocity scale of the smoothed Coulomb friction

@@ -13,6 +13,7 @@
 #include <cstdint>
 
 #include "phalanx/host/pen/force_split.h"
+#include "phalanx/pen/dynamics.h"
 #include "phalanx/pen/kinematics.h"
 
 namespace phalanx::host::pen {
@@ -33,6 +34,10 @@ struct PenSceneConfig {
   WallGains horizontal{300.0, 5.0, 600.0};
   WallGains vertical{210.0, 2.0, 300.0};
   bool braking = true;
+  /// Beyond the paper: limit the braking pulse to the impulse that brings each contacting end to rest along its
+  /// wall normal, using the measured mass matrix D (eq 29) — a larger pulse reverses the end's velocity, i.e.
+  /// the "brake" throws the pen back out of the wall and generates energy (docs/pen-plant.md §"Braking pulse").
+  bool brake_momentum_cap = true;
   bool button = true;
   /// Button on the floor: a disc (centre x, z; radius) whose cap stands travel_m above the floor.
   double button_x_m = -0.025, button_z_m = 0.20, button_radius_m = 0.012;
@@ -45,7 +50,9 @@ struct PenSceneConfig {
   /// Unbalanced weight model (kg, linear in the centre depth z over the workspace; Table X 70–130 g).
   double weight_near_kg = 0.070, weight_far_kg = 0.130;
   double gravity_m_s2 = 9.81;
-  double velocity_cutoff_hz = 50.0;
+  /// End-velocity low-pass cutoff. 100 Hz: of 20/30/50/100 Hz, the one whose quantisation dither put the least
+  /// energy into the pen at 16 and 24 N/cm (phalanx bench pen-wall --velocity-filter-hz, docs/pen-plant.md).
+  double velocity_cutoff_hz = 100.0;
 };
 
 struct EndContact {
@@ -53,6 +60,7 @@ struct EndContact {
   double penetration_m = 0.0;  ///< deepest wall penetration
   Vec3d force_N{};
   bool brake_applied = false;  ///< a braking pulse was applied this cycle
+  Vec3d brake_force_N{};       ///< the braking-pulse part of force_N (after the momentum cap)
 };
 
 struct PenRenderOutput {
@@ -60,6 +68,7 @@ struct PenRenderOutput {
   std::array<Vec3d, 2> p_end_m{}, v_end_m_s{};  ///< positions and filtered velocities used
   PenWrench wrench{};               ///< at the pen centre: the end forces + gravity compensation
   Vec3d gravity_force_N{};
+  double brake_scale = 1.0;         ///< momentum cap applied to this cycle's braking pulses (1: none)
   bool button_pressed = false;      ///< tip on the button cap
   double button_depth_m = 0.0;
   bool button_clicked = false;      ///< past the click (until released)
@@ -82,8 +91,14 @@ class PenScene {
  private:
   void wall(std::size_t end, double depth, double v_n, const Vec3d& normal, const WallGains& g, std::size_t wall_id,
             PenRenderOutput& out);
+  void capBrake(const phalanx::pen::Data<double>& kin, double dt_s, PenRenderOutput& out);
+  std::array<std::array<Vec3d, 6>, 2> brake_normal_{};  ///< wall normals of this cycle's pulses (scratch)
+  std::array<std::array<double, 6>, 2> brake_vn_{};
+  std::array<int, 2> brake_count_{};
 
   PenSceneConfig config_;
+  phalanx::pen::Model<double> model_;
+  phalanx::pen::Mat5<double> D_inv_{};  ///< eq 29 in SI, inverted
   bool primed_ = false;
   std::array<Vec3d, 2> last_p_{}, v_filt_{};
   std::array<std::array<bool, 6>, 2> was_in_{};  ///< per end, per wall (x−, x+, floor, z−, z+, button)
