@@ -1,11 +1,14 @@
 #include "phalanx/host/sea/sea_calibrate.h"
 
 #include <ceres/ceres.h>
+#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <sstream>
 
@@ -313,6 +316,81 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   f << out.c_str() << "\n";
   if (!f) return "cannot write " + path;
   return {};
+}
+
+int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride) {
+  std::vector<CalibrationSample> samples;
+  if (std::string err = readCalibrationCsv(recording_csv, samples); !err.empty()) {
+    std::fprintf(stderr, "phalanx sea-calibrate: error: %s\n", err.c_str());
+    return 2;
+  }
+  CalibrationOptions opt;
+  opt.stride = stride;
+  bool from_subject = false;
+  if (std::ifstream(subject_yaml).good()) {
+    SubjectParams start = opt.initial;
+    if (std::string err = loadSubjectYaml(subject_yaml, start, opt.fixed); !err.empty()) {
+      std::fprintf(stderr, "phalanx sea-calibrate: error: %s\n", err.c_str());
+      return 2;
+    }
+    const auto s = ps::toArray(start);
+    const auto lo = ps::toArray(opt.lower);
+    const auto hi = ps::toArray(opt.upper);
+    bool inside = true;
+    for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) inside = inside && s[i] >= lo[i] && s[i] <= hi[i];
+    if (inside) {
+      opt.initial = start;
+      from_subject = true;
+    }
+  }
+  CalibrationResult r;
+  if (std::string err = calibrate(samples, opt, r); !err.empty()) {
+    std::fprintf(stderr, "phalanx sea-calibrate: error: %s: %s\n", recording_csv.c_str(), err.c_str());
+    return 2;
+  }
+  if (std::string err = writeSubjectYaml(subject_yaml, r, opt.fixed, recording_csv); !err.empty()) {
+    std::fprintf(stderr, "phalanx sea-calibrate: error: %s\n", err.c_str());
+    return 2;
+  }
+  const auto p0 = ps::toArray(opt.initial);
+  const auto pe = ps::toArray(r.estimate);
+  const auto lo = ps::toArray(opt.lower);
+  const auto hi = ps::toArray(opt.upper);
+  nlohmann::json out;
+  out["recording"] = recording_csv;
+  out["subject"] = subject_yaml;
+  out["samples"] = r.samples_used;
+  out["initial_from"] = from_subject ? "subject file" : "Table 4 P0";
+  for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
+    out["parameters"][ps::kSubjectParamNames[i]] = {
+        {"initial", p0[i]}, {"estimate", pe[i]}, {"lower", lo[i]}, {"upper", hi[i]}, {"at_bound", r.at_bound[i]}};
+  }
+  out["rms_residual_rad"] = r.final_rms_rad;
+  out["max_abs_residual_rad"] = r.max_abs_residual_rad;
+  out["initial_rms_residual_rad"] = r.initial_rms_rad;
+  out["least_squares_samples"] = r.least_squares_samples;
+  out["converged"] = r.converged;
+  out["iterations"] = r.iterations;
+  out["solver"] = r.solver_report;
+  if (json) {
+    std::cout << out.dump(2) << std::endl;
+    return 0;
+  }
+  std::printf("sea-calibrate: %zu samples from %s (start: %s)\n", r.samples_used, recording_csv.c_str(),
+              from_subject ? "subject file" : "Table 4 P0");
+  std::printf("  %-7s %9s %9s   [%s, %s] (mm)\n", "param", "initial", "estimate", "lower", "upper");
+  for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
+    std::printf("  %-7s %9.2f %9.2f   [%.1f, %.1f]%s\n", ps::kSubjectParamNames[i], p0[i] * 1e3, pe[i] * 1e3,
+                lo[i] * 1e3, hi[i] * 1e3, r.at_bound[i] ? "  AT BOUND" : "");
+  }
+  std::printf("  redundant-sensor residual: RMS %.4f deg (initial %.3f deg), max %.4f deg; %s\n",
+              r.final_rms_rad * 57.2957795, r.initial_rms_rad * 57.2957795, r.max_abs_residual_rad * 57.2957795,
+              r.converged ? "converged" : "NOT converged");
+  if (r.least_squares_samples > 0) {
+    std::printf("  warning: %zu samples needed the least-squares fallback at the estimate\n", r.least_squares_samples);
+  }
+  std::printf("  written to %s\n", subject_yaml.c_str());
+  return 0;
 }
 
 }  // namespace phalanx::host::sea

@@ -70,4 +70,9 @@ std::string loadSubjectYaml(const std::string& path, SubjectParams& subject, Fix
 std::string writeSubjectYaml(const std::string& path, const CalibrationResult& result, const FixedGeometry& fixed,
                              const std::string& source);
 
+/// `phalanx sea-calibrate`: read the recording, estimate (eq 12) starting from the subject file's parameters
+/// when it exists (else Table 4's P0), write the subject file, print the result (JSON or text) to stdout.
+/// Returns the process exit code: 0 ok, 2 bad input (message on stderr).
+int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride);
+
 }  // namespace phalanx::host::sea
