@@ -1,6 +1,7 @@
 // phalanx: the user's command-line entry point.
 //   phalanx run     start a session (the simulated firmware too, for sim:* devices) and print a summary
 //   phalanx version protocol and build information
+//   phalanx sea-calibrate  SEA finger subject parameters from a recording (001 eq 12)
 #include <cstdio>
 #include <iostream>
 
@@ -8,6 +9,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/sea/sea_bench.h"
+#include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -59,6 +61,14 @@ int main(int argc, char** argv) {
   add_sea_options(sea_chirp);
   sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
   sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
+  CLI::App* sea_cal = app.add_subcommand("sea-calibrate", "estimate SEA finger subject parameters (001 eq 12)");
+  std::string sea_cal_csv;
+  std::string sea_cal_subject;
+  int sea_cal_stride = 1;
+  sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record)")->required();
+  sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
+  sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(CLI::Range(1, 1000));
+  sea_cal->add_flag("--json", json, "JSON output");
 
   try {
     app.parse(argc, argv);
@@ -71,6 +81,9 @@ int main(int argc, char** argv) {
                                                      : phalanx::host::sea::benchRigChirp(sea_opt);
     std::cout << result.dump(2) << std::endl;
     return 0;
+  }
+  if (sea_cal->parsed()) {
+    return phalanx::host::sea::seaCalibrateCommand(sea_cal_csv, sea_cal_subject, json, sea_cal_stride);
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
