@@ -61,6 +61,14 @@ int main(int argc, char** argv) {
   add_sea_options(sea_chirp);
   sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
   sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
+  CLI::App* sea_finger_torque =
+      bench->add_subcommand("sea-finger-torque", "SEA exoskeleton on the simulated finger: finger MCP/PIP torque tracking (001 §7.6, eq 9-11)");
+  add_sea_options(sea_finger_torque);
+  sea_finger_torque->add_flag("--user-holds", sea_opt.finger_user_holds,
+                              "the simulated user holds the rest posture (default: relaxed finger)");
+  CLI::App* sea_transparency =
+      bench->add_subcommand("sea-transparency", "SEA exoskeleton: residual torque during random finger motion (001 §7.7)");
+  add_sea_options(sea_transparency);
   CLI::App* sea_cal = app.add_subcommand("sea-calibrate", "estimate SEA finger subject parameters (001 eq 12)");
   std::string sea_cal_csv;
   std::string sea_cal_subject;
@@ -75,10 +83,13 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-  if (sea_sine->parsed() || sea_chirp->parsed()) {
+  if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
     sea_opt.noise = !bench_no_noise;
-    const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
-                                                     : phalanx::host::sea::benchRigChirp(sea_opt);
+    namespace hs = phalanx::host::sea;
+    const nlohmann::json result = sea_sine->parsed()            ? hs::benchRigSine(sea_opt)
+                                  : sea_chirp->parsed()         ? hs::benchRigChirp(sea_opt)
+                                  : sea_finger_torque->parsed() ? hs::benchFingerTorque(sea_opt)
+                                                                : hs::benchTransparency(sea_opt);
     std::cout << result.dump(2) << std::endl;
     return 0;
   }

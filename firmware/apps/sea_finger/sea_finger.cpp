@@ -167,7 +167,8 @@ uint16_t SeaFingerApp::control(const protocol::Command& cmd, float dt_s) {
     last_tau_hat_[i] = c.tau_hat_Nm;
 
     // eq 8 feed-forward: the motor angle at which the ideal SEA (eq 2) delivers y_d at the current joint angle.
-    float u_ff = (tau_d / (2.0f * k * rj) + rj * c.joint_rad) / rm;
+    const float joint_ff = ours ? c.joint_rad + cfg_.joint_lead_s * c.joint_rate_rad_s : c.joint_rad;
+    float u_ff = (tau_d / (2.0f * k * rj) + rj * joint_ff) / rm;
     if (ours) {
       // Inverse of the cable play: the motor must lead the spring by b̂/2 in the direction the cable moves.
       const float cable_speed = c.tau_desired_rate_Nm_s / (2.0f * k * rj) + rj * c.joint_rate_rad_s;

@@ -24,7 +24,7 @@ void validate(const SeaPlantConfig& c) {
   const SeaPlantParams& p = c.params;
   require(c.variant == SeaVariant::kRig || c.variant == SeaVariant::kFinger, "SeaPlantConfig: unknown variant");
   require(c.motion == SeaUserMotion::kRelaxed || c.motion == SeaUserMotion::kRandom ||
-              c.motion == SeaUserMotion::kCloseOpen,
+              c.motion == SeaUserMotion::kCloseOpen || c.motion == SeaUserMotion::kHold,
           "SeaPlantConfig: unknown user motion");
   const SeaFingerParams& f = c.params.finger;
   for (size_t j = 0; j < 2; ++j) {

@@ -52,18 +52,19 @@ enum class SeaUserMotion : std::uint8_t {
   kRelaxed = 0,    ///< muscles off: the finger is moved by the device against its passive torque (eq 14)
   kRandom = 1,     ///< band-limited random flexion/extension around the rest pose (§7.7 "fast random motions")
   kCloseOpen = 2,  ///< slow sinusoidal flexion/extension of MCP and PIP, 0.5 Hz
+  kHold = 3,       ///< the user keeps the rest posture with the muscle impedance (resists the device gently)
 };
 
 /// Finger and exoskeleton-link dynamics (eq 13–14). Index 0: MCP, 1: PIP. docs/sea-plant.md gives the sources.
 struct SeaFingerParams {
   /// eq 14, τ(φ) = A(e^{−B(φ−E)} − 1) − C(e^{D(φ−F)} − 1) in the FLEXION-positive angle φ = −θ (the paper's
   /// form; kinematics.h counts flexion negative). A, C in N·m, B, D in 1/rad, E, F in rad.
-  std::array<double, 2> A_Nm = {0.04, 0.015};
-  std::array<double, 2> B_per_rad = {5.0, 5.0};
-  std::array<double, 2> C_Nm = {0.04, 0.015};
-  std::array<double, 2> D_per_rad = {5.0, 5.0};
-  std::array<double, 2> E_rad = {-0.2, -0.1};
-  std::array<double, 2> F_rad = {1.2, 1.4};
+  std::array<double, 2> A_Nm = {0.15, 0.04};
+  std::array<double, 2> B_per_rad = {3.0, 3.0};
+  std::array<double, 2> C_Nm = {0.15, 0.04};
+  std::array<double, 2> D_per_rad = {3.0, 3.0};
+  std::array<double, 2> E_rad = {-0.1, 0.05};
+  std::array<double, 2> F_rad = {1.1, 1.25};
   std::array<double, 2> finger_damping_Nm_s_per_rad = {0.01, 0.005};  ///< human joint damping (finger coords)
   std::array<double, 2> exo_inertia_kg_m2 = {4.0e-5, 1.5e-5};          ///< I_j: exo links + phalanges, at Θ_r
   std::array<double, 2> exo_damping_Nm_s_per_rad = {0.002, 0.001};     ///< B_j: exo joint bearings
