@@ -90,7 +90,11 @@ struct SeaFingerConfig {
   /// kOurs: the feed-forward uses the joint angle predicted this far ahead (θ_j + θ̇_j·lead), which makes up
   /// for the moving average's group delay ((n − 1)/2 ticks) and the motor position loop's lag.
   float joint_lead_s = 0.008f;
-  float backlash_direction_m_per_s = 2e-3f;  ///< cable speed over which the inverse switches sides (tanh)
+  /// The inverse moves the motor to the other side of the play once the desired spring-side cable position is
+  /// this far beyond the play model's spring side (a deadband: sensor noise on a still joint, ≈ 6 µm of cable,
+  /// must not dither the motor across the play), ramping over backlash_switch_s.
+  float backlash_deadband_m = 20e-6f;
+  float backlash_switch_s = 0.002f;
   float paper_pos_kp_Nm_per_rad = 20.0f;
   float paper_pos_ki_Nm_per_rad_s = 200.0f;
   float paper_pos_kd_Nm_s_per_rad = 0.25f;
@@ -139,6 +143,8 @@ struct SeaChannelState {
   float u_ff_rad = 0.0f;
   float u_ff_rate_rad_s = 0.0f;
   float pos_integral_Nm = 0.0f;       ///< kPaper position PID integral
+  float play_side = 0.0f;             ///< kOurs: side of the play the feed-forward holds the motor on, −1…1
+  float play_side_target = 0.0f;
   float duty = 0.0f;
   bool command_limited = false;
 };

@@ -11,7 +11,8 @@
 ///   between the motor-side cable travel x_m = r_m θ_m and the spring-side travel x_e, with a load-dependent
 ///   width b = b_0 + b_1·|τ_j| (Kaneko et al. 1991, cited in §8.1.1: "load- and configuration-dependent
 ///   effective backlash"); inside the play the sheath friction F_s (μΘ times the cable tensions) builds up
-///   linearly at the motor side, and when the motor drags the cable the full F_s opposes it.
+///   linearly at the motor side (an elastic cable stretch, damped by the sheath's micro-slip), and when the motor
+///   drags the cable the full F_s opposes it.
 ///   Spring deflection d = x_e − r_j(θ_j − θ_j0); tensions T_{1,2} = max(0, T_0 ∓ k d) (a cable goes slack
 ///   beyond the pretension); joint torque τ_j = (T_2 − T_1) r_j, which is eq 2 while both cables are taut.
 ///   Rig variant (§7.1): the exoskeleton joint is clamped to a load cell through a compliant interface
@@ -85,6 +86,9 @@ struct SeaChannelParams {
   double backlash_base_m = 0.4e-3;           ///< b_0: cable play at zero load (cable travel, full width)
   double backlash_per_Nm_m = 2.0e-3;         ///< b_1: additional play per N·m of joint torque
   double sheath_friction = 0.2;              ///< μΘ: sheath friction force F_s = μΘ·(T_1 + T_2)
+  /// Inside the play the motor-side cable stretch is an elastic element (stiffness F_s / (b/2)) with the micro-
+  /// slip damping of the sheath; this is its damping ratio against the motor inertia (1: critically damped).
+  double play_damping_ratio = 1.0;
   double clamp_stiffness_Nm_per_rad = 30.0;  ///< rig: joint-to-load-cell interface (three cantilever screws)
 };
 
