@@ -29,7 +29,7 @@ class TestApp : public fw::DeviceApp {
   int safe_calls = 0;
 
  private:
-  protocol::DeviceLayout layout_{protocol::DeviceType::kSeaFinger, "test", 2, 1.0f, 11, {}};
+  protocol::DeviceLayout layout_{protocol::DeviceType::kSeaFinger, "test", 2, 1.0f, protocol::kSeaFingerLayout.sample_count, {}};
   hal::Board* board_ = nullptr;
 };
 
