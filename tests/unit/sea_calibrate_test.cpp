@@ -167,3 +167,35 @@ TEST(SeaCalibrate, SubjectYamlRoundTripKeepsOtherKeysAndRejectsUnknownOnes) {
   EXPECT_NE(loadSubjectYaml(path, back, fixed_back).find("sea_subject.l_BC_m: not a number"), std::string::npos);
   std::remove(path.c_str());
 }
+
+TEST(SeaCalibrate, CommandReadsARecorderCsvAndWritesTheSubjectFile) {
+  // `phalanx sea-calibrate --recording <csv> --subject <yaml>` end to end, on the columns phalanx run --record
+  // writes for sea_finger.
+  ps::Model<double> truth = ps::defaultModel<double>();
+  truth.subject = {0.003, -0.032, 0.046, 0.028, 0.046, 0.022, 0.020};  // another hand inside Table 4's box
+  const auto samples = recording(truth, 0.02 * kDeg, 5);
+  const std::string csv = ::testing::TempDir() + "sea_cmd.csv";
+  const std::string yaml = ::testing::TempDir() + "sea_cmd_subject.yaml";
+  std::remove(yaml.c_str());
+  {
+    std::ofstream f(csv);
+    f << "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits";
+    for (int i = 0; i < 11; ++i) f << ",sample" << i;
+    f << ",setpoint0,setpoint1\n";
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      f << 0.002 * double(k) << "," << 2000 * k << "," << k << "," << k << ",1,0," << samples[k].theta1r_rad << ","
+        << samples[k].theta6r_rad << "," << samples[k].theta7r_rad << ",0.1,0,0,0,0,0,0,0,0,0\n";
+    }
+  }
+  ASSERT_EQ(seaCalibrateCommand(csv, yaml, true, 4), 0);
+  SubjectParams est = ps::table4Initial<double>();
+  FixedGeometry fixed = ps::defaultModel<double>().fixed;
+  ASSERT_EQ(loadSubjectYaml(yaml, est, fixed), "");
+  const auto pe = ps::toArray(est);
+  const auto pt = ps::toArray(truth.subject);
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_NEAR(pe[i], pt[i], 0.001) << ps::kSubjectParamNames[i];
+  // A missing file is an error with exit code 2, not a crash.
+  EXPECT_EQ(seaCalibrateCommand(csv + ".missing", yaml, true, 1), 2);
+  std::remove(csv.c_str());
+  std::remove(yaml.c_str());
+}
