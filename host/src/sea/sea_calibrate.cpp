@@ -261,6 +261,7 @@ std::string loadSubjectYaml(const std::string& path, SubjectParams& subject, Fix
     bool known = false;
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
       if (key == ps::kSubjectParamNames[i]) {
+        if (i >= 2 && !(value > 0.0)) return path + ": sea_subject." + key + ": must be > 0";  // lengths
         p[i] = value;
         known = true;
       }
