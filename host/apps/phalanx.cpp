@@ -75,7 +75,10 @@ int main(int argc, char** argv) {
   int sea_cal_stride = 1;
   sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record)")->required();
   sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
+  int sea_cal_smooth = 1;
   sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(CLI::Range(1, 1000));
+  sea_cal->add_option("--smooth", sea_cal_smooth, "centred moving average over n rows before the fit")
+      ->check(CLI::Range(1, 1001));
   sea_cal->add_flag("--json", json, "JSON output");
 
   try {
@@ -94,7 +97,8 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (sea_cal->parsed()) {
-    return phalanx::host::sea::seaCalibrateCommand(sea_cal_csv, sea_cal_subject, json, sea_cal_stride);
+    return phalanx::host::sea::seaCalibrateCommand(sea_cal_csv, sea_cal_subject, json, sea_cal_stride,
+                                                   sea_cal_smooth);
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;

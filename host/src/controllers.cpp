@@ -3,6 +3,7 @@
 #include "phalanx/host/controller.h"
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/host/sea/sea_finger_controller.h"
 
 namespace phalanx::host {
@@ -34,6 +35,10 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
     // (eq 18 sine on the finger MCP/PIP torques) through eq 9–11.
     sea::SeaFingerControllerConfig cfg;
     cfg.mode = opt.mode == "transparent" ? sea::SeaFingerMode::kTransparent : sea::SeaFingerMode::kFingerTorque;
+    if (!opt.sea_subject.empty()) {
+      error = sea::loadSubjectYaml(opt.sea_subject, cfg.model.subject, cfg.model.fixed);
+      if (!error.empty()) return nullptr;
+    }
     return std::make_unique<sea::SeaFingerController>(cfg);
   }
   (void)error;

@@ -46,7 +46,12 @@ ps::Model<double> perturbedSubject(double scale) {
 
 }  // namespace
 
-TEST(SeaCalibrate, RecoversPerturbedSubjectParametersWithinOneMillimetre) {
+TEST(SeaCalibrate, RecoversAPerturbedSubjectFromNoisyDataToTheNoiseFloor) {
+  // Tolerances (docs/sea-model.md §Parameter estimation): 1 mm is the caliper tolerance of a joint-axis location.
+  // l_CD, l_FG, l_GH are well determined (Cramér–Rao σ < 0.1 mm) and must be within 0.3 mm; l_AH within 1 mm;
+  // x_A, y_A, l_BC lie along eq 12's weakly observable direction (σ ≈ 0.5–1.5 mm at this noise and length) and
+  // are only required within 3 mm. On this subject and seed all seven come out within 1 mm, which is not true
+  // for every subject (see the DISABLED_ sweep below).
   const ps::Model<double> truth = perturbedSubject(1.0);
   const auto lo = ps::toArray(ps::table4Lower<double>());
   const auto hi = ps::toArray(ps::table4Upper<double>());
@@ -58,19 +63,97 @@ TEST(SeaCalibrate, RecoversPerturbedSubjectParametersWithinOneMillimetre) {
   CalibrationResult r;
   ASSERT_EQ(calibrate(samples, opt, r), "");
   const auto pe = ps::toArray(r.estimate);
-  std::printf("noisy: rms %.3g rad (P0 %.3g), %s\n", r.final_rms_rad, r.initial_rms_rad, r.solver_report.c_str());
+  const double tol_m[7] = {0.003, 0.003, 0.003, 0.0003, 0.001, 0.0003, 0.0003};
   for (std::size_t i = 0; i < 7; ++i) {
-    std::printf("  %-7s true %7.4f est %7.4f err %+.2f mm\n", ps::kSubjectParamNames[i], pt[i], pe[i], (pe[i] - pt[i]) * 1e3);
-    // 1 mm: the tolerance of locating a joint axis or link pivot with a caliper on a hand (docs/sea-model.md).
-    EXPECT_NEAR(pe[i], pt[i], 0.001) << ps::kSubjectParamNames[i];
+    EXPECT_NEAR(pe[i], pt[i], tol_m[i]) << ps::kSubjectParamNames[i];
   }
-  // The fit explains the data as well as the true parameters do (the residual floor is the sensor noise of θ7r
-  // plus that of θ1r, θ6r propagated through the model).
+  // The global minimum was found: the fit explains the data at least as well as the true parameters do (the
+  // floor is the noise of θ7r plus that of θ1r, θ6r propagated through the model).
   const double truth_rms = redundantResidualRms(samples, truth.subject, truth.fixed);
   EXPECT_LE(r.final_rms_rad, truth_rms * (1.0 + 1e-6));
   EXPECT_LT(truth_rms, 4 * 0.05 * kDeg);
   EXPECT_GT(r.initial_rms_rad, 10 * r.final_rms_rad);
   EXPECT_EQ(r.samples_used, samples.size());
+}
+
+TEST(SeaCalibrate, SmoothingAnOversampledRecordingReducesTheResidualToTheThetaSevenNoise) {
+  // 1 kHz recording of a ≤ 0.8 Hz motion, 25-row centred moving average (opt.smooth_samples): the residual falls
+  // from the propagated input noise to below the single-sensor noise, and the parameters stay within tolerance.
+  const ps::Model<double> truth = perturbedSubject(1.0);
+  std::vector<CalibrationSample> samples;
+  {
+    std::mt19937 rng(11);
+    std::normal_distribution<double> n(0.0, 0.05 * kDeg);
+    for (int k = 0; k < 4000; ++k) {
+      const double t = k * 0.001;
+      const double mcp = -30 * kDeg + 28 * kDeg * std::sin(2 * M_PI * 0.5 * t);
+      const double pip = -40 * kDeg + 38 * kDeg * std::sin(2 * M_PI * 0.8 * t + 1.0);
+      ps::Data<double> d;
+      ASSERT_EQ(ps::computeFromFinger(truth, ps::FingerAngles<double>{mcp, pip, -20 * kDeg, 0.0}, d), ps::Status::kOk);
+      samples.push_back({d.sensors_rad[0] + n(rng), d.sensors_rad[1] + n(rng), d.sensors_rad[2] + n(rng)});
+    }
+  }
+  CalibrationOptions opt;
+  opt.smooth_samples = 25;
+  opt.stride = 2;  // after smoothing, neighbouring rows carry little new information
+  CalibrationResult r;
+  ASSERT_EQ(calibrate(samples, opt, r), "");
+  EXPECT_LT(r.final_rms_rad, 0.05 * kDeg);
+  const auto pe = ps::toArray(r.estimate);
+  const auto pt = ps::toArray(truth.subject);
+  const double tol_m[7] = {0.003, 0.003, 0.003, 0.0003, 0.001, 0.0003, 0.0003};
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_NEAR(pe[i], pt[i], tol_m[i]) << ps::kSubjectParamNames[i];
+  opt.smooth_samples = 0;
+  EXPECT_NE(calibrate(samples, opt, r), "");
+}
+
+/// Statistics over random subjects (not run by ctest; minutes):
+///   sea_calibrate_test --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_RandomSubjects*'
+TEST(SeaCalibrate, DISABLED_RandomSubjectsSweep) {
+  std::mt19937 rng(42);
+  const auto lo = ps::toArray(ps::table4Lower<double>());
+  const auto hi = ps::toArray(ps::table4Upper<double>());
+  int within_1mm = 0;
+  const int trials = 12;
+  for (int trial = 0; trial < trials; ++trial) {
+    ps::Model<double> truth = ps::defaultModel<double>();
+    std::array<double, 7> p{};
+    for (std::size_t i = 0; i < 7; ++i) {
+      std::uniform_real_distribution<double> u(lo[i] + 0.1 * (hi[i] - lo[i]), hi[i] - 0.1 * (hi[i] - lo[i]));
+      p[i] = u(rng);
+    }
+    truth.subject = ps::fromArray(p);
+    const auto samples = recording(truth, 0.05 * kDeg, 100u + static_cast<unsigned>(trial));
+    CalibrationOptions opt;
+    CalibrationResult r;
+    ASSERT_EQ(calibrate(samples, opt, r), "");
+    const auto pe = ps::toArray(r.estimate);
+    double worst = 0.0;
+    std::printf("subject %2d  error mm:", trial);
+    for (std::size_t i = 0; i < 7; ++i) {
+      std::printf(" %+5.2f", (pe[i] - p[i]) * 1e3);
+      worst = std::fmax(worst, std::fabs(pe[i] - p[i]));
+    }
+    // Finger-angle error of the estimator with P̂ over the workspace, on noise-free sensors.
+    ps::Model<double> est = truth;
+    est.subject = r.estimate;
+    double e_mcp = 0.0;
+    double e_pip = 0.0;
+    for (double a = -60; a <= 0; a += 5) {
+      for (double b = -80; b <= 0; b += 5) {
+        ps::Data<double> d;
+        ps::Data<double> e;
+        ps::computeFromFinger(truth, ps::FingerAngles<double>{a * kDeg, b * kDeg, -0.3, 0.0}, d);
+        ps::computeFromSensors(est, d.sensors_rad, e);
+        e_mcp = std::fmax(e_mcp, std::fabs(e.theta4_rad - d.theta4_rad));
+        e_pip = std::fmax(e_pip, std::fabs(e.theta8_rad - d.theta8_rad));
+      }
+    }
+    std::printf(" | worst %.2f mm, finger MCP %.1f° PIP %.1f°, rms %.2e (truth %.2e)\n", worst * 1e3, e_mcp / kDeg,
+                e_pip / kDeg, r.final_rms_rad, redundantResidualRms(samples, truth.subject, truth.fixed));
+    within_1mm += worst < 0.001 ? 1 : 0;
+  }
+  std::printf("%d/%d subjects with all seven parameters within 1 mm\n", within_1mm, trials);
 }
 
 TEST(SeaCalibrate, QuantisedNoiseFreeDataRecoversTheParametersToTwoTenthsOfAMillimetre) {
@@ -166,4 +249,36 @@ TEST(SeaCalibrate, SubjectYamlRoundTripKeepsOtherKeysAndRejectsUnknownOnes) {
   }
   EXPECT_NE(loadSubjectYaml(path, back, fixed_back).find("sea_subject.l_BC_m: not a number"), std::string::npos);
   std::remove(path.c_str());
+}
+
+TEST(SeaCalibrate, CommandReadsARecorderCsvAndWritesTheSubjectFile) {
+  // `phalanx sea-calibrate --recording <csv> --subject <yaml>` end to end, on the columns phalanx run --record
+  // writes for sea_finger.
+  ps::Model<double> truth = ps::defaultModel<double>();
+  truth.subject = {0.003, -0.032, 0.046, 0.028, 0.046, 0.022, 0.020};  // another hand inside Table 4's box
+  const auto samples = recording(truth, 0.02 * kDeg, 5);
+  const std::string csv = ::testing::TempDir() + "sea_cmd.csv";
+  const std::string yaml = ::testing::TempDir() + "sea_cmd_subject.yaml";
+  std::remove(yaml.c_str());
+  {
+    std::ofstream f(csv);
+    f << "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits";
+    for (int i = 0; i < 11; ++i) f << ",sample" << i;
+    f << ",setpoint0,setpoint1\n";
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      f << 0.002 * double(k) << "," << 2000 * k << "," << k << "," << k << ",1,0," << samples[k].theta1r_rad << ","
+        << samples[k].theta6r_rad << "," << samples[k].theta7r_rad << ",0.1,0,0,0,0,0,0,0,0,0\n";
+    }
+  }
+  ASSERT_EQ(seaCalibrateCommand(csv, yaml, true, 4), 0);
+  SubjectParams est = ps::table4Initial<double>();
+  FixedGeometry fixed = ps::defaultModel<double>().fixed;
+  ASSERT_EQ(loadSubjectYaml(yaml, est, fixed), "");
+  const auto pe = ps::toArray(est);
+  const auto pt = ps::toArray(truth.subject);
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_NEAR(pe[i], pt[i], 0.001) << ps::kSubjectParamNames[i];
+  // A missing file is an error with exit code 2, not a crash.
+  EXPECT_EQ(seaCalibrateCommand(csv + ".missing", yaml, true, 1), 2);
+  std::remove(csv.c_str());
+  std::remove(yaml.c_str());
 }

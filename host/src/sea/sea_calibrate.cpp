@@ -63,12 +63,29 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   result = CalibrationResult{};
   if (opt.stride < 1) return "stride must be ≥ 1";
   if (opt.max_iterations < 1) return "max_iterations must be ≥ 1";
+  if (opt.smooth_samples < 1) return "smooth_samples must be ≥ 1";
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
+  }
+  // Centred moving average (window shrinks symmetrically at the ends, so no phase shift anywhere).
+  std::vector<CalibrationSample> smooth = all;
+  if (opt.smooth_samples > 1) {
+    const std::size_t half = static_cast<std::size_t>(opt.smooth_samples / 2);
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      const std::size_t h = std::min({half, i, all.size() - 1 - i});
+      CalibrationSample acc{0.0, 0.0, 0.0};
+      for (std::size_t j = i - h; j <= i + h; ++j) {
+        acc.theta1r_rad += all[j].theta1r_rad;
+        acc.theta6r_rad += all[j].theta6r_rad;
+        acc.theta7r_rad += all[j].theta7r_rad;
+      }
+      const double n = static_cast<double>(2 * h + 1);
+      smooth[i] = {acc.theta1r_rad / n, acc.theta6r_rad / n, acc.theta7r_rad / n};
+    }
+  }
   std::vector<CalibrationSample> samples;
   samples.reserve(all.size() / static_cast<std::size_t>(opt.stride) + 1);
-  for (std::size_t i = 0; i < all.size(); i += static_cast<std::size_t>(opt.stride)) {
-    if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
-    samples.push_back(all[i]);
-  }
+  for (std::size_t i = 0; i < smooth.size(); i += static_cast<std::size_t>(opt.stride)) samples.push_back(smooth[i]);
   if (samples.size() < 20) return "need at least 20 samples over the range of motion, got " + std::to_string(samples.size());
   const auto lo = ps::toArray(opt.lower);
   const auto hi = ps::toArray(opt.upper);
@@ -261,6 +278,7 @@ std::string loadSubjectYaml(const std::string& path, SubjectParams& subject, Fix
     bool known = false;
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
       if (key == ps::kSubjectParamNames[i]) {
+        if (i >= 2 && !(value > 0.0)) return path + ": sea_subject." + key + ": must be > 0";  // lengths
         p[i] = value;
         known = true;
       }
@@ -308,7 +326,6 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   c["converged"] = r.converged;
   root["calibration"] = c;
   YAML::Emitter out;
-  out.SetDoublePrecision(6);
   out << root;
   std::ofstream f(path);
   if (!f) return "cannot write " + path;
@@ -318,7 +335,8 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   return {};
 }
 
-int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride) {
+int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride,
+                        int smooth_samples) {
   std::vector<CalibrationSample> samples;
   if (std::string err = readCalibrationCsv(recording_csv, samples); !err.empty()) {
     std::fprintf(stderr, "phalanx sea-calibrate: error: %s\n", err.c_str());
@@ -326,6 +344,7 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   }
   CalibrationOptions opt;
   opt.stride = stride;
+  opt.smooth_samples = smooth_samples;
   bool from_subject = false;
   if (std::ifstream(subject_yaml).good()) {
     SubjectParams start = opt.initial;

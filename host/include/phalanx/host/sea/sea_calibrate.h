@@ -28,6 +28,12 @@ struct CalibrationOptions {
   /// Use every n-th sample (1 = all). A 1 kHz recording over a 2 s range of motion is 2000 rows; more rows
   /// add time, not information (the noise is white, the model smooth).
   int stride = 1;
+  /// Centred moving average over this many consecutive rows, applied to all three channels before the fit
+  /// (1 = none). The fit's inputs θ1r, θ6r are noisy too (errors in variables) and their noise, propagated
+  /// through the model, dominates the residual; a recording at 1 kHz of a ≤ 1 Hz motion can be averaged over
+  /// ~25 rows (25 ms: amplitude loss < 0.1 % at 1 Hz) before the fit. Only for white sensor noise; a recording
+  /// of already-filtered sensors gains less.
+  int smooth_samples = 1;
   /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
   /// local minima (docs/sea-model.md §Parameter estimation).
   int restarts = 24;
@@ -73,6 +79,7 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
 /// `phalanx sea-calibrate`: read the recording, estimate (eq 12) starting from the subject file's parameters
 /// when it exists (else Table 4's P0), write the subject file, print the result (JSON or text) to stdout.
 /// Returns the process exit code: 0 ok, 2 bad input (message on stderr).
-int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride);
+int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride,
+                        int smooth_samples = 1);
 
 }  // namespace phalanx::host::sea
