@@ -25,6 +25,8 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
       ->check(CLI::IsMember({"none", "rigid-ball", "soft-ball", "wall"}));
   app.add_option("--mode", opt.mode, "glove: render (virtual scene) | transparent (zero force)")
       ->check(CLI::IsMember({"render", "transparent"}));
+  app.add_option("--sea-subject", opt.sea_subject, "sea_finger: subject YAML written by phalanx sea-calibrate")
+      ->check(CLI::ExistingFile);
   app.add_option("--seed", opt.seed, "simulation seed");
   app.add_option("--firmware-sim", opt.firmware_sim, "path of the firmware-sim executable");
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");

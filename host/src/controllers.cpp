@@ -4,6 +4,8 @@
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/glove/glove_controller.h"
 #include "phalanx/host/pen/pen_controller.h"
+#include "phalanx/host/sea/sea_calibrate.h"
+#include "phalanx/host/sea/sea_finger_controller.h"
 
 namespace phalanx::host {
 
@@ -44,6 +46,17 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
       return nullptr;
     }
     return std::make_unique<pen::PenController>(cfg);
+  }
+  if (layout.type == protocol::DeviceType::kSeaFinger) {
+    // mode transparent: zero finger (= zero exoskeleton) torque, §7.7; otherwise the finger-torque profile
+    // (eq 18 sine on the finger MCP/PIP torques) through eq 9–11.
+    sea::SeaFingerControllerConfig cfg;
+    cfg.mode = opt.mode == "transparent" ? sea::SeaFingerMode::kTransparent : sea::SeaFingerMode::kFingerTorque;
+    if (!opt.sea_subject.empty()) {
+      error = sea::loadSubjectYaml(opt.sea_subject, cfg.model.subject, cfg.model.fixed);
+      if (!error.empty()) return nullptr;
+    }
+    return std::make_unique<sea::SeaFingerController>(cfg);
   }
   (void)error;
   return std::make_unique<TransparentController>();

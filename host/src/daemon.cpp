@@ -188,8 +188,8 @@ std::string validate(const RunOptions& opt) {
   }
   if (opt.device.rfind("sim:", 0) == 0) {
     const std::string d = opt.device.substr(4);
-    if (d != "glove5" && d != "sea_finger" && d != "pantograph") {
-      return "device: unknown simulated device '" + d + "' (glove5, sea_finger, pantograph)";
+    if (d != "glove5" && d != "sea_finger" && d != "sea_rig" && d != "pantograph") {
+      return "device: unknown simulated device '" + d + "' (glove5, sea_finger, sea_rig, pantograph)";
     }
   }
   if (!std::isfinite(opt.seconds) || opt.seconds < 0 || opt.seconds > 86400) return "seconds: must be in [0, 86400]";

@@ -18,7 +18,8 @@ struct RunOptions {
   std::string record_csv;             ///< one row per cycle; empty: no recording
   std::string scenario = "grasp";     ///< simulated hand (sim:glove5): still|close-open|grasp|random
   std::string scene = "rigid-ball";   ///< glove virtual scene: none|rigid-ball|soft-ball|wall
-  std::string mode = "render";        ///< glove: render|transparent
+  std::string mode = "render";        ///< glove: render|transparent; sea_finger: transparent, else finger torque
+  std::string sea_subject;            ///< sea_finger: subject YAML from `phalanx sea-calibrate` (empty: Table 4 P̂)
   uint32_t seed = 1;
   bool live_view = false;             ///< per-finger terminal view at 10 Hz on stderr
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
