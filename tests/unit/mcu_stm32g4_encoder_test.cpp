@@ -1,17 +1,13 @@
-// Encoder register values and the board pin plan of the STM32G474 port, checked on the host. Field positions are
+// Encoder register values of the STM32G474 port, checked on the host. Field positions are
 // decoded here from RM0440's register descriptions (TIMx_CCMR1 input mode, LPTIM_CFGR), not from the port's code.
 #include <gtest/gtest.h>
 
-#include <set>
-#include <utility>
 #include <vector>
 
 #include "../../hal/mcu/include/phalanx/mcu/stm32g4_encoder.h"
 #include "../../hal/mcu/include/phalanx/mcu/stm32g4_timer.h"
-#include "../../hal/mcu/stm32g474/pin_plan.h"
 
 using namespace phalanx::mcu::stm32g4;
-namespace g474 = phalanx::mcu::g474;
 
 namespace {
 uint32_t field(uint32_t v, int lo, int width) { return (v >> lo) & ((1u << width) - 1u); }
@@ -92,36 +88,5 @@ TEST(McuStm32g4Encoder, LptimSixteenBitCountExtendsAcrossWrapsLikeTheTimers) {
     const ConfirmedRead r = confirmedRead([raw] { return static_cast<uint32_t>(raw); });
     ASSERT_TRUE(r.ok);
     EXPECT_EQ(e.update(r.value), expected) << step;
-  }
-}
-
-TEST(McuStm32g474PinPlan, NoPinIsClaimedTwiceAndTheCheckerFindsARepeat) {
-  constexpr g474::PinList l = g474::boardPins();
-  EXPECT_EQ(l.n, g474::kBoardPinCount);
-  std::set<std::pair<char, int>> seen;
-  for (size_t i = 0; i < l.n; ++i) {
-    EXPECT_TRUE(seen.insert({l.pins[i].port, l.pins[i].n}).second) << l.pins[i].port << int{l.pins[i].n};
-    EXPECT_GE(l.pins[i].port, 'A');
-    EXPECT_LE(l.pins[i].port, 'G');
-    EXPECT_LT(l.pins[i].n, 16);
-  }
-  EXPECT_EQ(g474::firstRepeatedPin(l.pins, l.n), l.n);
-
-  g474::Pin clash[3] = {{'A', 0, 1}, {'E', 2, 6}, {'E', 2, 0}};  // e.g. a direction line on TIM20's input
-  EXPECT_EQ(g474::firstRepeatedPin(clash, 3), 2u);
-  g474::Pin other_port[2] = {{'A', 2, 0}, {'B', 2, 0}};
-  EXPECT_EQ(g474::firstRepeatedPin(other_port, 2), 2u);
-}
-
-TEST(McuStm32g474PinPlan, SixEncodersEightPwmAndEightDirectionLinesFit) {
-  EXPECT_EQ(g474::kMaxEncoders, 6u);
-  EXPECT_EQ(sizeof(g474::kPwmPins) / sizeof(g474::kPwmPins[0]), 8u);
-  for (const g474::Pin& p : g474::kDirectionPins) {
-    EXPECT_EQ(p.port, g474::kDirectionPort);
-    EXPECT_EQ(p.af, g474::kGpioOut);
-  }
-  for (const auto& e : g474::kEncoderPins) {
-    EXPECT_LT(e[0].af, 16);  // both inputs in an alternate function, not GPIO
-    EXPECT_LT(e[1].af, 16);
   }
 }

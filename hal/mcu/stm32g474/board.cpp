@@ -72,12 +72,12 @@ bool waitClear(uint32_t address, uint32_t mask, uint32_t limit = 1000000u) {
 uint32_t pwmTimer(uint8_t ch) { return ch < 4 ? kTim1 : kTim8; }
 uint32_t pwmCcr(uint8_t ch) { return pwmTimer(ch) + kTimCcr1 + 4u * (ch % 4u); }
 
-// ADC channel plan (board): app channels 0..12 on ADC1, 13..24 on ADC2, in this rank order.
-constexpr uint8_t kAdc1Plan[AdcScan::kAdc1Ranks] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 14, 15};
-constexpr uint8_t kAdc2Plan[AdcScan::kAdc2Ranks] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13};
-constexpr AdcSequence kAdc1Seq = adcSequence(kAdc1Plan, AdcScan::kAdc1Ranks);
-constexpr AdcSequence kAdc2Seq = adcSequence(kAdc2Plan, AdcScan::kAdc2Ranks);
-static_assert(kAdc1Seq.ok && kAdc2Seq.ok, "ADC sequences");
+// ADC channel plan (board): pin_plan.h kAnalogInputs, split over ADC1 and ADC2 by splitAnalogInputs().
+static_assert(AdcScan::kMaxChannels == kAnalogInputCount, "one analog input per ADC channel of the hal");
+static_assert(splitAnalogInputs(kAnalogInputCount).ok, "every analog input fits a 16-rank sequence");
+constexpr uint32_t kAdcBase[2] = {kAdc1, kAdc2};
+constexpr uint32_t kAdcDmaChannel[2] = {1, 2};
+constexpr uint32_t kAdcDmaRequest[2] = {kDmareqAdc1, kDmareqAdc2};
 
 void adcInit(uint32_t adc, const AdcSequence& seq, const uint8_t* plan, size_t n) {
   reg(adc + kAdcCr) &= ~kAdcCrDeeppwd;
@@ -190,25 +190,32 @@ void BridgePwm::disableAll() {
 // ---------------------------------------------------------------------------------------------------------------
 void AdcScan::init(uint8_t channels) {
   n_ = channels > kMaxChannels ? kMaxChannels : channels;
+  const AnalogSplit split = splitAnalogInputs(n_);
+  if (!split.ok) {
+    n_ = 0;
+    return;
+  }
+  for (uint8_t i = 0; i < n_; ++i) {
+    adc_index_[i] = split.adc_index[i];
+    rank_[i] = split.rank[i];
+    pin(kAnalogInputs[i].pin.port, kAnalogInputs[i].pin.n, Mode::kAnalog);
+  }
   reg(kAdc12Common + kAdcCommonCcr) = 0x3u << 16;  // CKMODE = HCLK/4 = 42.5 MHz (≤ 60 MHz)
-  adcInit(kAdc1, kAdc1Seq, kAdc1Plan, kAdc1Ranks);
-  adcInit(kAdc2, kAdc2Seq, kAdc2Plan, kAdc2Ranks);
-  dmaCircular(1, kDmareqAdc1, kAdc1 + kAdcDr, const_cast<uint16_t*>(adc1_), 2 * kAdc1Ranks,
-              kDmaCcrPsize16 | kDmaCcrMsize16);
-  dmaCircular(2, kDmareqAdc2, kAdc2 + kAdcDr, const_cast<uint16_t*>(adc2_), 2 * kAdc2Ranks,
-              kDmaCcrPsize16 | kDmaCcrMsize16);
-  reg(kAdc1 + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
-  reg(kAdc2 + kAdcCr) |= kAdcCrAdstart;
+  for (size_t a = 0; a < 2; ++a) {
+    len_[a] = split.len[a];
+    if (len_[a] == 0) continue;
+    adcInit(kAdcBase[a], adcSequence(split.seq[a], len_[a]), split.seq[a], len_[a]);
+    dmaCircular(kAdcDmaChannel[a], kAdcDmaRequest[a], kAdcBase[a] + kAdcDr, const_cast<uint16_t*>(buf_[a]),
+                static_cast<uint32_t>(2 * len_[a]), kDmaCcrPsize16 | kDmaCcrMsize16);
+    reg(kAdcBase[a] + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
+  }
 }
 
 int32_t AdcScan::read(uint8_t ch) const {
   if (ch >= n_) return 0;
-  if (ch < kAdc1Ranks) {
-    const size_t w = dmaWriteIndex(2 * kAdc1Ranks, reg(kDma1 + dmaCndtr(1)));
-    return adc1_[stableScanOffset(kAdc1Ranks, w) + ch];
-  }
-  const size_t w = dmaWriteIndex(2 * kAdc2Ranks, reg(kDma1 + dmaCndtr(2)));
-  return adc2_[stableScanOffset(kAdc2Ranks, w) + (ch - kAdc1Ranks)];
+  const size_t a = adc_index_[ch];
+  const size_t w = dmaWriteIndex(2 * len_[a], reg(kDma1 + dmaCndtr(kAdcDmaChannel[a])));
+  return buf_[a][stableScanOffset(len_[a], w) + rank_[ch]];
 }
 
 // ---------------------------------------------------------------------------------------------------------------

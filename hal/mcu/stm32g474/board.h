@@ -43,9 +43,10 @@ class BridgePwm final : public hal::PwmOutputs {
 
 class AdcScan final : public hal::AdcInputs {
  public:
-  static constexpr size_t kAdc1Ranks = 13;
-  static constexpr size_t kAdc2Ranks = 12;
-  static constexpr uint8_t kMaxChannels = kAdc1Ranks + kAdc2Ranks;
+  /// Analog inputs of pin_plan.h (kAnalogInputs), split over ADC1 and ADC2, up to 16 ranks each.
+  static constexpr uint8_t kMaxChannels = 25;
+  static constexpr size_t kMaxRanks = 16;
+  /// Scans the first `channels` analog inputs; an ADC with no input assigned stays off.
   void init(uint8_t channels);
   uint8_t count() const override { return n_; }
   /// Latest complete conversion of app channel ch (12-bit counts), from the half of the DMA double buffer the
@@ -54,8 +55,10 @@ class AdcScan final : public hal::AdcInputs {
 
  private:
   uint8_t n_ = 0;
-  volatile uint16_t adc1_[2 * kAdc1Ranks] = {};
-  volatile uint16_t adc2_[2 * kAdc2Ranks] = {};
+  uint8_t adc_index_[kMaxChannels] = {};
+  uint8_t rank_[kMaxChannels] = {};
+  size_t len_[2] = {0, 0};
+  volatile uint16_t buf_[2][2 * kMaxRanks] = {};
 };
 
 class TimerEncoders final : public hal::Encoders {
