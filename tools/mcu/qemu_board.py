@@ -212,6 +212,13 @@ def bench(args):
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
+        # The same statistics through the wire protocol (ParamGet 0x0080..), while the firmware still runs.
+        d = subprocess.run([os.path.join(BIN, "phalanx"), "mcu-diag", "--device", f"serial:{board.pty}",
+                            "--timeout", "10"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+        try:
+            diag = json.loads(d.stdout) if d.returncode == 0 else {"error": d.stderr.strip()}
+        except json.JSONDecodeError:
+            diag = {"error": "unparsed: " + d.stdout[-200:]}
         m = board.wait_for(r"^STATS .*", args.seconds * 20 + 60)
     finally:
         board.stop()
@@ -239,9 +246,20 @@ def bench(args):
         "plant_ms_simulated": int(kv["plant_ms"]),
         "plant_steps_computed": int(kv["plant_steps"]),
         "firmware_stats_line": m.group(0),
+        "through_protocol": diag,
     }
     print(json.dumps(result, indent=2))
     ok = result["tick_instructions"]["worst"] <= args.budget and result["commands_applied"] > 0
+    # The protocol read happens before the firmware's final STATS line: its worst case and tick count can only be
+    # smaller or equal, and the unit must be the instruction count the bench was started with.
+    dp = diag.get("params", {})
+    proto_ok = (diag.get("device_type") == args.app and 0 < dp.get("tick_count", 0) <= result["tick_instructions"]["count"]
+                and 0 < dp.get("tick_worst", 0) <= result["tick_instructions"]["worst"]
+                and dp.get("tick_unit_ns") == result["ns_per_instruction"] and result["ns_per_instruction"] > 0)
+    print(f"through the protocol (phalanx mcu-diag): worst {dp.get('tick_worst')} median {dp.get('tick_median')} "
+          f"after {dp.get('tick_count')} ticks, {dp.get('tick_unit_ns')} ns per unit: "
+          f"{'consistent' if proto_ok else 'NOT consistent: ' + json.dumps(diag)}")
+    ok = ok and proto_ok
     print(f"cycle bench {args.app}: worst {result['tick_instructions']['worst']} / median "
           f"{result['tick_instructions']['median']} instructions per tick (budget {args.budget}): "
           f"{'1 passed, 0 failed' if ok else '0 passed, 1 failed'}")
