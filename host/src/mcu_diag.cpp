@@ -33,14 +33,22 @@ nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std
   }
   HostSession session(link);
   std::random_device rd;
-  session.sendHello(rd(), protocol::DeviceType::kAny);
-  link.flush();
+  const uint32_t session_id = rd();
   const uint64_t timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
   const uint64_t t0 = linux_hal::monotonicNs();
+  uint64_t last_hello = 0;
   while (session.handshake() == HandshakeResult::kPending) {
-    if (linux_hal::monotonicNs() - t0 > timeout_ns) {
+    const uint64_t now = linux_hal::monotonicNs();
+    if (now - t0 > timeout_ns) {
       error = "device did not answer the handshake on " + path;
       return {};
+    }
+    // A board whose link is backed up (telemetry nobody read, an emulated UART) may miss the first Hello: repeat
+    // it every 500 ms until answered.
+    if (last_hello == 0 || now - last_hello > 500000000ull) {
+      session.sendHello(session_id, protocol::DeviceType::kAny);
+      link.flush();
+      last_hello = now;
     }
     usleep(1000);
     session.poll(linux_hal::monotonicNs());
