@@ -16,9 +16,9 @@ done
 # Cycle gates: worst-case control tick in instructions (qemu -icount shift=2, host 100 Hz, 3 s session). A gate is
 # a regression guard set above the app's measured worst case (docs/firmware-mcu.md, "Cycle budget"), not the
 # target; the bench prints the worst case against it.
-#   glove5      target (issue 6) ≤ 17000; measured worst 14600–16520 across runs; gate 18000
+#   glove5      target (issue 6) ≤ 17000; measured worst 14120–16520 across runs; gate 18000
 #   sea_finger  no target given; measured worst 7830–9900; gate 11000
-#   pantograph  no target given; measured worst 9450–9490; gate 11000
+#   pantograph  no target given; measured worst 7640–9490; gate 11000
 # --plant-period-ms: the plant runs in PendSV below the tick, as fast as the CPU allows, never ahead of the
 # firmware's clock. The glove (≈3.7 M instructions per simulated ms) and pen (≈1.9 M) plants cannot keep up under
 # -icount at any shift; capping them near the rate they reach anyway (1/16, 1/8) keeps QEMU's virtual clock
