@@ -8,6 +8,7 @@
 #include "common_options.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
+#include "phalanx/host/mcu_diag.h"
 #include "phalanx/host/sea/sea_bench.h"
 #include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/host/sea/sea_calibrate.h"
@@ -26,6 +27,15 @@ int main(int argc, char** argv) {
   addRunOptions(*run, opt, config_path, no_rt, json);
 
   CLI::App* version = app.add_subcommand("version", "print version information");
+
+  CLI::App* mcu_diag = app.add_subcommand(
+      "mcu-diag", "read an MCU board's control-tick statistics through the protocol (ParamGet 0x0080-0x0089)");
+  std::string mcu_diag_device;
+  double mcu_diag_timeout_s = 2.0;
+  mcu_diag->add_option("--device", mcu_diag_device, "serial:<path> of the board (e.g. the QEMU board's pty)")
+      ->required();
+  mcu_diag->add_option("--timeout", mcu_diag_timeout_s, "seconds to wait for each answer")
+      ->check(CLI::Range(0.1, 60.0));
 
   CLI::App* bench = app.add_subcommand("bench", "run a bench scenario and print its metrics");
   bench->require_subcommand(1);
@@ -140,6 +150,21 @@ int main(int argc, char** argv) {
     bench_opt.noise = !bench_no_noise;
     const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
                                                         : phalanx::host::glove::benchGrasp(bench_opt);
+    std::cout << result.dump(2) << std::endl;
+    return 0;
+  }
+  if (mcu_diag->parsed()) {
+    if (mcu_diag_device.rfind("serial:", 0) != 0) {
+      std::fprintf(stderr, "phalanx: error: --device must be serial:<path> (got '%s')\n", mcu_diag_device.c_str());
+      return 2;
+    }
+    std::string error;
+    const nlohmann::json result =
+        phalanx::host::readMcuDiagnostics(mcu_diag_device.substr(7), mcu_diag_timeout_s, error);
+    if (!error.empty()) {
+      std::fprintf(stderr, "phalanx: error: %s\n", error.c_str());
+      return 4;
+    }
     std::cout << result.dump(2) << std::endl;
     return 0;
   }

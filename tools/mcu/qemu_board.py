@@ -26,7 +26,11 @@ import threading
 import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
-DEFAULT_ELF = os.path.join(ROOT, "build", "mcu-mps2-an386", "phalanx-mps2_an386-glove5.elf")
+APPS = ("glove5", "sea_finger", "pantograph")
+
+
+def app_elf(app):
+    return os.path.join(ROOT, "build", "mcu-mps2-an386", f"phalanx-mps2_an386-{app}.elf")
 BIN = os.path.join(ROOT, "build", "host", "bin")
 
 
@@ -144,7 +148,7 @@ def session(args):
               f"commands={s.get('commands')} rtt={s.get('round_trip', {}).get('p50_us')}us "
               f"faults_seen={s.get('faults_seen')} final_mode={s.get('final_mode')}")
         c.check(rc == 0, "handshake and session completed (phalanx run exit 0)", err.strip()[-400:])
-        c.check(s.get("device_type") == "glove5", "device answered the handshake as glove5", s.get("device_type"))
+        c.check(s.get("device_type") == args.app, f"device answered the handshake as {args.app}", s.get("device_type"))
         c.check(s.get("firmware_tick_hz") == 1000, "firmware reports a 1 kHz tick", s.get("firmware_tick_hz"))
         c.check(s.get("cycles", 0) >= expected_cycles - 10, f"host ran {expected_cycles} cycles at {args.rate_hz} Hz",
                 s.get("cycles"))
@@ -197,15 +201,24 @@ def session(args):
                     "reconnecting host reads the latched command-timeout in telemetry", err2.strip()[-300:])
     finally:
         board.stop()
-    print(f"qemu session: {c.passed} passed, {c.failed} failed")
+    print(f"qemu session {args.app}: {c.passed} passed, {c.failed} failed")
     return 0 if c.failed == 0 else 1
 
 
 def bench(args):
-    board = Board(args.elf, seconds=args.seconds + 3, icount=args.shift, extra=["plant_period_ms=1"] + args.extra)
+    plant_period_ms = args.plant_period_ms if args.plant_period_ms_given else 1
+    board = Board(args.elf, seconds=args.seconds + 3, icount=args.shift,
+                  extra=[f"plant_period_ms={plant_period_ms}"] + args.extra)
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
+        # The same statistics through the wire protocol (ParamGet 0x0080..), while the firmware still runs.
+        d = subprocess.run([os.path.join(BIN, "phalanx"), "mcu-diag", "--device", f"serial:{board.pty}",
+                            "--timeout", "10"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+        try:
+            diag = json.loads(d.stdout) if d.returncode == 0 else {"error": d.stderr.strip()}
+        except json.JSONDecodeError:
+            diag = {"error": "unparsed: " + d.stdout[-200:]}
         m = board.wait_for(r"^STATS .*", args.seconds * 20 + 60)
     finally:
         board.stop()
@@ -214,6 +227,7 @@ def bench(args):
         return 1
     kv = parse_kv(m.group(0))
     result = {
+        "app": args.app,
         "image": os.path.relpath(args.elf, ROOT),
         "qemu": " ".join(board.cmd),
         "ns_per_instruction": int(boot.get("ns_per_insn", 0)),
@@ -228,12 +242,25 @@ def bench(args):
         "worst_by_receive_work": {"no_bytes": int(kv["worst_no_rx"]), "up_to_one_frame": int(kv["worst_rx_le_frame"]),
                                   "more": int(kv["worst_rx_more"])},
         "overruns": int(kv["overruns"]),
+        "plant_period_ms": plant_period_ms,
         "plant_ms_simulated": int(kv["plant_ms"]),
+        "plant_steps_computed": int(kv["plant_steps"]),
         "firmware_stats_line": m.group(0),
+        "through_protocol": diag,
     }
     print(json.dumps(result, indent=2))
     ok = result["tick_instructions"]["worst"] <= args.budget and result["commands_applied"] > 0
-    print(f"cycle bench: worst {result['tick_instructions']['worst']} / median "
+    # The protocol read happens before the firmware's final STATS line: its worst case and tick count can only be
+    # smaller or equal, and the unit must be the instruction count the bench was started with.
+    dp = diag.get("params", {})
+    proto_ok = (diag.get("device_type") == args.app and 0 < dp.get("tick_count", 0) <= result["tick_instructions"]["count"]
+                and 0 < dp.get("tick_worst", 0) <= result["tick_instructions"]["worst"]
+                and dp.get("tick_unit_ns") == result["ns_per_instruction"] and result["ns_per_instruction"] > 0)
+    print(f"through the protocol (phalanx mcu-diag): worst {dp.get('tick_worst')} median {dp.get('tick_median')} "
+          f"after {dp.get('tick_count')} ticks, {dp.get('tick_unit_ns')} ns per unit: "
+          f"{'consistent' if proto_ok else 'NOT consistent: ' + json.dumps(diag)}")
+    ok = ok and proto_ok
+    print(f"cycle bench {args.app}: worst {result['tick_instructions']['worst']} / median "
           f"{result['tick_instructions']['median']} instructions per tick (budget {args.budget}): "
           f"{'1 passed, 0 failed' if ok else '0 passed, 1 failed'}")
     return 0 if ok else 1
@@ -258,17 +285,24 @@ def run(args):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", choices=["session", "bench", "run"])
-    ap.add_argument("--elf", default=DEFAULT_ELF)
+    ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
+    ap.add_argument("--elf", default=None, help="image (default: build/mcu-mps2-an386/phalanx-mps2_an386-<app>.elf)")
     ap.add_argument("--seconds", type=int, default=4)
     ap.add_argument("--rate-hz", type=int, default=100, help="host loop rate (the firmware always ticks at 1 kHz)")
-    ap.add_argument("--plant-period-ms", type=int, default=1000,
-                    help="at most one plant step (1 ms of physics) per this many ms (bench: 1)")
+    ap.add_argument("--plant-period-ms", type=int, default=None,
+                    help="at most one plant step (1 ms of physics) per this many ms (default: session/run 1000, "
+                         "bench 1)")
     ap.add_argument("--shift", type=int, default=None,
                     help="-icount shift (2^shift ns per instruction); bench default 2, run default real time")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
     ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")
     ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
     args = ap.parse_args()
+    if args.elf is None:
+        args.elf = app_elf(args.app)
+    args.plant_period_ms_given = args.plant_period_ms is not None
+    if args.plant_period_ms is None:
+        args.plant_period_ms = 1000
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
     return {"session": session, "bench": bench, "run": run}[args.mode](args)

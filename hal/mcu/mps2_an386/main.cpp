@@ -72,7 +72,8 @@ fw_mcu::StaticObject<PlantType> g_plant;
 fw_mcu::StaticObject<fw::FirmwareCore> g_core;
 Options g_opt;
 volatile uint32_t g_ms = 0;
-volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached
+volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached (skips ahead when it lags, below)
+volatile uint32_t g_plant_steps = 0;  // plant steps actually computed (1 ms of physics each)
 volatile bool g_running = false;
 uint32_t g_ns_per_insn = 0;  // 0: SysTick does not count instructions (no -icount)
 uint32_t g_calibration_counts = 0;
@@ -212,6 +213,7 @@ void printStats(const char* tag) {
       .str(" worst_systick_counts=").u32(diag().worst_counts)
       .str(" overruns=").u32(diag().overruns)
       .str(" plant_ms=").u32(g_plant_ms)
+      .str(" plant_steps=").u32(g_plant_steps)
       .str(" rx_overflows=").u32(uartLink().rxOverflows())
       .str(" tx_dropped=").u32(g_core.get().counters().tx_dropped)
       .str(" commands=").u32(g_core.get().counters().commands_applied)
@@ -294,6 +296,7 @@ extern "C" void PendSV_Handler() {
   last_step_ms = now;
   g_plant.get().step(1.0 / kTickHz, g_board.get().io());
   g_plant_ms = g_plant_ms + 1u;
+  g_plant_steps = g_plant_steps + 1u;
   if (g_plant_ms < g_ms && g_opt.plant_period_ms == 1) cm4::reg(cm4::kScbIcsr) = 1u << 28;
 }
 

@@ -16,6 +16,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <string>
 
 extern "C" [[noreturn]] void phalanx_plant_throw(const char* file, int line);
 

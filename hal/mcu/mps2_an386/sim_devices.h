@@ -5,6 +5,17 @@
 
 #include "phalanx/fw_mcu/app_registry.h"
 
+namespace phalanx::mcu::mps2 {
+/// True if the len characters at s spell name exactly.
+inline bool spells(const char* s, int len, const char* name) {
+  int i = 0;
+  for (; i < len && name[i] != 0; ++i) {
+    if (name[i] != s[i]) return false;
+  }
+  return i == len && name[i] == 0;
+}
+}  // namespace phalanx::mcu::mps2
+
 #if defined(PHALANX_MCU_APP_GLOVE5)
 #include "phalanx/sim/glove_plant.h"
 namespace phalanx::mcu::mps2 {
@@ -25,13 +36,7 @@ inline sim::GlovePlantConfig plantConfig(const PlantOptions& o) {
 }
 /// "still" | "close-open" | "grasp" | "random" → scenario number, or −1.
 inline int scenarioNumber(const char* s, int len) {
-  auto is = [&](const char* name) {
-    int i = 0;
-    for (; i < len && name[i] != 0; ++i) {
-      if (name[i] != s[i]) return false;
-    }
-    return i == len && name[i] == 0;
-  };
+  auto is = [&](const char* name) { return spells(s, len, name); };
   if (is("still")) return static_cast<int>(sim::HandScenario::kStill);
   if (is("close-open")) return static_cast<int>(sim::HandScenario::kCloseOpen);
   if (is("grasp")) return static_cast<int>(sim::HandScenario::kGrasp);
@@ -39,4 +44,60 @@ inline int scenarioNumber(const char* s, int len) {
   return -1;
 }
 }  // namespace phalanx::mcu::mps2
+
+#elif defined(PHALANX_MCU_APP_SEA_FINGER)
+// The SEA rig (§7.1 of seeds/001: both exoskeleton joints clamped to load cells), firmware-sim's `sea_rig`.
+#include "phalanx/sim/sea_plant.h"
+namespace phalanx::mcu::mps2 {
+using PlantType = sim::SeaPlant;
+struct PlantOptions {
+  uint32_t seed = 1;
+  uint8_t scenario = 0;  ///< sim::SeaVariant (kRig, the only variant)
+  bool noise = true;
+  uint32_t substep_us = 0;  ///< plant integration step (0: the plant's default, 100 µs)
+};
+inline sim::SeaPlantConfig plantConfig(const PlantOptions& o) {
+  sim::SeaPlantConfig c;
+  c.seed = o.seed;
+  c.noise = o.noise;
+  c.variant = static_cast<sim::SeaVariant>(o.scenario);
+  if (o.substep_us != 0) c.params.max_substep_s = static_cast<double>(o.substep_us) * 1e-6;
+  return c;
+}
+/// "rig" → variant number, or −1.
+inline int scenarioNumber(const char* s, int len) {
+  if (spells(s, len, "rig")) return static_cast<int>(sim::SeaVariant::kRig);
+  return -1;
+}
+}  // namespace phalanx::mcu::mps2
+#elif defined(PHALANX_MCU_APP_PANTOGRAPH)
+// The pen and the hand holding it, as firmware-sim's `pantograph` (same scenario names: the hand holds the pen
+// for still/grasp, moves it for random/close-open; "released" takes the hand off).
+#include "phalanx/sim/pen_plant.h"
+namespace phalanx::mcu::mps2 {
+using PlantType = sim::PenPlant;
+struct PlantOptions {
+  uint32_t seed = 1;
+  uint8_t scenario = 1;  ///< sim::PenHandScenario (kHold, as firmware-sim's default "grasp")
+  bool noise = true;
+  uint32_t substep_us = 0;  ///< plant integration step (0: the plant's default, 100 µs)
+};
+inline sim::PenPlantConfig plantConfig(const PlantOptions& o) {
+  sim::PenPlantConfig c;
+  c.seed = o.seed;
+  c.noise = o.noise;
+  c.scenario = static_cast<sim::PenHandScenario>(o.scenario);
+  if (o.substep_us != 0) c.params.max_substep_s = static_cast<double>(o.substep_us) * 1e-6;
+  return c;
+}
+/// "still" | "grasp" (hold) | "close-open" | "random" (move) | "released" → scenario number, or −1.
+inline int scenarioNumber(const char* s, int len) {
+  if (spells(s, len, "still") || spells(s, len, "grasp")) return static_cast<int>(sim::PenHandScenario::kHold);
+  if (spells(s, len, "random") || spells(s, len, "close-open")) return static_cast<int>(sim::PenHandScenario::kRandom);
+  if (spells(s, len, "released")) return static_cast<int>(sim::PenHandScenario::kReleased);
+  return -1;
+}
+}  // namespace phalanx::mcu::mps2
+#else
+#error "no simulated plant for this device app on the emulated board (hal/mcu/mps2_an386/sim_devices.h)"
 #endif

@@ -3,9 +3,11 @@
 #include <initializer_list>
 
 #include "phalanx/mcu/stm32g4_clock.h"
+#include "phalanx/mcu/stm32g4_encoder.h"
 #include "phalanx/mcu/stm32g4_fdcan.h"
 #include "phalanx/mcu/stm32g4_iwdg.h"
 #include "phalanx/mcu/stm32g4_uart.h"
+#include "pin_plan.h"
 #include "regs.h"
 
 namespace phalanx::mcu::g474 {
@@ -28,6 +30,9 @@ constexpr CanBitTiming kCanData = canBitTiming(kSysclkHz, 5000000u, 750u, kDataL
 static_assert(kCanNominal.ok && kCanData.ok, "CAN-FD bit timing at 170 MHz");
 constexpr float kMaxDuty = 0.98f;  // leaves the bootstrap capacitors of the high-side drivers time to recharge
 
+static_assert(firstRepeatedPin(boardPins().pins, boardPins().n) == boardPins().n,
+              "pin_plan.h: a pin is claimed twice");
+
 enum class Mode : uint32_t { kInput = 0, kOutput = 1, kAlternate = 2, kAnalog = 3 };
 void pin(char port, uint32_t n, Mode mode, uint32_t af = 0, bool pull_up = false) {
   const uint32_t base = gpio(port);
@@ -39,6 +44,12 @@ void pin(char port, uint32_t n, Mode mode, uint32_t af = 0, bool pull_up = false
   reg(afr) = (reg(afr) & ~(0xFu << shift)) | (af << shift);
 }
 void pinWrite(char port, uint32_t n, bool high) { reg(gpio(port) + kGpioBsrr) = high ? (1u << n) : (1u << (n + 16)); }
+/// A pin of pin_plan.h in its alternate function (or as a plain output / input with pull-up).
+void pin(const Pin& p) {
+  if (p.af == kGpioOut) pin(p.port, p.n, Mode::kOutput);
+  else if (p.af == kGpioIn) pin(p.port, p.n, Mode::kInput, 0, true);
+  else pin(p.port, p.n, Mode::kAlternate, p.af);
+}
 
 void spin(uint32_t n) {
   for (volatile uint32_t i = 0; i < n; i = i + 1u) {
@@ -61,12 +72,12 @@ bool waitClear(uint32_t address, uint32_t mask, uint32_t limit = 1000000u) {
 uint32_t pwmTimer(uint8_t ch) { return ch < 4 ? kTim1 : kTim8; }
 uint32_t pwmCcr(uint8_t ch) { return pwmTimer(ch) + kTimCcr1 + 4u * (ch % 4u); }
 
-// ADC channel plan (board): app channels 0..12 on ADC1, 13..24 on ADC2, in this rank order.
-constexpr uint8_t kAdc1Plan[AdcScan::kAdc1Ranks] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 14, 15};
-constexpr uint8_t kAdc2Plan[AdcScan::kAdc2Ranks] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13};
-constexpr AdcSequence kAdc1Seq = adcSequence(kAdc1Plan, AdcScan::kAdc1Ranks);
-constexpr AdcSequence kAdc2Seq = adcSequence(kAdc2Plan, AdcScan::kAdc2Ranks);
-static_assert(kAdc1Seq.ok && kAdc2Seq.ok, "ADC sequences");
+// ADC channel plan (board): pin_plan.h kAnalogInputs, split over ADC1 and ADC2 by splitAnalogInputs().
+static_assert(AdcScan::kMaxChannels == kAnalogInputCount, "one analog input per ADC channel of the hal");
+static_assert(splitAnalogInputs(kAnalogInputCount).ok, "every analog input fits a 16-rank sequence");
+constexpr uint32_t kAdcBase[2] = {kAdc1, kAdc2};
+constexpr uint32_t kAdcDmaChannel[2] = {1, 2};
+constexpr uint32_t kAdcDmaRequest[2] = {kDmareqAdc1, kDmareqAdc2};
 
 void adcInit(uint32_t adc, const AdcSequence& seq, const uint8_t* plan, size_t n) {
   reg(adc + kAdcCr) &= ~kAdcCrDeeppwd;
@@ -125,15 +136,16 @@ void clockInit() {
   // Peripheral clocks used by the drivers.
   reg(kRcc + kRccAhb1enr) |= kRccAhb1Dma1 | kRccAhb1Dmamux;
   reg(kRcc + kRccAhb2enr) |= kRccAhb2GpioAll | kRccAhb2Adc12;
-  reg(kRcc + kRccApb1enr1) |= kRccApb1Tim2 | kRccApb1Tim3 | kRccApb1Tim4 | kRccApb1Fdcan;
-  reg(kRcc + kRccApb2enr) |= kRccApb2Syscfg | kRccApb2Tim1 | kRccApb2Tim8 | kRccApb2Usart1;
+  reg(kRcc + kRccApb1enr1) |= kRccApb1Tim2 | kRccApb1Tim3 | kRccApb1Tim4 | kRccApb1Tim5 | kRccApb1Lptim1 |
+                              kRccApb1Fdcan;  // LPTIM1 kernel clock: RCC_CCIPR.LPTIM1SEL reset value = PCLK1
+  reg(kRcc + kRccApb2enr) |= kRccApb2Syscfg | kRccApb2Tim1 | kRccApb2Tim8 | kRccApb2Tim20 | kRccApb2Usart1;
   reg(kRcc + kRccCcipr) = (reg(kRcc + kRccCcipr) & ~(0x3u << 24)) | kRccCciprFdcanPclk;
 }
 
 void emergencyStop() {
   reg(kTim1 + kTimBdtr) &= ~kTimBdtrMoe;
   reg(kTim8 + kTimBdtr) &= ~kTimBdtrMoe;
-  pinWrite('B', 12, false);
+  pinWrite(kDriveEnablePin.port, kDriveEnablePin.n, false);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -157,19 +169,15 @@ void BridgePwm::init(uint8_t channels) {
     reg(tim + kTimEgr) = kTimEgrUg;
   }
   reg(kTim1 + kTimCr2) = kTimCr2MmsUpdate;  // TRGO → ADC12 regular trigger: sample mid-pulse, away from edges
-  pin('A', 8, Mode::kAlternate, 6);
-  pin('A', 9, Mode::kAlternate, 6);
-  pin('A', 10, Mode::kAlternate, 6);
-  pin('A', 11, Mode::kAlternate, 11);
-  for (uint32_t p = 6; p <= 9; ++p) pin('C', p, Mode::kAlternate, 4);
-  for (uint32_t p = 0; p < 8; ++p) pin('E', p, Mode::kOutput);
+  for (const Pin& p : kPwmPins) pin(p);
+  for (const Pin& p : kDirectionPins) pin(p);
   reg(kTim8 + kTimCr1) |= kTimCr1Cen;
   reg(kTim1 + kTimCr1) |= kTimCr1Cen;
 }
 
 void BridgePwm::setDuty(uint8_t ch, float duty) {
   if (ch >= n_ || !(duty == duty)) return;
-  pinWrite('E', ch, duty < 0.0f);  // PH: direction
+  pinWrite(kDirectionPort, kDirectionPins[ch].n, duty < 0.0f);  // PH: direction
   reg(pwmCcr(ch)) = dutyToCcr(duty, arr_, kMaxDuty);
   reg(pwmTimer(ch) + kTimBdtr) |= kTimBdtrMoe;
 }
@@ -182,73 +190,107 @@ void BridgePwm::disableAll() {
 // ---------------------------------------------------------------------------------------------------------------
 void AdcScan::init(uint8_t channels) {
   n_ = channels > kMaxChannels ? kMaxChannels : channels;
+  const AnalogSplit split = splitAnalogInputs(n_);
+  if (!split.ok) {
+    n_ = 0;
+    return;
+  }
+  for (uint8_t i = 0; i < n_; ++i) {
+    adc_index_[i] = split.adc_index[i];
+    rank_[i] = split.rank[i];
+    pin(kAnalogInputs[i].pin.port, kAnalogInputs[i].pin.n, Mode::kAnalog);
+  }
   reg(kAdc12Common + kAdcCommonCcr) = 0x3u << 16;  // CKMODE = HCLK/4 = 42.5 MHz (≤ 60 MHz)
-  adcInit(kAdc1, kAdc1Seq, kAdc1Plan, kAdc1Ranks);
-  adcInit(kAdc2, kAdc2Seq, kAdc2Plan, kAdc2Ranks);
-  dmaCircular(1, kDmareqAdc1, kAdc1 + kAdcDr, const_cast<uint16_t*>(adc1_), 2 * kAdc1Ranks,
-              kDmaCcrPsize16 | kDmaCcrMsize16);
-  dmaCircular(2, kDmareqAdc2, kAdc2 + kAdcDr, const_cast<uint16_t*>(adc2_), 2 * kAdc2Ranks,
-              kDmaCcrPsize16 | kDmaCcrMsize16);
-  reg(kAdc1 + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
-  reg(kAdc2 + kAdcCr) |= kAdcCrAdstart;
+  for (size_t a = 0; a < 2; ++a) {
+    len_[a] = split.len[a];
+    if (len_[a] == 0) continue;
+    adcInit(kAdcBase[a], adcSequence(split.seq[a], len_[a]), split.seq[a], len_[a]);
+    dmaCircular(kAdcDmaChannel[a], kAdcDmaRequest[a], kAdcBase[a] + kAdcDr, const_cast<uint16_t*>(buf_[a]),
+                static_cast<uint32_t>(2 * len_[a]), kDmaCcrPsize16 | kDmaCcrMsize16);
+    reg(kAdcBase[a] + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
+  }
 }
 
 int32_t AdcScan::read(uint8_t ch) const {
   if (ch >= n_) return 0;
-  if (ch < kAdc1Ranks) {
-    const size_t w = dmaWriteIndex(2 * kAdc1Ranks, reg(kDma1 + dmaCndtr(1)));
-    return adc1_[stableScanOffset(kAdc1Ranks, w) + ch];
-  }
-  const size_t w = dmaWriteIndex(2 * kAdc2Ranks, reg(kDma1 + dmaCndtr(2)));
-  return adc2_[stableScanOffset(kAdc2Ranks, w) + (ch - kAdc1Ranks)];
+  const size_t a = adc_index_[ch];
+  const size_t w = dmaWriteIndex(2 * len_[a], reg(kDma1 + dmaCndtr(kAdcDmaChannel[a])));
+  return buf_[a][stableScanOffset(len_[a], w) + rank_[ch]];
 }
 
 // ---------------------------------------------------------------------------------------------------------------
 namespace {
-constexpr uint32_t kEncoderTimers[TimerEncoders::kMaxChannels] = {kTim2, kTim3, kTim4};
-}
+// Encoder channel i → counting unit (pins: pin_plan.h kEncoderPins[i]). TIM1/TIM8 are the PWM timers; TIM2–TIM5
+// and TIM20 count in encoder mode 3, LPTIM1 in its encoder mode (TIM15/16/17 have no encoder interface).
+struct EncoderUnit {
+  uint32_t base;
+  bool lptim;
+};
+constexpr EncoderUnit kEncoderUnits[TimerEncoders::kMaxChannels] = {
+    {kTim2, false}, {kTim3, false}, {kTim4, false}, {kTim5, false}, {kTim20, false}, {kLptim1, true}};
+static_assert(TimerEncoders::kMaxChannels == kMaxEncoders, "one pin pair per encoder unit");
+constexpr TimEncoderCcmr1 kEncCcmr1 = timEncoderCcmr1(kEncoderFilterSamples);
+constexpr LptimEncoderCfgr kEncLptimCfgr = lptimEncoderCfgr(kEncoderFilterSamples);
+static_assert(kEncCcmr1.ok && kEncLptimCfgr.ok, "encoder input filter");
+}  // namespace
 
 void TimerEncoders::init(uint8_t channels) {
   n_ = channels > kMaxChannels ? kMaxChannels : channels;
   for (uint8_t i = 0; i < n_; ++i) {
-    const uint32_t tim = kEncoderTimers[i];
-    reg(tim + kTimCr1) = 0;
-    reg(tim + kTimCcmr1) = (1u << 0) | (1u << 8) | (0x3u << 4) | (0x3u << 12);  // CC1S=CC2S=TI, input filter N=8
-    reg(tim + kTimSmcr) = kTimSmcrEncoder3;
-    reg(tim + kTimArr) = 0xFFFFu;  // 16 bits on every timer; EncoderExtender makes the count 32-bit
-    reg(tim + kTimCr1) = kTimCr1Cen;
+    const uint32_t base = kEncoderUnits[i].base;
+    if (kEncoderUnits[i].lptim) {
+      reg(base + kLptimCr) = 0;
+      reg(base + kLptimCfgr) = kEncLptimCfgr.value;  // CFGR is written with the timer disabled
+      reg(base + kLptimCr) = kLptimCrEnable;
+      reg(base + kLptimArr) = 0xFFFFu;                  // ARR is written with the timer enabled; full 16 bits
+      waitSet(base + kLptimIsr, kLptimIsrArrok, 10000u);
+      reg(base + kLptimCr) = kLptimCrEnable | kLptimCrCntstrt;  // continuous mode, counts from the inputs
+    } else {
+      reg(base + kTimCr1) = 0;
+      reg(base + kTimCcmr1) = kEncCcmr1.value;
+      reg(base + kTimSmcr) = kTimSmcrEncoderX4;
+      reg(base + kTimArr) = 0xFFFFu;  // 16 bits on every timer (TIM2/TIM5 are 32-bit); EncoderExtender extends
+      reg(base + kTimCr1) = kTimCr1Cen;
+    }
+    pin(kEncoderPins[i][0]);
+    pin(kEncoderPins[i][1]);
   }
-  if (n_ > 0) { pin('A', 0, Mode::kAlternate, 1); pin('A', 1, Mode::kAlternate, 1); }
-  if (n_ > 1) { pin('A', 6, Mode::kAlternate, 2); pin('A', 7, Mode::kAlternate, 2); }
-  if (n_ > 2) { pin('D', 12, Mode::kAlternate, 2); pin('D', 13, Mode::kAlternate, 2); }
 }
 
 int32_t TimerEncoders::read(uint8_t ch) const {
   if (ch >= n_) return 0;
-  return ext_[ch].update(static_cast<uint16_t>(reg(kEncoderTimers[ch] + kTimCnt)));
+  const uint32_t base = kEncoderUnits[ch].base;
+  if (kEncoderUnits[ch].lptim) {
+    // Unconfirmed (the count changed on every read): keep the previous value this tick; the next tick catches up.
+    const ConfirmedRead r = confirmedRead([base] { return reg(base + kLptimCnt); });
+    return r.ok ? ext_[ch].update(r.value) : ext_[ch].count();
+  }
+  return ext_[ch].update(static_cast<uint16_t>(reg(base + kTimCnt)));
 }
 
 // ---------------------------------------------------------------------------------------------------------------
 void BoardGpio::init() {
-  pin('B', 12, Mode::kOutput);
-  pinWrite('B', 12, false);
+  pin(kDriveEnablePin);
+  pinWrite(kDriveEnablePin.port, kDriveEnablePin.n, false);
   // E-stop: normally-closed contact to ground with a pull-up, so a pressed button and a broken wire both read
   // high (pressed). EXTI13 on the rising edge stops the power stage at once; the core latches the fault on its
   // next tick.
-  pin('C', 13, Mode::kInput, 0, true);
+  pin(kEstopPin);
   const uint32_t exticr = kSyscfg + syscfgExticr(13);
   reg(exticr) = (reg(exticr) & ~(0xFu << 4)) | (0x2u << 4);  // EXTI13 ← port C
   reg(kExti + kExtiRtsr1) |= 1u << 13;
   reg(kExti + kExtiImr1) |= 1u << 13;
 }
 
-bool BoardGpio::estopPressed() const { return (reg(gpio('C') + kGpioIdr) & (1u << 13)) != 0; }
-void BoardGpio::setDriveEnable(bool enabled) { pinWrite('B', 12, enabled && !estopPressed()); }
+bool BoardGpio::estopPressed() const { return (reg(gpio(kEstopPin.port) + kGpioIdr) & (1u << kEstopPin.n)) != 0; }
+void BoardGpio::setDriveEnable(bool enabled) {
+  pinWrite(kDriveEnablePin.port, kDriveEnablePin.n, enabled && !estopPressed());
+}
 
 // ---------------------------------------------------------------------------------------------------------------
 void UsartLink::init() {
-  pin('B', 6, Mode::kAlternate, 7);
-  pin('B', 7, Mode::kAlternate, 7, true);
+  pin(kUsartPins[0]);
+  pin(kUsartPins[1].port, kUsartPins[1].n, Mode::kAlternate, kUsartPins[1].af, true);  // RX idles high
   reg(kUsart1 + kUsartCr1) = 0;
   reg(kUsart1 + kUsartBrr) = kUart.brr;
   reg(kUsart1 + kUsartCr3) = kUsartCr3Dmar | kUsartCr3Dmat;
@@ -295,8 +337,8 @@ void UsartLink::onTxDmaComplete() {
 
 // ---------------------------------------------------------------------------------------------------------------
 void FdcanPort::init() {
-  pin('B', 8, Mode::kAlternate, 9);
-  pin('B', 9, Mode::kAlternate, 9);
+  pin(kFdcanPins[0]);
+  pin(kFdcanPins[1]);
   reg(kFdcan1 + kCanCccr) |= kCanCccrInit;
   waitSet(kFdcan1 + kCanCccr, kCanCccrInit);
   reg(kFdcan1 + kCanCccr) |= kCanCccrCce;

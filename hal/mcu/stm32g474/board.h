@@ -1,9 +1,10 @@
 #pragma once
 /// STM32G474 drivers behind the hal interfaces, register level (regs.h). Board: the project's G474 motor board —
-/// 24 MHz crystal, up to eight PH/EN H-bridge drivers (PWM on TIM1/TIM8 channels, direction on PE0..PE7, one
-/// drive-enable line), Hall and strain-gauge amplifiers on ADC1/ADC2, quadrature encoders on TIM2..TIM4, a
+/// 24 MHz crystal, up to eight PH/EN H-bridge drivers (PWM on TIM1/TIM8 channels, direction on PD0..PD7, one
+/// drive-enable line), Hall and strain-gauge amplifiers on ADC1/ADC2, up to six quadrature encoders (TIM2..TIM5,
+/// TIM20, LPTIM1), a
 /// normally-closed e-stop on PC13, the host on USART1 at 2 Mbaud (USB-serial bridge) and CAN-FD on FDCAN1.
-/// Pin choices are listed in docs/firmware-mcu.md; they are this project's, not checked against a schematic.
+/// Pin choices are in pin_plan.h and docs/firmware-mcu.md; they are this project's, not checked against a schematic.
 #include <cstddef>
 #include <cstdint>
 
@@ -42,9 +43,10 @@ class BridgePwm final : public hal::PwmOutputs {
 
 class AdcScan final : public hal::AdcInputs {
  public:
-  static constexpr size_t kAdc1Ranks = 13;
-  static constexpr size_t kAdc2Ranks = 12;
-  static constexpr uint8_t kMaxChannels = kAdc1Ranks + kAdc2Ranks;
+  /// Analog inputs of pin_plan.h (kAnalogInputs), split over ADC1 and ADC2, up to 16 ranks each.
+  static constexpr uint8_t kMaxChannels = 25;
+  static constexpr size_t kMaxRanks = 16;
+  /// Scans the first `channels` analog inputs; an ADC with no input assigned stays off.
   void init(uint8_t channels);
   uint8_t count() const override { return n_; }
   /// Latest complete conversion of app channel ch (12-bit counts), from the half of the DMA double buffer the
@@ -53,13 +55,16 @@ class AdcScan final : public hal::AdcInputs {
 
  private:
   uint8_t n_ = 0;
-  volatile uint16_t adc1_[2 * kAdc1Ranks] = {};
-  volatile uint16_t adc2_[2 * kAdc2Ranks] = {};
+  uint8_t adc_index_[kMaxChannels] = {};
+  uint8_t rank_[kMaxChannels] = {};
+  size_t len_[2] = {0, 0};
+  volatile uint16_t buf_[2][2 * kMaxRanks] = {};
 };
 
 class TimerEncoders final : public hal::Encoders {
  public:
-  static constexpr uint8_t kMaxChannels = 3;
+  /// TIM2, TIM3, TIM4, TIM5, TIM20, LPTIM1 (pin_plan.h).
+  static constexpr uint8_t kMaxChannels = 6;
   void init(uint8_t channels);
   uint8_t count() const override { return n_; }
   int32_t read(uint8_t channel) const override;

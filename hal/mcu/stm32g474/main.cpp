@@ -13,6 +13,7 @@
 #include "phalanx/mcu/cortex_m.h"
 #include "phalanx/mcu/stm32g4_clock.h"
 #include "phalanx/mcu/tick_stats.h"
+#include "pin_plan.h"
 #include "regs.h"
 
 #ifndef PHALANX_BUILD_ID
@@ -29,6 +30,14 @@ constexpr uint32_t kTickHz = 1000;
 constexpr uint32_t kReload = stm32g4::systickReload(kSysclkHz, kTickHz);
 static_assert(kReload == 169999u, "1 kHz SysTick at 170 MHz");
 constexpr uint32_t kCyclesPerTick = kSysclkHz / kTickHz;
+// The image's pins (its PWM + direction lines, encoders and analog inputs, plus the fixed ones) are distinct.
+// Analog inputs beyond kAnalogInputsWithOwnPin (only glove5's 25 channels reach them) repeat an ADC1/ADC2 pin by
+// construction and are not covered: they need ADC3–ADC5 (docs/firmware-mcu.md, "What is not done").
+static_assert(imagePinsDistinct(fw_mcu::kAppPwmCount, fw_mcu::kAppEncoderCount, fw_mcu::kAppAdcCount),
+              "pin_plan.h: this app's channels claim a pin twice");
+static_assert(fw_mcu::kAppPwmCount <= BridgePwm::kMaxChannels && fw_mcu::kAppAdcCount <= AdcScan::kMaxChannels &&
+                  fw_mcu::kAppEncoderCount <= TimerEncoders::kMaxChannels,
+              "the board has fewer PWM, ADC or encoder channels than this app needs");
 constexpr uint8_t kPrioEstop = 0x00;  // highest: the e-stop edge cuts the bridges even during a tick
 constexpr uint8_t kPrioTick = 0x80;   // SysTick and the USART TX DMA share a level: never preempt each other
 

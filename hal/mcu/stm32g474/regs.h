@@ -15,11 +15,12 @@ inline volatile uint32_t& reg(uint32_t address) { return *reinterpret_cast<volat
 constexpr uint32_t kTim2 = 0x40000000u, kTim3 = 0x40000400u, kTim4 = 0x40000800u, kTim5 = 0x40000C00u;
 constexpr uint32_t kIwdg = 0x40003000u;
 constexpr uint32_t kFdcan1 = 0x40006400u;
+constexpr uint32_t kLptim1 = 0x40007C00u;
 constexpr uint32_t kPwr = 0x40007000u;
 constexpr uint32_t kFdcanRam = 0x4000A400u;  ///< message RAM of FDCAN1 (0x350 bytes)
 constexpr uint32_t kSyscfg = 0x40010000u;
 constexpr uint32_t kExti = 0x40010400u;
-constexpr uint32_t kTim1 = 0x40012C00u, kTim8 = 0x40013400u;
+constexpr uint32_t kTim1 = 0x40012C00u, kTim8 = 0x40013400u, kTim20 = 0x40015000u;
 constexpr uint32_t kUsart1 = 0x40013800u;
 constexpr uint32_t kDma1 = 0x40020000u;
 constexpr uint32_t kDmamux = 0x40020800u;
@@ -38,8 +39,9 @@ constexpr uint32_t kRccCfgrHpreDiv2 = 0x8u << 4, kRccCfgrHpreMask = 0xFu << 4;
 constexpr uint32_t kRccAhb1Dma1 = 1u << 0, kRccAhb1Dmamux = 1u << 2, kRccAhb1Flash = 1u << 8;
 constexpr uint32_t kRccAhb2GpioAll = 0x7Fu, kRccAhb2Adc12 = 1u << 13;
 constexpr uint32_t kRccApb1Tim2 = 1u << 0, kRccApb1Tim3 = 1u << 1, kRccApb1Tim4 = 1u << 2, kRccApb1Tim5 = 1u << 3;
-constexpr uint32_t kRccApb1Fdcan = 1u << 25, kRccApb1Pwr = 1u << 28;
+constexpr uint32_t kRccApb1Fdcan = 1u << 25, kRccApb1Pwr = 1u << 28, kRccApb1Lptim1 = 1u << 31;
 constexpr uint32_t kRccApb2Syscfg = 1u << 0, kRccApb2Tim1 = 1u << 11, kRccApb2Tim8 = 1u << 13, kRccApb2Usart1 = 1u << 14;
+constexpr uint32_t kRccApb2Tim20 = 1u << 20;
 constexpr uint32_t kRccCciprFdcanPclk = 0x2u << 24;  ///< FDCANSEL = PCLK1
 constexpr uint32_t kRccCciprAdc12Sysclk = 0x2u << 28; ///< ADC12SEL = SYSCLK
 
@@ -62,7 +64,9 @@ constexpr uint32_t kTimCr2MmsUpdate = 0x2u << 4;
 constexpr uint32_t kTimBdtrMoe = 1u << 15, kTimBdtrOssr = 1u << 11, kTimBdtrOssi = 1u << 10;
 constexpr uint32_t kTimEgrUg = 1u << 0;
 constexpr uint32_t kTimOcPwm1 = 0x6u;  ///< OCxM = 0110, PWM mode 1
-constexpr uint32_t kTimSmcrEncoder3 = 0x3u;  ///< SMS = 0011: count on both TI1 and TI2 edges
+
+// ---- LPTIM1 (§38.7): encoder mode values in phalanx/mcu/stm32g4_encoder.h ----
+constexpr uint32_t kLptimIsr = 0x00, kLptimCfgr = 0x0C, kLptimCr = 0x10, kLptimArr = 0x18, kLptimCnt = 0x1C;
 
 // ---- ADC (§21.7) ----
 constexpr uint32_t kAdcIsr = 0x00, kAdcCr = 0x08, kAdcCfgr = 0x0C, kAdcSmpr1 = 0x14, kAdcSmpr2 = 0x18;

@@ -41,7 +41,30 @@ inline AppType& constructApp(StaticObject<AppType>& s) {
   return s.emplace(apps::glove5DefaultCalibration(), apps::glove5DefaultConfig());
 }
 }  // namespace phalanx::fw_mcu
-// #elif defined(PHALANX_MCU_APP_SEA_FINGER) … one block per app (sea_finger, pantograph) once they exist.
+#elif defined(PHALANX_MCU_APP_SEA_FINGER)
+#include "phalanx/apps/sea_finger.h"
+#include "phalanx/sea/board.h"
+namespace phalanx::fw_mcu {
+using AppType = apps::SeaFingerApp;
+constexpr const char* kAppName = "sea_finger";
+constexpr uint8_t kAppPwmCount = sea::board::kPwmChannelCount;
+constexpr uint8_t kAppAdcCount = sea::board::kAdcChannelCount;
+constexpr uint8_t kAppEncoderCount = sea::board::kEncoderChannelCount;
+inline AppType& constructApp(StaticObject<AppType>& s) {
+  return s.emplace(apps::seaFingerDefaultCalibration(), apps::seaFingerDefaultConfig());
+}
+}  // namespace phalanx::fw_mcu
+#elif defined(PHALANX_MCU_APP_PANTOGRAPH)
+#include "phalanx/apps/pantograph.h"
+#include "phalanx/pen/board.h"
+namespace phalanx::fw_mcu {
+using AppType = apps::PantographApp;
+constexpr const char* kAppName = "pantograph";
+constexpr uint8_t kAppPwmCount = pen::board::kPwmChannelCount;
+constexpr uint8_t kAppAdcCount = pen::board::kAdcChannelCount;
+constexpr uint8_t kAppEncoderCount = pen::board::kEncoderChannelCount;
+inline AppType& constructApp(StaticObject<AppType>& s) { return s.emplace(apps::pantographDefaultConfig()); }
+}  // namespace phalanx::fw_mcu
 #else
 #error "no device app selected: define PHALANX_MCU_APP_<NAME> (see firmware/mcu/CMakeLists.txt)"
 #endif

@@ -1,0 +1,19 @@
+#pragma once
+/// Reads an MCU board's diagnostic parameters (0x0080–0x0089: control-tick statistics, overruns, plant time,
+/// receive overflows; firmware/mcu/include/phalanx/fw_mcu/board_diag.h) through the wire protocol: handshake, then
+/// one ParamGet per parameter. `phalanx mcu-diag --device serial:/dev/pts/N` prints them; tools/mcu/qemu_board.py
+/// bench compares them with the firmware's own STATS line.
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace phalanx::host {
+
+/// Opens the serial device at `path`, handshakes (any device type) and reads every board diagnostic parameter.
+/// Returns a JSON object {device_type, params: {name: value}}; tick figures are in units of params.tick_unit_ns
+/// (QEMU -icount: 2^shift ns = one instruction; 0: raw SysTick counts; STM32: 5.88 ns = one CPU cycle). On failure
+/// an empty object, and `error` says why.
+/// A device without the parameters (firmware-sim, a non-MCU build) answers "unknown parameter": reported as an error.
+nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std::string& error);
+
+}  // namespace phalanx::host

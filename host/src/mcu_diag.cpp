@@ -1,0 +1,88 @@
+#include "phalanx/host/mcu_diag.h"
+
+#include <unistd.h>
+
+#include <random>
+
+#include "../../firmware/mcu/include/phalanx/fw_mcu/board_diag.h"
+#include "phalanx/host/session.h"
+#include "phalanx/linux/fd_link.h"
+#include "phalanx/linux/realtime.h"
+
+namespace phalanx::host {
+
+namespace {
+struct DiagName {
+  uint16_t id;
+  const char* name;
+};
+namespace p = fw_mcu::diag_param;
+constexpr DiagName kDiagNames[] = {
+    {p::kTickCount, "tick_count"},   {p::kTickWorst, "tick_worst"},     {p::kTickMedian, "tick_median"},
+    {p::kTickP99, "tick_p99"},       {p::kTickWorstTimer, "tick_worst_timer_counts"},
+    {p::kTickUnitNs, "tick_unit_ns"}, {p::kOverruns, "overruns"},       {p::kPlantMs, "plant_ms"},
+    {p::kRxOverflows, "rx_overflows"}, {p::kLinkKind, "link_kind"},
+};
+}  // namespace
+
+nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std::string& error) {
+  linux_hal::SerialLink link;
+  if (std::string err = link.open(path, 115200); !err.empty()) {
+    error = err;
+    return {};
+  }
+  HostSession session(link);
+  std::random_device rd;
+  const uint32_t session_id = rd();
+  const uint64_t timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
+  const uint64_t t0 = linux_hal::monotonicNs();
+  uint64_t last_hello = 0;
+  while (session.handshake() == HandshakeResult::kPending) {
+    const uint64_t now = linux_hal::monotonicNs();
+    if (now - t0 > timeout_ns) {
+      error = "device did not answer the handshake on " + path;
+      return {};
+    }
+    // A board whose link is backed up (telemetry nobody read, an emulated UART) may miss the first Hello: repeat
+    // it every 500 ms until answered.
+    if (last_hello == 0 || now - last_hello > 500000000ull) {
+      session.sendHello(session_id, protocol::DeviceType::kAny);
+      link.flush();
+      last_hello = now;
+    }
+    usleep(1000);
+    session.poll(linux_hal::monotonicNs());
+  }
+  if (session.handshake() != HandshakeResult::kOk) {
+    error = session.handshakeError();
+    return {};
+  }
+  nlohmann::json out;
+  out["device_type"] = session.layout()->name;
+  nlohmann::json params = nlohmann::json::object();
+  for (const DiagName& d : kDiagNames) {
+    // Telemetry keeps arriving (1 kHz) while we wait: poll() consumes it; the answer is the next ParamValue with
+    // this id.
+    session.sendParamGet(d.id);
+    link.flush();
+    const uint64_t t1 = linux_hal::monotonicNs();
+    while (!(session.lastParamValid() && session.lastParam().param_id == d.id)) {
+      if (linux_hal::monotonicNs() - t1 > timeout_ns) {
+        error = std::string("no answer to ParamGet ") + d.name;
+        return {};
+      }
+      usleep(500);
+      session.poll(linux_hal::monotonicNs());
+    }
+    if (session.lastParam().status != protocol::ParamStatus::kOk) {
+      error = std::string("device refused ParamGet ") + d.name + " (status " +
+              std::to_string(static_cast<int>(session.lastParam().status)) + "): not an MCU board?";
+      return {};
+    }
+    params[d.name] = session.lastParam().value;
+  }
+  out["params"] = params;
+  return out;
+}
+
+}  // namespace phalanx::host
