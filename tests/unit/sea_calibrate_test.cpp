@@ -60,6 +60,8 @@ TEST(SeaCalibrate, RecoversAPerturbedSubjectFromNoisyDataToTheNoiseFloor) {
   const auto samples = recording(truth, 0.05 * kDeg, 3);
   ASSERT_GT(samples.size(), 1900u);
   CalibrationOptions opt;  // P0, LB, UB of Table 4
+  opt.restarts = 12;       // fewer than the command's 24: the test must fit the sanitizer lane's time budget
+  opt.stride = 2;
   CalibrationResult r;
   ASSERT_EQ(calibrate(samples, opt, r), "");
   const auto pe = ps::toArray(r.estimate);
@@ -73,7 +75,7 @@ TEST(SeaCalibrate, RecoversAPerturbedSubjectFromNoisyDataToTheNoiseFloor) {
   EXPECT_LE(r.final_rms_rad, truth_rms * (1.0 + 1e-6));
   EXPECT_LT(truth_rms, 4 * 0.05 * kDeg);
   EXPECT_GT(r.initial_rms_rad, 10 * r.final_rms_rad);
-  EXPECT_EQ(r.samples_used, samples.size());
+  EXPECT_EQ(r.samples_used, (samples.size() + 1) / 2);
 }
 
 TEST(SeaCalibrate, SmoothingAnOversampledRecordingReducesTheResidualToTheThetaSevenNoise) {
@@ -95,7 +97,8 @@ TEST(SeaCalibrate, SmoothingAnOversampledRecordingReducesTheResidualToTheThetaSe
   }
   CalibrationOptions opt;
   opt.smooth_samples = 25;
-  opt.stride = 2;  // after smoothing, neighbouring rows carry little new information
+  opt.stride = 8;  // after smoothing over 25 rows, neighbouring rows carry little new information
+  opt.restarts = 12;
   CalibrationResult r;
   ASSERT_EQ(calibrate(samples, opt, r), "");
   EXPECT_LT(r.final_rms_rad, 0.05 * kDeg);
@@ -161,6 +164,7 @@ TEST(SeaCalibrate, QuantisedNoiseFreeDataRecoversTheParametersToTwoTenthsOfAMill
   const auto samples = recording(truth, 0.0, 1);
   CalibrationOptions opt;
   opt.stride = 4;
+  opt.restarts = 12;
   CalibrationResult r;
   ASSERT_EQ(calibrate(samples, opt, r), "");
   const auto pe = ps::toArray(r.estimate);

@@ -99,7 +99,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
 
   // Eq 12 from one redundant angle has local minima (docs/sea-model.md §Parameter estimation): a multistart.
   // Phase 1: P0 and `restarts` points of a Halton sequence over the box, each solved on a thinned subset
-  // (≈ 200 samples); phase 2: the best three refined on all samples.
+  // (≈ 200 samples); phase 2: the best two refined on all samples.
   std::vector<std::array<double, ps::kNumSubjectParams>> starts{p0};
   static constexpr unsigned kPrimes[ps::kNumSubjectParams] = {2, 3, 5, 7, 11, 13, 17};
   for (int k = 1; k <= opt.restarts; ++k) {
@@ -119,14 +119,23 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   const std::size_t thin_stride = std::max<std::size_t>(1, samples.size() / 200);
   for (std::size_t i = 0; i < samples.size(); i += thin_stride) thin.push_back(samples[i]);
 
+  // Phase 1 uses forward differences (half the model evaluations; it only has to land in the right basin),
+  // phase 2 central differences.
   auto solve = [&](const std::vector<CalibrationSample>& data, std::array<double, ps::kNumSubjectParams>& p,
-                   int max_iterations, ceres::Solver::Summary& summary) {
+                   int max_iterations, bool central, ceres::Solver::Summary& summary) {
     ceres::Problem problem;
     for (const CalibrationSample& s : data) {
-      problem.AddResidualBlock(
-          new ceres::NumericDiffCostFunction<RedundantResidual, ceres::CENTRAL, 1, ps::kNumSubjectParams>(
-              new RedundantResidual{s, opt.fixed}),
-          nullptr, p.data());
+      if (central) {
+        problem.AddResidualBlock(
+            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::CENTRAL, 1, ps::kNumSubjectParams>(
+                new RedundantResidual{s, opt.fixed}),
+            nullptr, p.data());
+      } else {
+        problem.AddResidualBlock(
+            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 1, ps::kNumSubjectParams>(
+                new RedundantResidual{s, opt.fixed}),
+            nullptr, p.data());
+      }
     }
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
       problem.SetParameterLowerBound(p.data(), static_cast<int>(i), lo[i]);
@@ -147,7 +156,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   std::vector<std::pair<double, std::array<double, ps::kNumSubjectParams>>> phase1;
   for (auto p : starts) {
     ceres::Solver::Summary summary;
-    solve(thin, p, std::min(opt.max_iterations, 50), summary);
+    solve(thin, p, std::min(opt.max_iterations, 40), false, summary);
     phase1.push_back({summary.final_cost, p});
   }
   std::sort(phase1.begin(), phase1.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -155,10 +164,10 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   double best_cost = std::numeric_limits<double>::infinity();
   std::array<double, ps::kNumSubjectParams> best = p0;
   ceres::Solver::Summary best_summary;
-  for (std::size_t k = 0; k < std::min<std::size_t>(3, phase1.size()); ++k) {
+  for (std::size_t k = 0; k < std::min<std::size_t>(2, phase1.size()); ++k) {
     std::array<double, ps::kNumSubjectParams> p = phase1[k].second;
     ceres::Solver::Summary summary;
-    solve(samples, p, opt.max_iterations, summary);
+    solve(samples, p, opt.max_iterations, true, summary);
     if (summary.final_cost < best_cost) {
       best_cost = summary.final_cost;
       best = p;
