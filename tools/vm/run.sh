@@ -32,6 +32,10 @@ KERNEL="$ROOT/build/vm/kroot-$KV/boot/vmlinuz-$KV"
 mkdir -p "$ROOT/build/vm/logs"
 LOG="$ROOT/build/vm/logs/$NAME.log"
 
+# clocksource=tsc: under TCG the kernel distrusts the TSC and falls back to the HPET, whose every read is an
+# emulated MMIO access with no vDSO; QEMU derives the guest TSC from the host clock, so it is safe here. Measured
+# on this machine: a 2 s firmware-sim run took 10.9 s of wall time with the HPET, 7.8 s with the TSC (host loaded).
+# VM_KERNEL_ARGS adds kernel arguments.
 start=$(date +%s.%N)
 set +e
 timeout --foreground -k 5 "$TIMEOUT" qemu-system-x86_64 -accel tcg -cpu max -smp "$SMP" -m 768 \
@@ -39,7 +43,7 @@ timeout --foreground -k 5 "$TIMEOUT" qemu-system-x86_64 -accel tcg -cpu max -smp
   -kernel "$KERNEL" -initrd "$INITRD" \
   -virtfs local,path=/,mount_tag=hostroot,security_model=none,readonly=on \
   -virtfs "local,path=$ROOT,mount_tag=work,security_model=none" \
-  -append "console=ttyS0 quiet loglevel=3 panic=-1 repo=$ROOT test=\"$CMD\"" </dev/null >"$LOG" 2>&1
+  -append "console=ttyS0 quiet loglevel=3 panic=-1 clocksource=tsc tsc=reliable ${VM_KERNEL_ARGS:-} repo=$ROOT test=\"$CMD\"" </dev/null >"$LOG" 2>&1
 qrc=$?
 set -e
 elapsed=$(echo "$(date +%s.%N) - $start" | bc)
