@@ -354,7 +354,9 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     session.sendParamSet(id, value);
     flushLink();
     const uint64_t t0 = linux_hal::monotonicNs();
-    while (!session.lastParamValid() && linux_hal::monotonicNs() - t0 < 200000000ull) {
+    // Same bound as the handshake: a slow link (emulated, loaded) answers late but does answer.
+    while (!session.lastParamValid() &&
+           static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
       usleep(500);
       session.poll(linux_hal::monotonicNs());
     }

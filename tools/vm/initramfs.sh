@@ -12,7 +12,8 @@ OUT="$CACHE/initramfs-$KV.cpio.gz"
 # 9p (host root and repository), CAN (vcan, vxcan pairs, raw sockets), configfs (gadgets, gpio-sim).
 MODULES=(virtio_pci 9pnet_virtio 9p vcan vxcan can-raw can-bcm configfs)
 
-stamp=$(cat "$0" "$ROOT/tools/vm/init" | sha256sum | cut -c1-16)
+EXTRA="$CACHE/extra-modules/$KV"
+stamp=$({ cat "$0" "$ROOT/tools/vm/init" "$EXTRA"/extra.load "$EXTRA"/*.ko 2>/dev/null || true; } | sha256sum | cut -c1-16)
 if [ -f "$OUT" ] && [ "$(cat "$OUT.stamp" 2>/dev/null)" = "$stamp" ]; then
   echo "$OUT"; exit 0
 fi
@@ -35,11 +36,11 @@ for m in "${MODULES[@]}"; do
   done
 done
 # Out-of-tree modules built by the lane (e.g. gpio-sim) are appended by their build script via extra.load.
-if [ -f "$CACHE/extra-modules/$KV/extra.load" ]; then
+if [ -f "$EXTRA/extra.load" ]; then
   while read -r ko; do
-    mkdir -p "$STAGE/lib/modules/$KV/extra"; cp "$CACHE/extra-modules/$KV/$ko" "$STAGE/lib/modules/$KV/extra/"
+    mkdir -p "$STAGE/lib/modules/$KV/extra"; cp "$EXTRA/$ko" "$STAGE/lib/modules/$KV/extra/"
     echo "/lib/modules/$KV/extra/$ko" >> "$STAGE/etc/modules.load"
-  done < "$CACHE/extra-modules/$KV/extra.load"
+  done < "$EXTRA/extra.load"
 fi
 for f in modules.order modules.builtin modules.builtin.modinfo; do cp "$KROOT/lib/modules/$KV/$f" "$STAGE/lib/modules/$KV/"; done
 depmod -b "$STAGE" "$KV"

@@ -216,10 +216,8 @@ void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
 
 void FirmwareCore::receive(uint64_t now_us) {
   if (board_.packets != nullptr) {
-    // Bounded like the byte path: at most as many messages per tick as the byte budget holds full frames.
     uint8_t payload[protocol::kMaxPayload];
-    const size_t max_msgs = config_.max_rx_bytes_per_tick / protocol::kMaxEncodedFrame + 1;
-    for (size_t i = 0; i < max_msgs; ++i) {
+    for (size_t i = 0; i < config_.max_rx_messages_per_tick; ++i) {
       protocol::Frame frame;
       if (!board_.packets->receive(frame.id, payload, frame.len)) break;
       frame.payload = payload;
