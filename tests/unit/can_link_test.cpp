@@ -136,6 +136,13 @@ TEST(CanLink, BusOffStopsSendingUntilTheControllerRestarts) {
   EXPECT_EQ(p.host.stats().bus_off_events, 1u);
   EXPECT_FALSE(sendCommand(p.host, 1));
   EXPECT_EQ(p.host.stats().tx_dropped_bus_off, 1u);
+  // A frame still arriving (queued before the bus went off) does not end bus-off; only the restart does.
+  ParamValue v;
+  uint8_t vp[ParamValue::kWireSize];
+  encodePayload(v, vp);
+  ASSERT_TRUE(p.dev.send(static_cast<uint8_t>(MsgId::kParamValue), vp, sizeof vp));
+  EXPECT_TRUE(p.host.receive(id, payload, len));
+  EXPECT_EQ(p.host.state(), CanBusState::kBusOff);
   injectError(p.fds[1], CAN_ERR_RESTARTED);
   EXPECT_FALSE(p.host.receive(id, payload, len));
   EXPECT_EQ(p.host.state(), CanBusState::kActive);

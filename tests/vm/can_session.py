@@ -12,6 +12,8 @@ Usage (inside the VM, from the repository root): python3 tests/vm/can_session.py
 import json
 import os
 import re
+import socket
+import struct
 import subprocess
 import sys
 import time
@@ -49,6 +51,15 @@ def vcan(name, fd):
 
 def cansend(bus, frame):
     subprocess.run(["cansend", bus, frame], check=True)
+
+
+def send_error_frame(bus, err_bits):
+    """Write one error frame (CAN_ERR_FLAG | err_bits) from this process's own raw socket: starting cansend in
+    the emulated VM can take longer than the interval being tested."""
+    sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    sock.bind((bus,))
+    sock.send(struct.pack("=IB3x8s", 0x20000000 | err_bits, 8, bytes(8)))
+    sock.close()
 
 
 def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_load=False):
@@ -252,14 +263,17 @@ def inject():
 
 def busoff():
     bus = "vcan0"
-    acts = [(1.5, lambda: cansend(bus, "20000040#0000000000000000")),   # CAN_ERR_BUSOFF
-            (2.5, lambda: cansend(bus, "20000100#0000000000000000"))]   # CAN_ERR_RESTARTED
+    acts = [(1.5, lambda: send_error_frame(bus, 0x040)),   # CAN_ERR_BUSOFF
+            (2.5, lambda: send_error_frame(bus, 0x100))]   # CAN_ERR_RESTARTED
     s, fw, dump, _ = session("busoff-fd", bus, "fd", 4, actions=acts)
     c = s["can"]
     print("busoff: host can %s; faults %s; telemetry %d; firmware: bus_off=%d restarts=%d tx_dropped_bus_off=%d" % (
         json.dumps(c), s["faults_seen"], s["telemetry"]["received"], fw_counter(fw, "bus_off"),
         fw_counter(fw, "restarts"), fw_counter(fw, "tx_dropped_bus_off")), flush=True)
     check(c["bus_off_events"] == 1 and c["restarts"] == 1, "host did not see bus-off and restart")
+    log = open(os.path.join(OUT, "busoff-fd.phalanxd.log")).read()
+    check("CAN bus error-active -> bus-off" in log and "CAN bus bus-off -> error-active" in log,
+          "phalanxd did not report bus-off and recovery: %r" % log[-400:])
     # One second of bus-off at the rate the VM kept: most of those cycles' commands must have been refused.
     check(c["tx_dropped_bus_off"] >= 0.5 * s["achieved_hz"],
           "host kept sending while bus-off (%d refused at %.0f Hz)" % (c["tx_dropped_bus_off"], s["achieved_hz"]))

@@ -2,8 +2,8 @@
 # round-trip over vcan, error frames reach sockets that ask for them, and a downed interface refuses writes.
 . tests/vm/lib.sh
 vcan_up vcan9 fd
-timeout 5 candump -n 3 -L vcan9,0:0,#FFFFFFFF > /tmp/dump.txt &
-sleep 0.3
+timeout 30 candump -n 3 -L vcan9,0:0,#FFFFFFFF > /tmp/dump.txt &
+sleep 3  # candump must be listening; starting it in the emulated VM can take seconds
 cansend vcan9 123#DEADBEEF || fail "cansend classic"
 cansend vcan9 456##1$(printf '%0128d' 0) || fail "cansend CAN-FD 64 bytes"
 cansend vcan9 20000040#0000000000000000 || fail "cansend error frame"

@@ -248,10 +248,9 @@ bool CanLink::readFrame(CanFrame& out) {
       continue;
     }
     ++stats_.rx_frames;
-    if (state_ == CanBusState::kBusOff || state_ == CanBusState::kDown) {
-      // Frames arriving again means the bus works (a driver with restart-ms may not report the restart).
-      state_ = CanBusState::kActive;
-    }
+    // Frames arriving means the interface is up again. Bus-off ends only with CAN_ERR_RESTARTED, which the
+    // kernel sends on every restart (manual or restart-ms): a frame still queued from before proves nothing.
+    if (state_ == CanBusState::kDown) state_ = CanBusState::kActive;
     out.fd = n == CANFD_MTU;
     out.extended = (cf.can_id & CAN_EFF_FLAG) != 0;
     out.remote = (cf.can_id & CAN_RTR_FLAG) != 0;
