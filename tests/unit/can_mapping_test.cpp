@@ -7,6 +7,7 @@
 #include <cstring>
 #include <vector>
 
+#include "phalanx/host/can_budget.h"
 #include "phalanx/protocol/can.h"
 #include "phalanx/protocol/codec.h"
 
@@ -365,4 +366,18 @@ TEST(CanBusTime, FdFrameIsShorterWithBitRateSwitch) {
   EXPECT_GT(slow, 600e-6);
   EXPECT_LT(fast, slow / 3.0);
   EXPECT_GT(fast, (34.0 / 1e6) + (549.0 / 5e6));
+}
+
+
+// The classic profiles (sample groups per tick) are chosen so that every device stays within 60 % of a 1 Mbit/s
+// bus at 1 kHz with worst-case bit stuffing (docs/protocol.md "Bus load"); a change to the mapping that breaks
+// the budget fails here.
+TEST(CanBusLoad, ClassicBudgetOfEveryDeviceIsWithinSixtyPercent) {
+  const auto b = phalanx::host::canBudget(1000.0, 1e6);
+  for (const char* dev : {"glove5", "sea_finger", "pantograph"}) {
+    const double load = b["devices"][dev]["classic"]["load_pct_worst_stuffing"].get<double>();
+    EXPECT_LE(load, 60.0) << dev;
+    EXPECT_GT(load, 40.0) << dev;  // and the sample groups do go out (not an empty telemetry)
+    EXPECT_EQ(b["devices"][dev]["classic"]["frames_per_tick"].get<double>(), 4.0) << dev;
+  }
 }
