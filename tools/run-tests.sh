@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up, build and run every Phalanx test: the host build (unit, closed-loop simulation and multi-process
-# integration suites), the sanitizer build (unit suites under ASan + UBSan) and a short fuzz run of the decoder.
+# integration suites), the sanitizer build (unit suites under ASan + UBSan), a short fuzz run of the decoder and
+# the VM lane (Debian's kernel under QEMU: SocketCAN tests against the real kernel, tools/vm/ci.sh).
 # Usage: tools/run-tests.sh            (what CI runs)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,3 +25,6 @@ fi
 
 echo "== MCU firmware: Cortex-M4F cross builds within budget + QEMU mps2-an386 session with phalanxd =="
 tools/mcu/ci.sh
+
+echo "== VM lane: Debian kernel under QEMU (TCG), real SocketCAN =="
+tools/vm/ci.sh

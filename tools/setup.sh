@@ -11,6 +11,7 @@ PACKAGES=(
   libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
   nlohmann-json3-dev libceres-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev
   clang libclang-rt-14-dev valgrind
+  qemu-system-x86 busybox-static kmod cpio can-utils bc
 )
 fi
 

@@ -1,6 +1,7 @@
 // firmware-sim: the firmware core and a device app running on the simulated board in real time, with the
 // device's physical plant inside, talking to the host over a pseudo-terminal exactly as a USB CDC board would.
-// Prints "PTY <path>" on stdout once the link is up; logs events and safe-state entries on stderr.
+// With --can IF it talks over SocketCAN instead (classic CAN or CAN-FD, docs/protocol.md "CAN and CAN-FD").
+// Prints "PTY <path>" (or "CAN <if> node <n> <fd|classic>") on stdout once the link is up; logs events and safe-state entries on stderr.
 #include <signal.h>
 #include <sys/prctl.h>
 #include <unistd.h>
@@ -11,6 +12,7 @@
 
 #include "phalanx/fw/core.h"
 #include "phalanx/fw_sim/sim_device.h"
+#include "phalanx/linux/can_link.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/sim/board.h"
@@ -46,6 +48,13 @@ int main(int argc, char** argv) {
   cli.add_option("--scenario", dev_opt.scenario, "simulated user: still|close-open|grasp|random")
       ->check(CLI::IsMember({"still", "close-open", "grasp", "random"}));
   cli.add_option("--seconds", seconds, "stop after this long (0: until SIGTERM)")->check(CLI::Range(0.0, 86400.0));
+  std::string can_if;
+  unsigned can_node = 1;
+  std::string can_mode = "fd";
+  cli.add_option("--can", can_if, "talk over this SocketCAN interface instead of a pseudo-terminal");
+  cli.add_option("--node", can_node, "CAN node id")->check(CLI::Range(1u, 63u));
+  cli.add_option("--can-mode", can_mode, "fd (one message per CAN-FD frame) | classic (compact 8-byte frames)")
+      ->check(CLI::IsMember({"fd", "classic"}));
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
   try {
     cli.parse(argc, argv);
@@ -64,12 +73,26 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", error.c_str());
     return 2;
   }
-  linux_hal::PtyMaster link;
-  if (const std::string err = link.open(); !err.empty()) {
+  linux_hal::PtyMaster link;  // stays closed when the link is CAN
+  linux_hal::CanLink can;
+  const bool use_can = !can_if.empty();
+  if (use_can) {
+    linux_hal::CanLink::Options o;
+    o.ifname = can_if;
+    o.node = static_cast<uint8_t>(can_node);
+    o.flavor = can_mode == "classic" ? protocol::can::Flavor::kClassic : protocol::can::Flavor::kFd;
+    o.role = protocol::can::Role::kDevice;
+    if (const std::string err = can.open(o); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 3;
+    }
+    can.setDevice(dev->app().layout().type, static_cast<uint16_t>(tick_hz));
+  } else if (const std::string err = link.open(); !err.empty()) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
     return 3;
   }
   sim::SimBoard board(dev->pwmCount(), dev->adcCount(), dev->encoderCount(), link);
+  if (use_can) board.board().packets = &can;
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
   cfg.firmware_build_id = PHALANX_BUILD_ID;
@@ -77,7 +100,11 @@ int main(int argc, char** argv) {
   LogObserver observer;
   core.setObserver(&observer);
 
-  std::printf("PTY %s\n", link.slavePath().c_str());
+  if (use_can) {
+    std::printf("CAN %s node %u %s\n", can_if.c_str(), can_node, can_mode.c_str());
+  } else {
+    std::printf("PTY %s\n", link.slavePath().c_str());
+  }
   std::fflush(stdout);
 
   const uint64_t period_us = 1000000u / tick_hz;
@@ -92,7 +119,11 @@ int main(int argc, char** argv) {
     board.clock().advanceUs(period_us);
     const uint64_t deadline_us = core.commandDeadlineUs();
     core.tick();
-    link.flush();
+    if (use_can) {
+      can.flush();
+    } else {
+      link.flush();
+    }
     // Observe the power stage itself (the simulated H-bridges), not the core's opinion of it.
     const bool active = board.io().pwm_enabled;
     if (was_active && !active) {
@@ -111,5 +142,20 @@ int main(int argc, char** argv) {
                core.counters().ticks, static_cast<unsigned long long>(overruns), core.counters().commands_applied,
                core.counters().commands_rejected, core.counters().cmd_lost, core.rxStats().crc_errors,
                core.rxStats().framing_errors, core.counters().tx_dropped, core.faultBits());
+  if (use_can) {
+    const auto& c = can.stats();
+    const auto& m = can.mapperStats();
+    std::fprintf(stderr,
+                 "firmware-sim: can state=%s tx_frames=%llu tx_would_block=%llu tx_superseded=%llu tx_dropped_full=%llu "
+                 "tx_dropped_bus_off=%llu rx_frames=%llu rx_kernel_dropped=%llu error_frames=%llu bus_off=%llu "
+                 "restarts=%llu rx_bad_id=%u rx_bad_length=%u rx_crc=%u rx_sequence=%u\n",
+                 linux_hal::canBusStateName(can.state()), static_cast<unsigned long long>(c.tx_frames),
+                 static_cast<unsigned long long>(c.tx_would_block), static_cast<unsigned long long>(c.tx_superseded),
+                 static_cast<unsigned long long>(c.tx_dropped_full),
+                 static_cast<unsigned long long>(c.tx_dropped_bus_off), static_cast<unsigned long long>(c.rx_frames),
+                 static_cast<unsigned long long>(c.rx_kernel_dropped), static_cast<unsigned long long>(c.error_frames),
+                 static_cast<unsigned long long>(c.bus_off_events), static_cast<unsigned long long>(c.restarts),
+                 m.bad_id, m.bad_length, m.crc, m.sequence);
+  }
   return 0;
 }

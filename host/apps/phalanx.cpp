@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "common_options.h"
+#include "phalanx/host/can_budget.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/mcu_diag.h"
@@ -36,6 +37,17 @@ int main(int argc, char** argv) {
       ->required();
   mcu_diag->add_option("--timeout", mcu_diag_timeout_s, "seconds to wait for each answer")
       ->check(CLI::Range(0.1, 60.0));
+  CLI::App* can = app.add_subcommand("can", "CAN bus-load budget (computed) and measurement (from candump -L)");
+  can->require_subcommand(1);
+  double can_rate_hz = 1000, can_bps = 1e6, can_data_bps = 5e6;
+  std::string can_log;
+  CLI::App* can_budget = can->add_subcommand("budget", "bus load of every device per tick, from the CAN mapping");
+  can_budget->add_option("--rate-hz", can_rate_hz, "ticks per second")->check(CLI::Range(1.0, 10000.0));
+  can_budget->add_option("--bitrate", can_bps, "nominal bit rate")->check(CLI::Range(1e4, 1e6));
+  CLI::App* can_load = can->add_subcommand("load", "bus load measured from a candump -L log");
+  can_load->add_option("--log", can_log, "candump -L log file")->required();
+  can_load->add_option("--bitrate", can_bps, "nominal bit rate")->check(CLI::Range(1e4, 1e6));
+  can_load->add_option("--data-bitrate", can_data_bps, "CAN-FD data-phase bit rate")->check(CLI::Range(1e4, 1.2e7));
 
   CLI::App* bench = app.add_subcommand("bench", "run a bench scenario and print its metrics");
   bench->require_subcommand(1);
@@ -145,6 +157,12 @@ int main(int argc, char** argv) {
   if (sea_cal->parsed()) {
     return phalanx::host::sea::seaCalibrateCommand(sea_cal_csv, sea_cal_subject, json, sea_cal_stride,
                                                    sea_cal_smooth);
+  }
+  if (can->parsed()) {
+    const nlohmann::json r = can_budget->parsed() ? canBudget(can_rate_hz, can_bps)
+                                                  : canLoadFromLog(can_log, can_bps, can_data_bps);
+    std::cout << r.dump(2) << std::endl;
+    return r.contains("error") ? 1 : 0;
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;

@@ -182,9 +182,44 @@ void installStopSignals() {
   signal(SIGPIPE, SIG_IGN);
 }
 
+std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options& out) {
+  if (spec.rfind("can:", 0) != 0) return "not a CAN device";
+  std::string rest = spec.substr(4);
+  out = linux_hal::CanLink::Options{};
+  out.role = protocol::can::Role::kHost;
+  if (const auto at = rest.find('@'); at != std::string::npos) {
+    const std::string mode = rest.substr(at + 1);
+    if (mode == "fd") {
+      out.flavor = protocol::can::Flavor::kFd;
+    } else if (mode == "classic") {
+      out.flavor = protocol::can::Flavor::kClassic;
+    } else {
+      return "device: '" + spec + "': CAN mode '" + mode + "' is not fd or classic";
+    }
+    rest = rest.substr(0, at);
+  }
+  if (const auto colon = rest.find(':'); colon != std::string::npos) {
+    const std::string node = rest.substr(colon + 1);
+    char* end = nullptr;
+    const long n = std::strtol(node.c_str(), &end, 10);
+    if (node.empty() || *end != 0 || n < protocol::can::kMinNode || n > protocol::can::kMaxNode) {
+      return "device: '" + spec + "': CAN node id '" + node + "' is not in 1..63";
+    }
+    out.node = static_cast<uint8_t>(n);
+    rest = rest.substr(0, colon);
+  }
+  if (rest.empty() || rest.size() >= 16) return "device: '" + spec + "': bad CAN interface name";
+  out.ifname = rest;
+  return {};
+}
+
 std::string validate(const RunOptions& opt) {
-  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0) {
-    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:pantograph or serial:/dev/ttyACM0[@baud])";
+  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0) {
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:pantograph, serial:/dev/ttyACM0[@baud] or can:can0[:node][@fd|@classic])";
+  }
+  if (opt.device.rfind("can:", 0) == 0) {
+    linux_hal::CanLink::Options o;
+    if (std::string err = parseCanDevice(opt.device, o); !err.empty()) return err;
   }
   if (opt.device.rfind("sim:", 0) == 0) {
     const std::string d = opt.device.substr(4);
@@ -220,6 +255,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   summary["device"] = opt.device;
 
   SimChild sim;
+  const bool is_can = opt.device.rfind("can:", 0) == 0;
   std::string path = opt.device.substr(opt.device.find(':') + 1);
   unsigned baud = 0;
   protocol::DeviceType expected = protocol::DeviceType::kAny;
@@ -229,7 +265,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                : name == "sea_finger" ? protocol::DeviceType::kSeaFinger
                                       : protocol::DeviceType::kPantograph;
     if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
-  } else if (const auto at = path.find('@'); at != std::string::npos) {
+  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can) {
     try {
       baud = static_cast<unsigned>(std::stoul(path.substr(at + 1)));
     } catch (...) {
@@ -238,15 +274,30 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     path = path.substr(0, at);
   }
   linux_hal::SerialLink link;
-  if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
-  summary["link"] = path;
+  linux_hal::CanLink can;
+  if (is_can) {
+    linux_hal::CanLink::Options o;
+    parseCanDevice(opt.device, o);  // validated above
+    if (std::string err = can.open(o); !err.empty()) return fail(err, 3);
+    path = o.ifname;
+    summary["link"] = {{"interface", o.ifname},
+                       {"node", o.node},
+                       {"flavor", o.flavor == protocol::can::Flavor::kFd ? "fd" : "classic"}};
+  } else {
+    if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
+    summary["link"] = path;
+  }
+  // One flush for either transport; false on a hard link error.
+  auto flushLink = [&]() { return is_can ? can.flush() : link.flush(); };
+  auto linkError = [&]() { return is_can ? can.error() : link.error(); };
+  linux_hal::CanBusState can_state = can.state();
 
-  HostSession session(link);
+  HostSession session = is_can ? HostSession(static_cast<hal::PacketLink&>(can)) : HostSession(link);
   session.setEventCallback(logEvent, nullptr);
   std::random_device rd;
   const uint32_t session_id = rd();
   session.sendHello(session_id, expected);
-  link.flush();
+  flushLink();
   const uint64_t hs_start = linux_hal::monotonicNs();
   while (session.handshake() == HandshakeResult::kPending) {
     if (static_cast<double>(linux_hal::monotonicNs() - hs_start) > opt.handshake_timeout_s * 1e9) {
@@ -296,14 +347,16 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     if (!opt.clear_faults) return fail("device has latched faults (" + prior + ") and clear_faults is off", 5);
     std::fprintf(stderr, "phalanxd: clearing faults latched before this session: %s\n", prior.c_str());
     session.sendClearFaults();
-    link.flush();
+    flushLink();
   }
 
   for (const auto& [id, value] : controller->startupParams()) {
     session.sendParamSet(id, value);
-    link.flush();
+    flushLink();
     const uint64_t t0 = linux_hal::monotonicNs();
-    while (!session.lastParamValid() && linux_hal::monotonicNs() - t0 < 200000000ull) {
+    // Same bound as the handshake: a slow link (emulated, loaded) answers late but does answer.
+    while (!session.lastParamValid() &&
+           static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
       usleep(500);
       session.poll(linux_hal::monotonicNs());
     }
@@ -356,8 +409,13 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       for (auto& s : cmd.setpoint) s = 0.0f;
     }
     session.sendCommand(cmd, linux_hal::monotonicNs());
-    if (!link.flush()) {
-      summary["link_error"] = link.error();
+    if (is_can && can.state() != can_state) {
+      std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(can_state),
+                   linux_hal::canBusStateName(can.state()), t_s);
+      can_state = can.state();
+    }
+    if (!flushLink()) {
+      summary["link_error"] = linkError();
       break;
     }
     recorder.row(t_s, tel, cmd);
@@ -377,7 +435,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   for (auto& s : cmd.setpoint) s = 0.0f;
   for (int i = 0; i < 3; ++i) {
     session.sendCommand(cmd, linux_hal::monotonicNs());
-    link.flush();
+    flushLink();
     usleep(2000);
   }
   session.poll(linux_hal::monotonicNs());
@@ -405,6 +463,25 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                {"unknown_id", s.host_rx.unknown_id},
                                {"bad_length", s.host_rx.bad_length}};
   summary["faults_seen"] = faultList(faults_seen);
+  if (is_can) {
+    const auto& c = can.stats();
+    const auto& m = can.mapperStats();
+    summary["can"] = {{"state", linux_hal::canBusStateName(can.state())},
+                      {"tx_frames", c.tx_frames},
+                      {"tx_would_block", c.tx_would_block},
+                      {"tx_superseded", c.tx_superseded},
+                      {"tx_dropped_queue_full", c.tx_dropped_full},
+                      {"tx_dropped_bus_off", c.tx_dropped_bus_off},
+                      {"tx_not_representable", c.tx_not_representable},
+                      {"tx_link_down", c.tx_link_down},
+                      {"rx_frames", c.rx_frames},
+                      {"rx_kernel_dropped", c.rx_kernel_dropped},
+                      {"error_frames", c.error_frames},
+                      {"bus_off_events", c.bus_off_events},
+                      {"restarts", c.restarts},
+                      {"rx_rejected", {{"bad_id", m.bad_id}, {"bad_length", m.bad_length}, {"crc", m.crc},
+                                        {"sequence", m.sequence}}}};
+  }
   summary["final_mode"] = modeName(session.latest().mode);
   if (!opt.record_csv.empty()) summary["recording"] = {{"path", opt.record_csv}, {"rows", recorder.rows()}};
   nlohmann::json extra = nlohmann::json::object();

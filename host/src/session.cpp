@@ -4,14 +4,20 @@ namespace phalanx::host {
 
 using namespace protocol;
 
-HostSession::HostSession(hal::ByteLink& link) : link_(link) {}
+HostSession::HostSession(hal::ByteLink& link) : link_(&link) {}
+HostSession::HostSession(hal::PacketLink& packets) : packets_(&packets) {}
 
 template <class Msg>
-static bool sendMsg(hal::ByteLink& link, const Msg& m) {
+bool HostSession::sendMsg(const Msg& m) {
+  if (packets_ != nullptr) {
+    uint8_t payload[Msg::kWireSize];
+    encodePayload(m, payload);
+    return packets_->send(static_cast<uint8_t>(Msg::kId), payload, Msg::kWireSize);
+  }
   uint8_t frame[kMaxEncodedFrame];
   const size_t n = encodeFrame(m, frame);
-  if (link.writeSpace() < n) return false;
-  return link.write(frame, n) == n;
+  if (link_->writeSpace() < n) return false;
+  return link_->write(frame, n) == n;
 }
 
 void HostSession::sendHello(uint32_t session_id, DeviceType expected) {
@@ -20,7 +26,7 @@ void HostSession::sendHello(uint32_t session_id, DeviceType expected) {
   h.session_id = session_id;
   session_id_ = session_id;
   handshake_ = HandshakeResult::kPending;
-  sendMsg(link_, h);
+  sendMsg(h);
 }
 
 bool HostSession::sendCommand(Command& cmd, uint64_t now_ns) {
@@ -28,7 +34,7 @@ bool HostSession::sendCommand(Command& cmd, uint64_t now_ns) {
   const size_t slot = cmd.seq & (kSendLog - 1);
   sent_ns_[slot] = now_ns;
   sent_seq_[slot] = cmd.seq;
-  if (!sendMsg(link_, cmd)) {
+  if (!sendMsg(cmd)) {
     ++stats_.commands_unsent;
     return false;
   }
@@ -39,14 +45,14 @@ bool HostSession::sendCommand(Command& cmd, uint64_t now_ns) {
 void HostSession::sendClearFaults() {
   ClearFaults c;
   c.session_id = session_id_;
-  sendMsg(link_, c);
+  sendMsg(c);
 }
 
 bool HostSession::sendParamGet(uint16_t id) {
   ParamGet g;
   g.param_id = id;
   param_valid_ = false;
-  return sendMsg(link_, g);
+  return sendMsg(g);
 }
 
 bool HostSession::sendParamSet(uint16_t id, float value) {
@@ -54,14 +60,31 @@ bool HostSession::sendParamSet(uint16_t id, float value) {
   set.param_id = id;
   set.value = value;
   param_valid_ = false;
-  return sendMsg(link_, set);
+  return sendMsg(set);
 }
 
 int HostSession::poll(uint64_t now_ns) {
   int telemetry = 0;
+  if (packets_ != nullptr) {
+    uint8_t payload[kMaxPayload];
+    Frame f;
+    f.payload = payload;
+    // Bounded per poll: a flooded bus cannot hold the control loop.
+    for (int i = 0; i < 256 && packets_->receive(f.id, payload, f.len); ++i) {
+      ++stats_.host_rx.frames_ok;
+      if (f.id == static_cast<uint8_t>(MsgId::kTelemetry)) ++telemetry;
+      handleFrame(f, now_ns);
+    }
+    const hal::PacketRxStats r = packets_->rxStats();
+    stats_.host_rx.crc_errors = r.crc;
+    stats_.host_rx.framing_errors = r.sequence;
+    stats_.host_rx.unknown_id = r.bad_id;
+    stats_.host_rx.bad_length = r.bad_length;
+    return telemetry;
+  }
   uint8_t buf[512];
   for (;;) {
-    const size_t n = link_.read(buf, sizeof buf);
+    const size_t n = link_->read(buf, sizeof buf);
     if (n == 0) break;
     for (size_t i = 0; i < n; ++i) {
       if (!decoder_.push(buf[i])) continue;

@@ -27,6 +27,12 @@ FirmwareCore::FirmwareCore(hal::Board& board, DeviceApp& app, const CoreConfig& 
 
 template <class Msg>
 void FirmwareCore::send(const Msg& msg) {
+  if (board_.packets != nullptr) {
+    uint8_t payload[Msg::kWireSize];
+    protocol::encodePayload(msg, payload);
+    if (!board_.packets->send(static_cast<uint8_t>(Msg::kId), payload, Msg::kWireSize)) ++counters_.tx_dropped;
+    return;
+  }
   uint8_t frame[protocol::kMaxEncodedFrame];
   const size_t n = protocol::encodeFrame(msg, frame);
   if (board_.link->writeSpace() < n) {
@@ -209,6 +215,16 @@ void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
 }
 
 void FirmwareCore::receive(uint64_t now_us) {
+  if (board_.packets != nullptr) {
+    uint8_t payload[protocol::kMaxPayload];
+    for (size_t i = 0; i < config_.max_rx_messages_per_tick; ++i) {
+      protocol::Frame frame;
+      if (!board_.packets->receive(frame.id, payload, frame.len)) break;
+      frame.payload = payload;
+      handleFrame(frame, now_us);
+    }
+    return;
+  }
   uint8_t buf[64];
   size_t budget = config_.max_rx_bytes_per_tick;
   while (budget > 0) {
@@ -234,7 +250,8 @@ void FirmwareCore::sendTelemetry(uint64_t now_us) {
                                        (outputs_active_ ? protocol::state::kOutputsActive : 0));
   if (board_.gpio != nullptr && board_.gpio->estopPressed()) t.state_flags |= protocol::state::kEstopPressed;
   t.cmd_lost = static_cast<uint8_t>(counters_.cmd_lost);
-  t.rx_errors = static_cast<uint8_t>(decoder_.stats().total_rejected() + counters_.commands_rejected);
+  const uint32_t transport_rejected = board_.packets != nullptr ? board_.packets->rxStats().total() : 0u;
+  t.rx_errors = static_cast<uint8_t>(decoder_.stats().total_rejected() + transport_rejected + counters_.commands_rejected);
   app_.fillSamples(t.sample);
   send(t);
 }

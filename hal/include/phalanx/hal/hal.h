@@ -57,6 +57,29 @@ class ByteLink {
   virtual size_t writeSpace() const = 0;
 };
 
+/// Counters of frames a packet transport rejected before they became messages.
+struct PacketRxStats {
+  uint32_t bad_id = 0;      ///< unknown identifier/function, other node, wrong direction
+  uint32_t bad_length = 0;  ///< length or format differs from the mapping
+  uint32_t crc = 0;         ///< end-to-end CRC failed
+  uint32_t sequence = 0;    ///< a multi-frame message out of order or incomplete
+  uint32_t total() const { return bad_id + bad_length + crc + sequence; }
+};
+
+/// Message-per-packet link (CAN-FD, classic CAN through its compact mapping, USB bulk): the transport maps and
+/// checks whole protocol messages, the endpoint never sees framing. Non-blocking, like ByteLink.
+class PacketLink {
+ public:
+  virtual ~PacketLink() = default;
+  /// Send one protocol message (payload of exactly its wire size). Never blocks; false when the transport cannot
+  /// take all of it now (queue full, link down, not representable): then nothing of it is sent.
+  virtual bool send(uint8_t msg_id, const uint8_t* payload, size_t len) = 0;
+  /// Take the next received message that passed the transport's checks; payload must hold 64 bytes.
+  /// Returns false when none is pending.
+  virtual bool receive(uint8_t& msg_id, uint8_t* payload, size_t& len) = 0;
+  virtual PacketRxStats rxStats() const = 0;
+};
+
 /// The hardware one device app needs, gathered so the core can hand it over in one piece.
 struct Board {
   Clock* clock = nullptr;
@@ -65,6 +88,7 @@ struct Board {
   Encoders* encoders = nullptr;
   Gpio* gpio = nullptr;
   ByteLink* link = nullptr;
+  PacketLink* packets = nullptr;  ///< when set, the protocol runs over this instead of link
 };
 
 }  // namespace phalanx::hal

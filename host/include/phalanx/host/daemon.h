@@ -6,10 +6,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "phalanx/linux/can_link.h"
+
 namespace phalanx::host {
 
 struct RunOptions {
-  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph> or serial:<path>[@baud]
+  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud] or can:<if>[:node][@fd|@classic]
   double seconds = 0.0;               ///< 0: until SIGINT/SIGTERM
   unsigned rate_hz = 1000;
   unsigned command_timeout_ms = 20;   ///< each command's own timeout: the device goes safe if the next is late
@@ -26,6 +28,10 @@ struct RunOptions {
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   double handshake_timeout_s = 2.0;
 };
+
+/// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).
+/// Returns an empty string or what is wrong with it.
+std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options& out);
 
 /// Validate options; returns an empty string or the first problem, naming the option.
 std::string validate(const RunOptions& opt);

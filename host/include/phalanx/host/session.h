@@ -41,6 +41,8 @@ enum class HandshakeResult { kPending, kOk, kVersionMismatch, kDeviceMismatch, k
 class HostSession {
  public:
   explicit HostSession(hal::ByteLink& link);
+  /// The same session over a message-per-packet transport (CAN-FD, classic CAN).
+  explicit HostSession(hal::PacketLink& packets);
 
   void sendHello(uint32_t session_id, protocol::DeviceType expected);
   /// Assigns the next sequence number, records the send time for the round-trip measurement, sends.
@@ -73,8 +75,11 @@ class HostSession {
 
  private:
   void handleFrame(const protocol::Frame& frame, uint64_t now_ns);
+  template <class Msg>
+  bool sendMsg(const Msg& m);
 
-  hal::ByteLink& link_;
+  hal::ByteLink* link_ = nullptr;
+  hal::PacketLink* packets_ = nullptr;
   protocol::StreamDecoder decoder_;
   HandshakeResult handshake_ = HandshakeResult::kPending;
   uint32_t session_id_ = 0;

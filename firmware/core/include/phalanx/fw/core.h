@@ -15,6 +15,9 @@ struct CoreConfig {
   uint32_t firmware_build_id = 0;
   /// Bytes read from the link per tick at most (bounds the tick's work; 4 full frames).
   uint16_t max_rx_bytes_per_tick = 4 * static_cast<uint16_t>(protocol::kMaxEncodedFrame);
+  /// Messages taken from a packet link (CAN) per tick at most. Generous so that a backlog (host faster than the
+  /// device for a while) drains in one tick and the newest command applies, not one queued long ago.
+  uint16_t max_rx_messages_per_tick = 32;
 };
 
 /// Observer for what the core does (logging in firmware-sim, assertions in tests). Optional.
