@@ -8,6 +8,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/protocol/messages.h"
+#include "therapy_cli.h"
 
 int main(int argc, char** argv) {
   using namespace phalanx::host;
@@ -38,11 +39,15 @@ int main(int argc, char** argv) {
   CLI::App* grasp = bench->add_subcommand("glove-grasp", "grasp the rigid virtual ball (000 eq 1)");
   add_bench_options(grasp);
 
+  phalanx::host::cli::TherapyCli therapy_cli;
+  phalanx::host::cli::addTherapyCommands(app, therapy_cli);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (const int rc = phalanx::host::cli::runTherapyCommands(therapy_cli); rc >= 0) return rc;
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
     const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
