@@ -76,11 +76,14 @@ void GloveTherapyDevice::observe(const TelemetryFrame& tel, Observation& out) {
                                               static_cast<double>(tel.value[3 * f + 2])};
     const auto status = phalanx::glove::computeFromAlpha(models_[f], alpha, data_[f]);
     const bool ok = phalanx::glove::isUsable(status);
+    // kReachClamped (α a little beyond the finger's reach: sensor error at full extension/flexion) gives a
+    // usable but clamped θ: fine for control, not a measurement of the joint (range of motion, range limits).
+    const bool exact = status == phalanx::glove::Status::kOk;
     double q = 0.0;
     for (std::size_t j = 0; j < 3; ++j) {
       const double flex = ok ? -data_[f].theta_rad[j] : 0.0;  // θ is flexion-negative (kinematics.h)
       out.flexion_rad[3 * f + j] = flex;
-      out.joint_valid[3 * f + j] = ok;
+      out.joint_valid[3 * f + j] = exact;
       q += flex;
     }
     out.q_rad[f] = q;

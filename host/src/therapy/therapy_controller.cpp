@@ -7,6 +7,9 @@ namespace {
 /// Low-pass on the channel-coordinate differences that give q̇: 10 Hz passes voluntary finger motion (≤ 2 Hz
 /// close/open in 001 §7.2) and removes most of the Hall-sensor noise differentiated at 1 kHz.
 constexpr double kRateCutoffHz = 10.0;
+/// Range of motion is the min/max of the joint angle low-passed at 5 Hz: the min/max of the raw 1 kHz signal picks
+/// the tails of the sensor noise (measured in the sim: the extended PIP read 4.5° beyond the truth; ≤ 1.6° filtered).
+constexpr double kRomCutoffHz = 5.0;
 /// Status publication period: 50 Hz is smooth for a dashboard and costs nothing in the loop.
 constexpr double kStatusPeriodS = 0.02;
 }  // namespace
@@ -135,18 +138,20 @@ void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_
     max_abs_command_ = std::fmax(max_abs_command_, std::fabs(out_.effort[c]));
   }
 
+  const double a_rom = dt_s / (dt_s + 1.0 / (2.0 * M_PI * kRomCutoffHz));
   const bool assessing = active_ && active_->id() == ExerciseId::kAssessment;
-  if (assessing) {
-    for (std::size_t j = 0; j < device_->jointCount(); ++j) {
-      if (!obs_.joint_valid[j]) continue;
-      if (!rom_seen_) {
-        rom_min_[j] = rom_max_[j] = obs_.flexion_rad[j];
-      } else {
-        rom_min_[j] = std::fmin(rom_min_[j], obs_.flexion_rad[j]);
-        rom_max_[j] = std::fmax(rom_max_[j], obs_.flexion_rad[j]);
-      }
+  for (std::size_t j = 0; j < device_->jointCount(); ++j) {
+    if (!obs_.joint_valid[j]) continue;
+    flex_lp_[j] = flex_lp_valid_[j] ? flex_lp_[j] + a_rom * (obs_.flexion_rad[j] - flex_lp_[j]) : obs_.flexion_rad[j];
+    flex_lp_valid_[j] = true;
+    if (!assessing) continue;
+    if (!rom_seen_[j]) {
+      rom_min_[j] = rom_max_[j] = flex_lp_[j];
+      rom_seen_[j] = true;
+    } else {
+      rom_min_[j] = std::fmin(rom_min_[j], flex_lp_[j]);
+      rom_max_[j] = std::fmax(rom_max_[j], flex_lp_[j]);
     }
-    rom_seen_ = true;
   }
 
   if (t_s >= next_status_s_ && status_mutex_.try_lock()) {

@@ -93,7 +93,9 @@ class TherapyController : public Controller {
   uint64_t limited_cycles_ = 0;
   std::array<double, kMaxJoints> rom_min_{};
   std::array<double, kMaxJoints> rom_max_{};
-  bool rom_seen_ = false;
+  std::array<bool, kMaxJoints> rom_seen_{};
+  std::array<double, kMaxJoints> flex_lp_{};
+  std::array<bool, kMaxJoints> flex_lp_valid_{};
   double next_status_s_ = 0.0;
   double max_abs_command_ = 0.0;
 };
