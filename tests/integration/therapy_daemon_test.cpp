@@ -286,3 +286,63 @@ TEST(ControlApi, OnlyTheSocketFileGivesAccessAndNothingListensOnANetwork) {
   waitpid(child, &status, 0);
   EXPECT_EQ(WEXITSTATUS(status), 0) << "an unauthorised user reached the API (1) or failed otherwise (2/3)";
 }
+
+namespace {
+nlohmann::json reportMetrics(const std::string& html) {
+  const std::string open = "<script type='application/json' id='metrics'>";
+  const auto a = html.find(open);
+  const auto b = html.find("</script>", a);
+  if (a == std::string::npos || b == std::string::npos) return nullptr;
+  std::string text = html.substr(a + open.size(), b - a - open.size());
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+    for (size_t p; (p = text.find(from)) != std::string::npos;) text.replace(p, from.size(), to);
+  }
+  return nlohmann::json::parse(text, nullptr, false);
+}
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+TEST(SessionReport, WrittenAtSessionEndFromASimulatedSessionAndComparedWithThePreviousOne) {
+  const std::string dir = tempDir();
+  for (int run = 0; run < 2; ++run) {
+    const std::string stem = dir + "/s" + std::to_string(run);
+    std::vector<std::string> args = {binPath("phalanxd"), "--device", "sim:glove5", "--scenario", "close-open",
+                                     "--no-realtime", "--seconds", "3", "--seed", std::to_string(run + 1),
+                                     "--session-record", stem + ".phrec", "--exercise", "assessment",
+                                     "--report", stem + ".html", "--json"};
+    if (run == 1) {
+      args.push_back("--previous-record");
+      args.push_back(dir + "/s0.phrec");
+    }
+    Process d(args);
+    ASSERT_EQ(d.wait(30000), 0) << d.stderrText();
+    const auto summary = nlohmann::json::parse(d.stdoutText(), nullptr, false);
+    ASSERT_FALSE(summary.is_discarded()) << d.stdoutText();
+    EXPECT_EQ(summary["report"]["path"], stem + ".html") << summary.dump(2);
+  }
+  const std::string html = slurp(dir + "/s1.html");
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  EXPECT_EQ(html.find("http://"), html.find("http://www.w3.org/2000/svg")) << "no external assets (no CDN)";
+  EXPECT_EQ(html.find("https://"), std::string::npos) << "no external assets (no CDN)";
+  EXPECT_EQ(html.find("<script src"), std::string::npos);
+  EXPECT_NE(html.find("Grey bars: previous session"), std::string::npos);
+  const nlohmann::json m = reportMetrics(html);
+  ASSERT_TRUE(m.is_object());
+  EXPECT_EQ(m["rom_source"], "assessment");
+  ASSERT_EQ(m["rom_deg"].size(), 15u);
+  // The simulated close/open maneuver moves every index joint through tens of degrees.
+  for (const char* j : {"index_mcp", "index_pip", "index_dip"}) {
+    const double range = m["rom_deg"][j][1].get<double>() - m["rom_deg"][j][0].get<double>();
+    EXPECT_GT(range, 40.0) << j;
+    EXPECT_LT(range, 130.0) << j;
+  }
+  ASSERT_EQ(m["transparency"].size(), 5u);
+  EXPECT_LT(m["transparency"]["index"]["interaction_rms"].get<double>(), 0.2);
+  EXPECT_GT(m["duration_s"].get<double>(), 2.5);
+  EXPECT_TRUE(m["complete"].get<bool>());
+  std::system(("rm -rf " + dir).c_str());
+}

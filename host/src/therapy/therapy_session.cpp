@@ -91,6 +91,9 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
     h["joints"] = joints;
     h["effort_unit"] = dev->effortUnit();
   }
+  nlohmann::json kin = nlohmann::json::object();
+  for (const auto& [ch, l] : kp.segment_lengths_mm) kin[ch] = {{"p1_mm", l[0]}, {"p2_mm", l[1]}, {"p3_mm", l[2]}};
+  h["kinematics"] = kin;
   if (loop_ctl_ != nullptr) {
     h["aux"] = loop_ctl_->auxNames();
     h["limits"] = limitsJson();
