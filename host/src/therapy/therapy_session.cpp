@@ -108,6 +108,7 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
 }
 
 void TherapySession::onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
+  last_t_s_ = t_s;
   if (!writer_.isOpen()) return;
   record::CycleRecord r;
   r.host_ns = wake_ns;
@@ -136,7 +137,7 @@ void TherapySession::onDeviceEvent(const protocol::Event& event) {
   if (!writer_.isOpen()) return;
   record::LoopEvent e;
   e.kind = record::LoopEvent::Kind::kDeviceEvent;
-  e.t_s = -1.0;  // device events carry the device clock in value/detail; the record orders them by position
+  e.t_s = last_t_s_;  // events arrive in the cycle's poll, before that cycle's onCycle: the previous cycle's time
   e.code = static_cast<uint16_t>(event.code);
   e.channel = event.channel;
   e.detail = event.detail;

@@ -72,7 +72,7 @@ class TherapySession : public SessionHooks {
   std::atomic<bool> stop_{false};
   std::atomic<bool> clear_faults_{false};
   std::atomic<int> phase_{0};
-  uint64_t first_host_ns_ = 0;
+  double last_t_s_ = 0.0;  // session thread only
   mutable std::mutex mutex_;  // guards end_summary_, finished_
   nlohmann::json end_summary_;
   bool finished_ = false;
