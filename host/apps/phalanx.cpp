@@ -14,6 +14,7 @@
 #include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/protocol/messages.h"
+#include "therapy_cli.h"
 
 int main(int argc, char** argv) {
   using namespace phalanx::host;
@@ -127,6 +128,8 @@ int main(int argc, char** argv) {
   pen_wall->add_option("--seed", pen_wall_opt.seed, "simulation seed");
   pen_wall->add_flag("--no-noise", pen_wall_no_noise, "simulated sensors without noise");
   pen_wall->add_flag("--json", json, "JSON output (the default; kept for scripts)");
+  phalanx::host::cli::TherapyCli therapy_cli;
+  phalanx::host::cli::addTherapyCommands(app, therapy_cli);
 
   try {
     app.parse(argc, argv);
@@ -164,6 +167,7 @@ int main(int argc, char** argv) {
     std::cout << r.dump(2) << std::endl;
     return r.contains("error") ? 1 : 0;
   }
+  if (const int rc = phalanx::host::cli::runTherapyCommands(therapy_cli); rc >= 0) return rc;
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
     const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)

@@ -1,9 +1,12 @@
-// phalanxd: the Phalanx host daemon. Runs one device session at the configured rate until stopped.
+// phalanxd: the Phalanx host daemon. Runs one device session at the configured rate until stopped, or, with
+// --api, serves the therapist's control API on a UNIX socket and runs the sessions it is asked to start.
 #include <cstdio>
 #include <iostream>
 
 #include "common_options.h"
+#include "phalanx/host/api/server.h"
 #include "phalanx/host/config.h"
+#include "phalanx/host/therapy/therapy_session.h"
 
 int main(int argc, char** argv) {
   using namespace phalanx::host;
@@ -13,6 +16,21 @@ int main(int argc, char** argv) {
   bool no_rt = false;
   bool json = false;
   addRunOptions(app, opt, config_path, no_rt, json);
+  therapy::TherapySessionConfig tcfg;
+  std::string profile_path;
+  std::string exercise_params;
+  api::ServerConfig api_cfg;
+  app.add_option("--session-record", tcfg.record_path,
+                 "crash-safe session record (.phrec) of every cycle, setpoint and event (must not exist)");
+  app.add_option("--profile", profile_path, "patient profile (YAML); its limits are enforced")->check(CLI::ExistingFile);
+  app.add_option("--exercise", tcfg.exercise,
+                 "therapy exercise: idle|assessment|resistance|assistance|record-pattern|playback|grasp");
+  app.add_option("--exercise-params", exercise_params, "exercise parameters as a JSON object");
+  app.add_option("--report", tcfg.report_path, "HTML report written at session end (needs --session-record)");
+  app.add_option("--previous-record", tcfg.previous_record, "previous session's record, for the report's comparison");
+  app.add_option("--api", api_cfg.socket_path, "serve the control API on this UNIX socket (docs/api.md)");
+  app.add_option("--records-dir", api_cfg.records_dir, "API mode: directory for session records and reports");
+  app.add_option("--profiles-dir", api_cfg.profiles_dir, "API mode: directory of patient profiles");
   // Parse twice: first to find --config, then apply the file, then let the command line override it.
   try {
     app.parse(argc, argv);
@@ -30,8 +48,40 @@ int main(int argc, char** argv) {
   }
   if (no_rt) opt.realtime = false;
   installStopSignals();
+  if (!api_cfg.socket_path.empty()) {
+    api_cfg.defaults = opt;
+    return api::serve(api_cfg);
+  }
+  if (!profile_path.empty()) {
+    if (const std::string err = therapy::loadProfileFile(profile_path, tcfg.profile); !err.empty()) {
+      std::fprintf(stderr, "phalanxd: error: profile refused: %s\n", err.c_str());
+      return 2;
+    }
+    tcfg.have_profile = true;
+  }
+  if (!exercise_params.empty()) {
+    tcfg.exercise_params = nlohmann::json::parse(exercise_params, nullptr, false);
+    if (tcfg.exercise_params.is_discarded() || !tcfg.exercise_params.is_object()) {
+      std::fprintf(stderr, "phalanxd: error: --exercise-params: not a JSON object\n");
+      return 2;
+    }
+  }
+  if (!tcfg.report_path.empty() && tcfg.record_path.empty()) {
+    std::fprintf(stderr, "phalanxd: error: --report needs --session-record\n");
+    return 2;
+  }
+  if (tcfg.have_profile && tcfg.exercise.empty()) tcfg.exercise = "idle";  // profile limits need the therapy layer
   nlohmann::json summary;
-  const int rc = runSession(opt, summary);
+  int rc = 0;
+  if (tcfg.record_path.empty() && tcfg.exercise.empty()) {
+    rc = runSession(opt, summary);
+  } else {
+    therapy::TherapySession session(tcfg);
+    opt.hooks = &session;
+    rc = runSession(opt, summary);
+    session.finish(summary);
+    summary = session.endSummary();
+  }
   printSummary(summary, json);
   return rc;
 }

@@ -143,7 +143,8 @@ nlohmann::json histogramJson(const Histogram& h) {
           {"p99_us", h.percentile(0.99)}, {"p999_us", h.percentile(0.999)}, {"max_us", h.max()}};
 }
 
-void logEvent(void*, const protocol::Event& e) {
+void logEvent(void* hooks, const protocol::Event& e) {
+  if (hooks != nullptr) static_cast<SessionHooks*>(hooks)->onDeviceEvent(e);
   switch (e.code) {
     case protocol::EventCode::kFaultLatched:
       std::fprintf(stderr, "phalanxd: device fault latched: %s\n",
@@ -293,7 +294,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   linux_hal::CanBusState can_state = can.state();
 
   HostSession session = is_can ? HostSession(static_cast<hal::PacketLink&>(can)) : HostSession(link);
-  session.setEventCallback(logEvent, nullptr);
+  session.setEventCallback(logEvent, opt.hooks);
   std::random_device rd;
   const uint32_t session_id = rd();
   session.sendHello(session_id, expected);
@@ -316,7 +317,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   summary["protocol_version"] = protocol::kProtocolVersion;
 
   std::string ctl_error;
-  std::unique_ptr<Controller> controller = makeController(layout, opt, ctl_error);
+  std::unique_ptr<Controller> controller;
+  if (opt.hooks != nullptr) controller = opt.hooks->makeController(layout, ctl_error);
+  if (!controller && !ctl_error.empty()) return fail(ctl_error, 2);
+  if (!controller) controller = makeController(layout, opt, ctl_error);
   if (!controller) return fail(ctl_error, 2);
   summary["controller"] = controller->name();
 
@@ -389,7 +393,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   cmd.timeout_ms = static_cast<uint16_t>(opt.command_timeout_ms);
   for (auto& g : cmd.gain_scale_permille) g = 1000;
 
-  while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles)) {
+  if (opt.hooks != nullptr) {
+    if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
+  }
+  while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
+         (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
     const uint64_t wake_ns = linux_hal::monotonicNs();
     jitter_us.add(std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns)) / 1000.0);
@@ -419,6 +427,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       break;
     }
     recorder.row(t_s, tel, cmd);
+    if (opt.hooks != nullptr) {
+      opt.hooks->onCycle(wake_ns, t_s, tel, cmd);
+      if (opt.hooks->takeClearFaultsRequest()) session.sendClearFaults();
+    }
     cycle_us.add(static_cast<double>(linux_hal::monotonicNs() - wake_ns) / 1000.0);
 
     if (opt.live_view && wake_ns >= next_live_ns) {
@@ -487,6 +499,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   nlohmann::json extra = nlohmann::json::object();
   controller->summarize(extra);
   if (!extra.empty()) summary[layout.name] = extra;
+  if (opt.hooks != nullptr) opt.hooks->onEnd(summary);
   return summary.contains("link_error") ? 6 : 0;
 }
 

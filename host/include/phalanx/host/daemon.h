@@ -2,13 +2,45 @@
 /// The host daemon's session runner, shared by `phalanxd` and `phalanx run`: open the device (spawning the
 /// simulated firmware for sim:* devices), handshake, run the 1 kHz loop, record, and summarise.
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "phalanx/linux/can_link.h"
+#include "phalanx/protocol/devices.h"
+#include "phalanx/protocol/messages.h"
 
 namespace phalanx::host {
+
+class Controller;
+struct TelemetryFrame;
+
+/// Optional observer of a session, for the therapy layer (session records, the control API, patient limits):
+/// phalanx::host::therapy implements it. Every call comes from the session's thread.
+class SessionHooks {
+ public:
+  virtual ~SessionHooks() = default;
+  /// After the handshake: the controller to run instead of the default one (nullptr + error: abort the
+  /// session; nullptr + "": keep the default).
+  virtual std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, std::string& error) = 0;
+  /// Just before the first cycle; a non-empty return aborts the session with that error.
+  virtual std::string onStart(const protocol::DeviceLayout& layout, const nlohmann::json& info) {
+    (void)layout;
+    (void)info;
+    return {};
+  }
+  /// Every cycle, after the command was sent (real time: must not block or allocate).
+  virtual void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) = 0;
+  /// Each device event (fault latched, command rejected, …), from the session thread.
+  virtual void onDeviceEvent(const protocol::Event& event) { (void)event; }
+  /// Polled every cycle: true ends the session cleanly (safe command sent, summary written).
+  virtual bool stopRequested() { return false; }
+  /// Polled every cycle: true sends one ClearFaults to the device (the therapist's e-stop reset).
+  virtual bool takeClearFaultsRequest() { return false; }
+  /// After the device was left safe, with the end-of-session summary.
+  virtual void onEnd(const nlohmann::json& summary) { (void)summary; }
+};
 
 struct RunOptions {
   std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud] or can:<if>[:node][@fd|@classic]
@@ -27,6 +59,7 @@ struct RunOptions {
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   double handshake_timeout_s = 2.0;
+  SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
 };
 
 /// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).

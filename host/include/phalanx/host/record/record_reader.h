@@ -1,0 +1,43 @@
+#pragma once
+/// Reads a `.phrec` session record, tolerating a torn tail (the daemon killed mid-write) and damaged records
+/// (skipped by re-synchronising on the next sync word; both are counted, never silently hidden).
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/record/record_format.h"
+
+namespace phalanx::host::record {
+
+struct SessionRecord {
+  nlohmann::json header;                 ///< null when the header record is missing/damaged
+  std::vector<CycleRecord> cycles;
+  std::vector<nlohmann::json> events;
+  nlohmann::json footer;                 ///< null when the session did not end cleanly
+  uint64_t bytes_total = 0;
+  uint64_t bytes_skipped = 0;            ///< damaged or torn bytes (not part of a valid record)
+  uint64_t bad_records = 0;              ///< framing/CRC failures in the middle of the file
+  bool torn_tail = false;                ///< the file ends inside a record
+  bool complete() const { return !footer.is_null(); }
+  /// Index of a channel name in the header's aux list, −1 if absent.
+  int auxIndex(const std::string& name) const;
+};
+
+/// Reads the whole file. Returns "" or an error (cannot open, not a Phalanx record). progress(done, total)
+/// is called every few megabytes when given.
+std::string readRecord(const std::string& path, SessionRecord& out,
+                       const std::function<void(uint64_t, uint64_t)>& progress = nullptr);
+
+/// Same from bytes in memory.
+std::string parseRecord(const std::vector<uint8_t>& data, SessionRecord& out,
+                        const std::function<void(uint64_t, uint64_t)>& progress = nullptr);
+
+/// CSV with one row per cycle: t_s, host_ns, device_time_us, seqs, modes, faults, samples by channel name,
+/// setpoints, aux. Returns "" or an error.
+std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
+                      const std::function<void(uint64_t, uint64_t)>& progress = nullptr);
+
+}  // namespace phalanx::host::record

@@ -1,0 +1,49 @@
+#pragma once
+/// Patient profiles: validated, versioned YAML files (docs/therapy.md has the schema) and the limits they
+/// impose, enforced by the daemon on top of the device's own limits.
+#include <array>
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "phalanx/host/therapy/device.h"
+
+namespace phalanx::host::therapy {
+
+/// Limits enforced every cycle on the exercise's output (never loosened beyond the device's own limits).
+struct PatientLimits {
+  std::size_t channel_count = 0;
+  std::size_t joint_count = 0;
+  std::array<double, kMaxChannels> effort_max{};  ///< |effort| per channel (N or N·m)
+  std::array<double, kMaxJoints> flexion_min_rad{};
+  std::array<double, kMaxJoints> flexion_max_rad{};
+  std::array<std::size_t, kMaxJoints> joint_channel{};
+
+  /// The device's own limits, nothing patient-specific.
+  static PatientLimits deviceDefaults(const TherapyDevice& device);
+  /// Real time: clamp effort[c] in place. |effort| ≤ effort_max; a channel whose joint is beyond its range
+  /// is never pushed further out (flexion beyond max: no flexing effort; below min: no extending effort).
+  /// Non-finite effort becomes 0. Returns a bit per channel that was limited.
+  uint32_t apply(const Observation& obs, std::array<double, kMaxChannels>& effort) const;
+};
+
+struct Profile {
+  int version = 1;
+  std::string patient;      ///< id: letters, digits, '-', '_' (1–64); no names on disk
+  std::string device;       ///< glove5 (sea_finger once its adapter exists)
+  std::string size;         ///< S | M | L (glove shell / exoskeleton link setting)
+  std::string handedness;   ///< left | right
+  KinematicParams kinematics;
+  /// Measured active range of motion per joint (rad, flexion positive) from the last assessment.
+  std::vector<std::pair<std::string, std::pair<double, double>>> rom_rad;
+  PatientLimits limits;     ///< resolved against the device
+  std::string source;       ///< file it came from
+};
+
+/// Parse and validate; nothing in `out` changes unless the whole profile is valid. Returns "" or
+/// "<source>: <key>: <problem>".
+std::string loadProfileText(const std::string& yaml_text, const std::string& source, Profile& out);
+std::string loadProfileFile(const std::string& path, Profile& out);
+
+}  // namespace phalanx::host::therapy

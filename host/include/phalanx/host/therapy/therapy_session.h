@@ -1,0 +1,82 @@
+#pragma once
+/// One therapy session as the daemon runs it: patient profile, exercises, crash-safe record, report. Plugs
+/// into runSession() through SessionHooks; the control API drives it from its own thread.
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/daemon.h"
+#include "phalanx/host/record/record_writer.h"
+#include "phalanx/host/therapy/profile.h"
+#include "phalanx/host/therapy/therapy_controller.h"
+
+namespace phalanx::host::therapy {
+
+struct TherapySessionConfig {
+  std::string record_path;      ///< "" = no record
+  bool have_profile = false;
+  Profile profile;
+  /// "" = keep runSession's default controller (recording only); otherwise the first exercise.
+  std::string exercise;
+  nlohmann::json exercise_params;
+  std::string report_path;      ///< "" = no report; written at session end from the record
+  std::string previous_record;  ///< earlier session of the same patient, for the report's comparison
+  record::WriterConfig writer;
+};
+
+class TherapySession : public SessionHooks {
+ public:
+  explicit TherapySession(TherapySessionConfig config);
+  ~TherapySession() override;
+
+  // SessionHooks (session thread)
+  std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, std::string& error) override;
+  std::string onStart(const protocol::DeviceLayout& layout, const nlohmann::json& info) override;
+  void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) override;
+  void onDeviceEvent(const protocol::Event& event) override;
+  bool stopRequested() override { return stop_.load(std::memory_order_relaxed); }
+  bool takeClearFaultsRequest() override { return clear_faults_.exchange(false, std::memory_order_relaxed); }
+  void onEnd(const nlohmann::json& summary) override;
+
+  // API thread
+  void requestStop() { stop_.store(true); }
+  void requestClearFaults();
+  /// Switch exercise: validated against the device and profile; "" or the reason it was refused.
+  std::string setExercise(const std::string& name, const nlohmann::json& params);
+  /// Tighten limits at run time (never above the profile's/device's): effort_max per channel name.
+  std::string setLimits(const nlohmann::json& request);
+  nlohmann::json limitsJson() const;
+  /// Status: phase, exercise, device state, per-channel/joint values.
+  nlohmann::json statusJson() const;
+  /// Free retired exercises (call periodically off the loop).
+  void housekeeping();
+  /// Called by the owner after runSession returned (any outcome): closes the record and writes the report.
+  void finish(const nlohmann::json& summary);
+  const TherapySessionConfig& config() const { return config_; }
+  /// "starting" | "running" | "ended"
+  std::string phase() const;
+  nlohmann::json endSummary() const;
+
+ private:
+  TherapySessionConfig config_;
+  record::RecordWriter writer_;
+  std::shared_ptr<TherapyController> controller() const;
+  mutable std::mutex ctl_mutex_;                 // guards ctl_ (API threads vs the session thread)
+  std::shared_ptr<TherapyController> ctl_;       // shared with the Controller runSession runs
+  TherapyController* loop_ctl_ = nullptr;        // the session thread's own pointer
+  std::shared_ptr<Pattern> pattern_;
+  const protocol::DeviceLayout* layout_ = nullptr;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> clear_faults_{false};
+  std::atomic<int> phase_{0};
+  double last_t_s_ = 0.0;  // session thread only
+  mutable std::mutex mutex_;  // guards end_summary_, finished_
+  nlohmann::json end_summary_;
+  bool finished_ = false;
+  std::array<float, record::kMaxAux> aux_{};
+};
+
+}  // namespace phalanx::host::therapy

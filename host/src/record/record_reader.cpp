@@ -1,0 +1,168 @@
+#include "phalanx/host/record/record_reader.h"
+
+#include <zlib.h>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+namespace phalanx::host::record {
+namespace {
+
+uint32_t le32(const uint8_t* p) {
+  return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 | static_cast<uint32_t>(p[2]) << 16 |
+         static_cast<uint32_t>(p[3]) << 24;
+}
+
+nlohmann::json parseJson(const uint8_t* p, std::size_t n) {
+  return nlohmann::json::parse(p, p + n, nullptr, /*allow_exceptions=*/false);
+}
+
+}  // namespace
+
+int SessionRecord::auxIndex(const std::string& name) const {
+  if (!header.is_object() || !header.contains("aux") || !header["aux"].is_array()) return -1;
+  for (std::size_t i = 0; i < header["aux"].size(); ++i) {
+    if (header["aux"][i].is_string() && header["aux"][i].get<std::string>() == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::string readRecord(const std::string& path, SessionRecord& out,
+                       const std::function<void(uint64_t, uint64_t)>& progress) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    out = SessionRecord{};
+    return "cannot read " + path;
+  }
+  const std::vector<uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string err = parseRecord(data, out, progress);
+  return err.empty() ? err : path + ": " + err;
+}
+
+std::string parseRecord(const std::vector<uint8_t>& data, SessionRecord& out,
+                        const std::function<void(uint64_t, uint64_t)>& progress) {
+  out = SessionRecord{};
+  out.bytes_total = data.size();
+  if (data.size() < sizeof kFileMagic || std::memcmp(data.data(), kFileMagic, sizeof kFileMagic) != 0) {
+    return "not a Phalanx session record (bad magic)";
+  }
+  std::size_t pos = sizeof kFileMagic;
+  uint64_t next_progress = 0;
+  bool in_bad_run = false;
+  auto skipByte = [&] {
+    ++out.bytes_skipped;
+    if (!in_bad_run) ++out.bad_records;
+    in_bad_run = true;
+    ++pos;
+  };
+  while (pos < data.size()) {
+    if (progress && pos >= next_progress) {
+      progress(pos, data.size());
+      next_progress = pos + (8u << 20);
+    }
+    const std::size_t left = data.size() - pos;
+    if (left < 4) {
+      // The start of a sync word at the very end: the writer stopped inside it.
+      uint8_t sync[4];
+      for (int i = 0; i < 4; ++i) sync[i] = static_cast<uint8_t>(kSync >> (8 * i));
+      if (std::memcmp(&data[pos], sync, left) == 0) {
+        out.torn_tail = true;
+        break;
+      }
+      skipByte();
+      continue;
+    }
+    if (le32(&data[pos]) != kSync) {
+      skipByte();
+      continue;
+    }
+    if (left < kRecordOverhead) {
+      out.torn_tail = true;
+      break;
+    }
+    const std::size_t len = static_cast<std::size_t>(data[pos + 4]) | static_cast<std::size_t>(data[pos + 5]) << 8;
+    if (left < kRecordOverhead + len) {
+      out.torn_tail = true;  // the last record was being written when the writer stopped
+      break;
+    }
+    const uint8_t* body = &data[pos + 4];
+    const uint32_t crc = le32(body + 4 + len);
+    if (static_cast<uint32_t>(crc32(0L, body, static_cast<uInt>(4 + len))) != crc) {
+      skipByte();
+      continue;
+    }
+    in_bad_run = false;
+    const auto type = static_cast<RecordType>(body[2]);
+    const uint8_t* payload = body + 4;
+    switch (type) {
+      case RecordType::kHeader: out.header = parseJson(payload, len); break;
+      case RecordType::kCycle: {
+        CycleRecord c;
+        if (decodeCycle(payload, len, c)) out.cycles.push_back(c);
+        else ++out.bad_records;
+        break;
+      }
+      case RecordType::kEvent: {
+        nlohmann::json e = parseJson(payload, len);
+        if (!e.is_discarded()) out.events.push_back(std::move(e));
+        break;
+      }
+      case RecordType::kFooter: out.footer = parseJson(payload, len); break;
+      default: ++out.bad_records; break;  // a newer record type: skipped, counted
+    }
+    pos += kRecordOverhead + len;
+  }
+  if (out.torn_tail) out.bytes_skipped += data.size() - pos;
+  if (out.header.is_discarded()) out.header = nullptr;
+  if (out.footer.is_discarded()) out.footer = nullptr;
+  if (progress) progress(data.size(), data.size());
+  return {};
+}
+
+std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
+                      const std::function<void(uint64_t, uint64_t)>& progress) {
+  std::FILE* f = std::fopen(csv_path.c_str(), "w");
+  if (f == nullptr) return "cannot write " + csv_path + ": " + std::strerror(errno);
+  std::setvbuf(f, nullptr, _IOFBF, 1 << 20);
+  auto names = [&](const char* key, const char* prefix, std::size_t n) {
+    std::vector<std::string> v;
+    for (std::size_t i = 0; i < n; ++i) {
+      std::string name = std::string(prefix) + std::to_string(i);
+      if (rec.header.is_object() && rec.header.contains(key) && rec.header[key].is_array() &&
+          i < rec.header[key].size() && rec.header[key][i].is_string()) {
+        name = rec.header[key][i].get<std::string>();
+      }
+      v.push_back(name);
+    }
+    return v;
+  };
+  const std::size_t ns = rec.cycles.empty() ? 0 : rec.cycles.front().sample_count;
+  const std::size_t nc = rec.cycles.empty() ? 0 : rec.cycles.front().setpoint_count;
+  const std::size_t na = rec.cycles.empty() ? 0 : rec.cycles.front().aux_count;
+  std::fprintf(f, "t_s,host_ns,device_time_us,tel_seq,cmd_seq_echo,cmd_seq,tel_mode,cmd_mode,fault_bits,state_flags");
+  for (const auto& n : names("samples", "sample", ns)) std::fprintf(f, ",%s", n.c_str());
+  for (const auto& n : names("setpoints", "setpoint", nc)) std::fprintf(f, ",%s", n.c_str());
+  for (const auto& n : names("aux", "aux", na)) std::fprintf(f, ",%s", n.c_str());
+  std::fputc('\n', f);
+  uint64_t i = 0;
+  for (const CycleRecord& c : rec.cycles) {
+    if (progress && (i % 100000) == 0) progress(i, rec.cycles.size());
+    ++i;
+    std::fprintf(f, "%.6f,%llu,%llu,%u,%u,%u,%u,%u,%u,%u", c.t_s, static_cast<unsigned long long>(c.host_ns),
+                 static_cast<unsigned long long>(c.device_time_us), c.tel_seq, c.cmd_seq_echo, c.cmd_seq, c.tel_mode,
+                 c.cmd_mode, c.fault_bits, c.state_flags);
+    // Rows keep the first cycle's column count (a session's layout never changes).
+    for (std::size_t k = 0; k < ns; ++k) std::fprintf(f, ",%.7g", k < c.sample_count ? static_cast<double>(c.sample[k]) : 0.0);
+    for (std::size_t k = 0; k < nc; ++k) std::fprintf(f, ",%.7g", k < c.setpoint_count ? static_cast<double>(c.setpoint[k]) : 0.0);
+    for (std::size_t k = 0; k < na; ++k) std::fprintf(f, ",%.7g", k < c.aux_count ? static_cast<double>(c.aux[k]) : 0.0);
+    std::fputc('\n', f);
+  }
+  if (progress) progress(rec.cycles.size(), rec.cycles.size());
+  const bool ok = std::ferror(f) == 0;
+  if (std::fclose(f) != 0 || !ok) return "writing " + csv_path + " failed";
+  return {};
+}
+
+}  // namespace phalanx::host::record

@@ -1,0 +1,381 @@
+#include "phalanx/host/therapy/exercise.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+namespace phalanx::host::therapy {
+
+const char* exerciseName(ExerciseId id) {
+  switch (id) {
+    case ExerciseId::kIdle: return "idle";
+    case ExerciseId::kAssessment: return "assessment";
+    case ExerciseId::kResistance: return "resistance";
+    case ExerciseId::kAssistance: return "assistance";
+    case ExerciseId::kRecordPattern: return "record-pattern";
+    case ExerciseId::kPlayback: return "playback";
+    case ExerciseId::kGrasp: return "grasp";
+  }
+  return "unknown";
+}
+
+bool Pattern::append(const std::array<double, kMaxChannels>& q) {
+  const std::size_t n = length_.load(std::memory_order_relaxed);
+  if (n >= kMaxSamples) return false;
+  for (std::size_t c = 0; c < channels_; ++c) q_[n * channels_ + c] = q[c];
+  length_.store(n + 1, std::memory_order_release);
+  return true;
+}
+
+double AssistLaw::step(double target_rad, double q_rad, double dt_s) {
+  const double e = target_rad - q_rad;
+  const double outside = std::max(std::fabs(e) - deadband_rad, 0.0);
+  // ġ = −g/τ + β·(|e| − w)⁺ (error-driven increase, forgetting decay), g ∈ [gain_min, 1].
+  gain += dt_s * (-gain / forgetting_s + learning_per_rad_s * outside);
+  gain = std::clamp(gain, gain_min, 1.0);
+  // Needs more flexion (e > 0) → negative effort (assists flexion).
+  return -gain * stiffness * std::copysign(outside, e);
+}
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+struct ParamSpec {
+  double default_value;
+  double lo;
+  double hi;
+  const char* unit;
+};
+
+/// Reads numeric parameters: unknown keys, non-numbers and out-of-range values are errors naming the key.
+bool readParams(const nlohmann::json& in, const std::map<std::string, ParamSpec>& spec,
+                std::map<std::string, double>& out, std::string& error) {
+  if (!in.is_null() && !in.is_object()) {
+    error = "params: expected an object";
+    return false;
+  }
+  for (const auto& [k, s] : spec) out[k] = s.default_value;
+  if (in.is_null()) return true;
+  for (const auto& [k, v] : in.items()) {
+    const auto it = spec.find(k);
+    if (it == spec.end()) {
+      std::string list;
+      for (const auto& [name, s] : spec) list += (list.empty() ? "" : ", ") + name;
+      error = "params." + k + ": unknown parameter (allowed: " + (list.empty() ? "none" : list) + ")";
+      return false;
+    }
+    if (!v.is_number()) {
+      error = "params." + k + ": expected a number";
+      return false;
+    }
+    const double x = v.get<double>();
+    if (!std::isfinite(x) || x < it->second.lo || x > it->second.hi) {
+      std::ostringstream os;
+      os << "params." << k << ": " << x << " is outside [" << it->second.lo << ", " << it->second.hi << "] "
+         << it->second.unit;
+      error = os.str();
+      return false;
+    }
+    out[k] = x;
+  }
+  return true;
+}
+
+/// The channel's close/open extremes: Σ over its joints of the measured ROM (profile) within the limits.
+void channelRange(const TherapyDevice& device, const Profile& profile, std::array<double, kMaxChannels>& open,
+                  std::array<double, kMaxChannels>& close) {
+  open.fill(0.0);
+  close.fill(0.0);
+  for (std::size_t j = 0; j < device.jointCount(); ++j) {
+    double lo = std::max(profile.limits.flexion_min_rad[j], 0.0);
+    double hi = profile.limits.flexion_max_rad[j];
+    for (const auto& [name, r] : profile.rom_rad) {
+      if (name == device.jointName(j)) {
+        lo = std::max(lo, r.first);
+        hi = std::min(hi, r.second);
+      }
+    }
+    if (hi < lo) hi = lo;
+    open[device.jointChannel(j)] += lo;
+    close[device.jointChannel(j)] += hi;
+  }
+}
+
+class Idle : public Exercise {
+ public:
+  ExerciseId id() const override { return ExerciseId::kIdle; }
+  void update(const TelemetryFrame&, const Observation&, double, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSafe;
+  }
+  nlohmann::json params() const override { return nlohmann::json::object(); }
+};
+
+class Assessment : public Exercise {
+ public:
+  ExerciseId id() const override { return ExerciseId::kAssessment; }
+  void update(const TelemetryFrame&, const Observation&, double, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kTransparent;
+  }
+  nlohmann::json params() const override { return nlohmann::json::object(); }
+};
+
+class Resistance : public Exercise {
+ public:
+  Resistance(std::size_t channels, double k, double b, double rest_rad)
+      : channels_(channels), k_(k), b_(b), rest_rad_(rest_rad) {}
+  ExerciseId id() const override { return ExerciseId::kResistance; }
+  void update(const TelemetryFrame&, const Observation& obs, double, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSetpoint;
+    for (std::size_t c = 0; c < channels_; ++c) {
+      if (!obs.channel_valid[c]) continue;  // effort 0
+      // 000 eq 1 on the channel coordinate: spring beyond the rest flexion, damper on any motion.
+      out.effort[c] = k_ * std::max(obs.q_rad[c] - rest_rad_, 0.0) + b_ * obs.q_dot_rad_per_s[c];
+      out.target_q_rad[c] = rest_rad_;
+    }
+  }
+  nlohmann::json params() const override {
+    return {{"stiffness_per_rad", k_}, {"damping_s_per_rad", b_}, {"rest_deg", rest_rad_ / kDeg}};
+  }
+
+ private:
+  std::size_t channels_;
+  double k_, b_, rest_rad_;
+};
+
+/// Tracks a target trajectory with assist-as-needed; the target comes from a cosine close/open cycle
+/// (assistance) or the recorded pattern (playback).
+class Assist : public Exercise {
+ public:
+  Assist(ExerciseId id, std::size_t channels, const AssistLaw& law, nlohmann::json params)
+      : id_(id), channels_(channels), params_(std::move(params)) {
+    law_.fill(law);
+  }
+  ExerciseId id() const override { return id_; }
+  void start(const Observation&, double t_s) override { t0_s_ = t_s; }
+  void update(const TelemetryFrame&, const Observation& obs, double t_s, double dt_s, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSetpoint;
+    for (std::size_t c = 0; c < channels_; ++c) {
+      const double target = targetAt(c, t_s - t0_s_);
+      out.target_q_rad[c] = target;
+      out.assist_gain[c] = law_[c].gain;
+      if (!obs.channel_valid[c]) continue;
+      out.effort[c] = law_[c].step(target, obs.q_rad[c], dt_s);
+      out.assist_gain[c] = law_[c].gain;
+    }
+  }
+  nlohmann::json params() const override { return params_; }
+
+ protected:
+  virtual double targetAt(std::size_t c, double t_s) const = 0;
+
+ private:
+  ExerciseId id_;
+  std::size_t channels_;
+  std::array<AssistLaw, kMaxChannels> law_{};
+  nlohmann::json params_;
+  double t0_s_ = 0.0;
+};
+
+class CosineAssist : public Assist {
+ public:
+  CosineAssist(std::size_t channels, const AssistLaw& law, nlohmann::json params, double period_s,
+               const std::array<double, kMaxChannels>& open, const std::array<double, kMaxChannels>& close)
+      : Assist(ExerciseId::kAssistance, channels, law, std::move(params)), period_s_(period_s), open_(open),
+        close_(close) {}
+
+ protected:
+  double targetAt(std::size_t c, double t_s) const override {
+    // Raised cosine: open at t = 0, closed at T/2 (the 000 §4.3 close/open maneuver shape).
+    const double s = 0.5 * (1.0 - std::cos(2.0 * M_PI * t_s / period_s_));
+    return open_[c] + (close_[c] - open_[c]) * s;
+  }
+
+ private:
+  double period_s_;
+  std::array<double, kMaxChannels> open_, close_;
+};
+
+class PlaybackAssist : public Assist {
+ public:
+  PlaybackAssist(std::size_t channels, const AssistLaw& law, nlohmann::json params, const Pattern& pattern,
+                 double speed)
+      : Assist(ExerciseId::kPlayback, channels, law, std::move(params)), channels_(channels),
+        length_(pattern.length()), speed_(speed), q_(length_ * channels) {
+    for (std::size_t i = 0; i < length_; ++i) {
+      for (std::size_t c = 0; c < channels; ++c) q_[i * channels + c] = pattern.at(i, c);
+    }
+  }
+
+ protected:
+  double targetAt(std::size_t c, double t_s) const override {
+    // The pattern loops; linear interpolation between its 100 Hz samples.
+    const double x = std::fmod(t_s * speed_ * Pattern::kRateHz, static_cast<double>(length_));
+    const auto i = static_cast<std::size_t>(x);
+    const std::size_t k = (i + 1) % length_;
+    const double f = x - static_cast<double>(i);
+    return q_[i * channels_ + c] * (1.0 - f) + q_[k * channels_ + c] * f;
+  }
+
+ private:
+  std::size_t channels_;
+  std::size_t length_;
+  double speed_;
+  std::vector<double> q_;
+};
+
+class RecordPattern : public Exercise {
+ public:
+  explicit RecordPattern(std::shared_ptr<Pattern> pattern) : pattern_(std::move(pattern)) {}
+  ExerciseId id() const override { return ExerciseId::kRecordPattern; }
+  void start(const Observation&, double t_s) override {
+    pattern_->reset();
+    next_s_ = t_s;
+  }
+  void update(const TelemetryFrame&, const Observation& obs, double t_s, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kTransparent;  // the patient (or the therapist moving the hand) leads
+    if (t_s >= next_s_) {
+      pattern_->append(obs.q_rad);
+      next_s_ += 1.0 / Pattern::kRateHz;
+    }
+  }
+  nlohmann::json params() const override { return {{"rate_hz", Pattern::kRateHz}, {"max_s", 60}}; }
+
+ private:
+  std::shared_ptr<Pattern> pattern_;
+  double next_s_ = 0.0;
+};
+
+class Grasp : public Exercise {
+ public:
+  Grasp(std::unique_ptr<Controller> inner, const TherapyDevice& device, std::string scene)
+      : inner_(std::move(inner)), device_(device), scene_(std::move(scene)) {}
+  ExerciseId id() const override { return ExerciseId::kGrasp; }
+  void update(const TelemetryFrame& tel, const Observation&, double t_s, double dt_s, ExerciseOutput& out) override {
+    inner_->update(tel, t_s, dt_s, cmd_);
+    out.mode = cmd_.mode;
+    for (std::size_t c = 0; c < device_.channelCount(); ++c) {
+      out.effort[c] = device_.effortFromSetpoint(c, cmd_.setpoint[c]);
+      out.gain_permille[c] = cmd_.gain_scale_permille[c];
+    }
+  }
+  nlohmann::json params() const override { return {{"scene", scene_}}; }
+
+ private:
+  std::unique_ptr<Controller> inner_;
+  const TherapyDevice& device_;
+  std::string scene_;
+  protocol::Command cmd_{};
+};
+
+AssistLaw assistLawFrom(const std::map<std::string, double>& p) {
+  AssistLaw law;
+  law.stiffness = p.at("stiffness_per_rad");
+  law.deadband_rad = p.at("deadband_deg") * kDeg;
+  law.forgetting_s = p.at("forgetting_s");
+  law.learning_per_rad_s = p.at("learning_per_rad_s");
+  law.gain_min = p.at("gain_min");
+  law.gain = std::max(p.at("gain_initial"), law.gain_min);
+  return law;
+}
+
+// Defaults and ranges: docs/therapy.md "Constants" gives the reasoning behind each.
+std::map<std::string, ParamSpec> assistSpec(const TherapyDevice& device) {
+  const double emax = device.effortLimit(0);
+  return {{"stiffness_per_rad", {0.2 * emax, 0.0, 2.0 * emax, "effort/rad"}},
+          {"deadband_deg", {5.0, 0.0, 45.0, "deg"}},
+          {"forgetting_s", {10.0, 0.5, 600.0, "s"}},
+          {"learning_per_rad_s", {0.5, 0.0, 50.0, "1/(rad·s)"}},
+          {"gain_min", {0.0, 0.0, 1.0, ""}},
+          {"gain_initial", {1.0, 0.0, 1.0, ""}}};
+}
+
+nlohmann::json toJson(const std::map<std::string, double>& p) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [k, v] : p) j[k] = v;
+  return j;
+}
+
+}  // namespace
+
+std::unique_ptr<Exercise> makeExercise(const std::string& name, const nlohmann::json& params,
+                                       const TherapyDevice& device, const Profile& profile,
+                                       const std::shared_ptr<Pattern>& pattern, std::string& error) {
+  std::map<std::string, double> p;
+  const std::size_t n = device.channelCount();
+  if (name == "idle" || name == "assessment" || name == "record-pattern") {
+    if (!readParams(params, {}, p, error)) return nullptr;
+    if (name == "idle") return std::make_unique<Idle>();
+    if (name == "assessment") return std::make_unique<Assessment>();
+    return std::make_unique<RecordPattern>(pattern);
+  }
+  if (name == "resistance") {
+    const double emax = device.effortLimit(0);
+    if (!readParams(params,
+                    {{"stiffness_per_rad", {0.2 * emax, 0.0, 2.0 * emax, "effort/rad"}},
+                     {"damping_s_per_rad", {0.02 * emax, 0.0, 0.5 * emax, "effort·s/rad"}},
+                     {"rest_deg", {0.0, -90.0, 360.0, "deg"}}},
+                    p, error)) {
+      return nullptr;
+    }
+    return std::make_unique<Resistance>(n, p["stiffness_per_rad"], p["damping_s_per_rad"], p["rest_deg"] * kDeg);
+  }
+  if (name == "assistance") {
+    auto spec = assistSpec(device);
+    spec["period_s"] = {4.0, 1.0, 60.0, "s"};
+    spec["open_fraction"] = {0.1, 0.0, 1.0, ""};
+    spec["close_fraction"] = {0.8, 0.0, 1.0, ""};
+    if (!readParams(params, spec, p, error)) return nullptr;
+    if (p["open_fraction"] >= p["close_fraction"]) {
+      error = "params.open_fraction: must be below close_fraction";
+      return nullptr;
+    }
+    std::array<double, kMaxChannels> lo{}, hi{}, open{}, close{};
+    channelRange(device, profile, lo, hi);
+    for (std::size_t c = 0; c < n; ++c) {
+      open[c] = lo[c] + p["open_fraction"] * (hi[c] - lo[c]);
+      close[c] = lo[c] + p["close_fraction"] * (hi[c] - lo[c]);
+    }
+    return std::make_unique<CosineAssist>(n, assistLawFrom(p), toJson(p), p["period_s"], open, close);
+  }
+  if (name == "playback") {
+    auto spec = assistSpec(device);
+    spec["speed"] = {1.0, 0.25, 2.0, "x"};
+    if (!readParams(params, spec, p, error)) return nullptr;
+    if (!pattern || pattern->length() < 100) {
+      error = "playback: no grip/release pattern recorded yet (run record-pattern for at least 1 s first)";
+      return nullptr;
+    }
+    auto j = toJson(p);
+    j["pattern_s"] = static_cast<double>(pattern->length()) / Pattern::kRateHz;
+    return std::make_unique<PlaybackAssist>(n, assistLawFrom(p), j, *pattern, p["speed"]);
+  }
+  if (name == "grasp") {
+    std::string scene = "rigid-ball";
+    if (!params.is_null()) {
+      if (!params.is_object()) {
+        error = "params: expected an object";
+        return nullptr;
+      }
+      for (const auto& [k, v] : params.items()) {
+        if (k != "scene") {
+          error = "params." + k + ": unknown parameter (allowed: scene)";
+          return nullptr;
+        }
+        if (!v.is_string()) {
+          error = "params.scene: expected a string";
+          return nullptr;
+        }
+        scene = v.get<std::string>();
+      }
+    }
+    auto inner = device.makeGraspController(scene, error);
+    if (!inner) return nullptr;
+    return std::make_unique<Grasp>(std::move(inner), device, scene);
+  }
+  error = "exercise: '" + name + "' is not one of idle, assessment, resistance, assistance, record-pattern, playback, grasp";
+  return nullptr;
+}
+
+}  // namespace phalanx::host::therapy

@@ -1,0 +1,489 @@
+#include "phalanx/host/therapy/report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "phalanx/host/metrics.h"
+#include "phalanx/host/session.h"
+#include "phalanx/host/therapy/device.h"
+#include "phalanx/host/therapy/exercise.h"
+
+namespace phalanx::host::therapy {
+namespace {
+
+constexpr double kDeg = 180.0 / M_PI;
+/// The same 5 Hz low-pass as the live ROM (therapy_controller.cpp): min/max of raw samples pick noise tails.
+constexpr double kRomCutoffHz = 5.0;
+/// Plots carry at most this many points per series (a 30-minute session has 1.8 M cycles).
+constexpr std::size_t kMaxPlotPoints = 1500;
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string fmt(double v, int digits = 2) {
+  if (!std::isfinite(v)) return "–";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+KinematicParams kinematicsFrom(const nlohmann::json& h) {
+  KinematicParams k;
+  if (!h.contains("kinematics") || !h["kinematics"].is_object()) return k;
+  for (const auto& [ch, v] : h["kinematics"].items()) {
+    if (!v.is_object()) continue;
+    k.segment_lengths_mm.emplace_back(ch, std::array<double, 3>{v.value("p1_mm", 0.0), v.value("p2_mm", 0.0),
+                                                                v.value("p3_mm", 0.0)});
+  }
+  return k;
+}
+
+/// Per-cycle quantities the report needs, extracted once.
+struct Series {
+  std::vector<double> t;
+  std::vector<int> exercise;                       // ExerciseId per cycle (−1: not a therapy session)
+  std::vector<std::vector<double>> flex;           // [joint][cycle], NaN when not measured
+  std::vector<std::vector<double>> q, target, effort, effort_cmd;  // [channel][cycle]
+  std::vector<uint16_t> faults;
+};
+
+struct Layout {
+  std::unique_ptr<TherapyDevice> device;
+  std::string error;
+};
+
+Layout layoutFor(const record::SessionRecord& rec) {
+  Layout l;
+  if (!rec.header.is_object() || !rec.header.contains("device")) {
+    l.error = "the record has no header (damaged)";
+    return l;
+  }
+  l.device = makeTherapyDevice(rec.header["device"].get<std::string>(), kinematicsFrom(rec.header), l.error);
+  return l;
+}
+
+Series extract(const record::SessionRecord& rec, TherapyDevice& dev) {
+  Series s;
+  const std::size_t nj = dev.jointCount(), nc = dev.channelCount();
+  s.flex.assign(nj, {});
+  s.q.assign(nc, {});
+  s.target.assign(nc, {});
+  s.effort.assign(nc, {});
+  s.effort_cmd.assign(nc, {});
+  std::vector<int> target_idx(nc, -1), cmd_idx(nc, -1);
+  for (std::size_t c = 0; c < nc; ++c) {
+    target_idx[c] = rec.auxIndex("target_" + dev.channelName(c) + "_rad");
+    cmd_idx[c] = rec.auxIndex("effort_cmd_" + dev.channelName(c));
+  }
+  const int ex_idx = rec.auxIndex("exercise_id");
+  TelemetryFrame tel;
+  Observation obs{};
+  const double nan = std::nan("");
+  for (const auto& c : rec.cycles) {
+    tel.device_time_us = c.device_time_us;
+    tel.mode = static_cast<protocol::Mode>(c.tel_mode);
+    tel.fault_bits = c.fault_bits;
+    tel.sample_count = c.sample_count;
+    for (std::size_t i = 0; i < c.sample_count; ++i) tel.value[i] = c.sample[i];
+    dev.observe(tel, obs);
+    s.t.push_back(c.t_s);
+    s.exercise.push_back(ex_idx >= 0 && ex_idx < c.aux_count ? static_cast<int>(c.aux[static_cast<std::size_t>(ex_idx)]) : -1);
+    s.faults.push_back(c.fault_bits);
+    for (std::size_t j = 0; j < nj; ++j) s.flex[j].push_back(obs.joint_valid[j] ? obs.flexion_rad[j] : nan);
+    for (std::size_t ch = 0; ch < nc; ++ch) {
+      s.q[ch].push_back(obs.channel_valid[ch] ? obs.q_rad[ch] : nan);
+      s.effort[ch].push_back(obs.effort[ch]);
+      const auto aux = [&](int idx) {
+        return idx >= 0 && idx < c.aux_count ? static_cast<double>(c.aux[static_cast<std::size_t>(idx)]) : nan;
+      };
+      s.target[ch].push_back(aux(target_idx[ch]));
+      s.effort_cmd[ch].push_back(cmd_idx[ch] >= 0 ? aux(cmd_idx[ch]) : dev.effortFromSetpoint(ch, c.setpoint[ch]));
+    }
+  }
+  return s;
+}
+
+std::string svgPlot(const std::string& title, const std::string& y_label, const std::vector<double>& t,
+                    const std::vector<std::pair<std::string, const std::vector<double>*>>& series) {
+  static const char* kColors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f"};
+  const double W = 760, H = 220, L = 60, R = 130, T = 24, B = 32;
+  double y0 = 1e300, y1 = -1e300;
+  for (const auto& [n, v] : series) {
+    for (double y : *v) {
+      if (std::isfinite(y)) {
+        y0 = std::min(y0, y);
+        y1 = std::max(y1, y);
+      }
+    }
+  }
+  if (t.empty() || y0 > y1) return "<p><em>" + esc(title) + ": no data</em></p>";
+  if (y1 - y0 < 1e-9) {
+    y0 -= 1.0;
+    y1 += 1.0;
+  }
+  const double pad = 0.05 * (y1 - y0);
+  y0 -= pad;
+  y1 += pad;
+  const double t0 = t.front(), t1 = std::max(t.back(), t.front() + 1e-6);
+  auto X = [&](double x) { return L + (x - t0) / (t1 - t0) * (W - L - R); };
+  auto Y = [&](double y) { return T + (y1 - y) / (y1 - y0) * (H - T - B); };
+  std::ostringstream o;
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' viewBox='0 0 " << W << " "
+    << H << "' role='img' aria-label='" << esc(title) << "'>";
+  o << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
+    << "' fill='#fff' stroke='#999'/>";
+  o << "<text x='" << L << "' y='16' font-size='13' font-weight='bold'>" << esc(title) << "</text>";
+  for (int i = 0; i <= 4; ++i) {
+    const double y = y0 + (y1 - y0) * i / 4.0;
+    o << "<line x1='" << L << "' x2='" << W - R << "' y1='" << fmt(Y(y), 1) << "' y2='" << fmt(Y(y), 1)
+      << "' stroke='#eee'/><text x='" << L - 4 << "' y='" << fmt(Y(y) + 4, 1) << "' font-size='10' text-anchor='end'>"
+      << fmt(y, std::fabs(y1 - y0) < 10 ? 2 : 0) << "</text>";
+    const double x = t0 + (t1 - t0) * i / 4.0;
+    o << "<text x='" << fmt(X(x), 1) << "' y='" << H - B + 14 << "' font-size='10' text-anchor='middle'>" << fmt(x, 1)
+      << "</text>";
+  }
+  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 4 << "' font-size='10' text-anchor='middle'>time (s)</text>";
+  o << "<text x='12' y='" << (T + H - B) / 2 << "' font-size='10' transform='rotate(-90 12 " << (T + H - B) / 2
+    << ")' text-anchor='middle'>" << esc(y_label) << "</text>";
+  const std::size_t stride = std::max<std::size_t>(1, t.size() / kMaxPlotPoints);
+  std::size_t k = 0;
+  for (const auto& [name, v] : series) {
+    const char* color = kColors[k % 8];
+    o << "<polyline fill='none' stroke='" << color << "' stroke-width='1.2' points='";
+    bool any = false;
+    for (std::size_t i = 0; i < t.size() && i < v->size(); i += stride) {
+      if (!std::isfinite((*v)[i])) continue;
+      o << fmt(X(t[i]), 1) << "," << fmt(Y((*v)[i]), 1) << " ";
+      any = true;
+    }
+    o << "'/>";
+    if (any) {
+      const double ly = T + 10 + 14 * static_cast<double>(k);
+      o << "<line x1='" << W - R + 8 << "' x2='" << W - R + 24 << "' y1='" << ly << "' y2='"
+        << ly << "' stroke='" << color << "' stroke-width='2'/><text x='" << W - R + 28 << "' y='"
+        << ly + 4 << "' font-size='10'>" << esc(name) << "</text>";
+    }
+    ++k;
+  }
+  o << "</svg>";
+  return o.str();
+}
+
+/// Horizontal range bars per joint: previous session (grey) above this one (blue).
+std::string svgRom(const nlohmann::json& rom, const nlohmann::json& prev) {
+  const double W = 760, L = 110, R = 20, row = 26;
+  const double H = 30 + row * static_cast<double>(rom.size());
+  double lo = -30, hi = 120;
+  for (const auto& [j, r] : rom.items()) {
+    lo = std::min(lo, r[0].get<double>());
+    hi = std::max(hi, r[1].get<double>());
+  }
+  auto X = [&](double d) { return L + (d - lo) / (hi - lo) * (W - L - R); };
+  std::ostringstream o;
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' role='img' aria-label='range of motion'>";
+  for (int d = static_cast<int>(std::ceil(lo / 30.0)) * 30; d <= hi; d += 30) {
+    o << "<line x1='" << fmt(X(d), 1) << "' x2='" << fmt(X(d), 1) << "' y1='10' y2='" << H - 14 << "' stroke='#eee'/>"
+      << "<text x='" << fmt(X(d), 1) << "' y='" << H - 2 << "' font-size='10' text-anchor='middle'>" << d << "°</text>";
+  }
+  int i = 0;
+  for (const auto& [j, r] : rom.items()) {
+    const double y = 12 + row * i++;
+    o << "<text x='" << L - 6 << "' y='" << y + 13 << "' font-size='11' text-anchor='end'>" << esc(j) << "</text>";
+    if (prev.is_object() && prev.contains(j)) {
+      o << "<rect x='" << fmt(X(prev[j][0].get<double>()), 1) << "' y='" << y << "' width='"
+        << fmt(X(prev[j][1].get<double>()) - X(prev[j][0].get<double>()), 1) << "' height='8' fill='#bbb'/>";
+    }
+    o << "<rect x='" << fmt(X(r[0].get<double>()), 1) << "' y='" << y + 9 << "' width='"
+      << fmt(X(r[1].get<double>()) - X(r[0].get<double>()), 1) << "' height='10' fill='#1f77b4'/>";
+  }
+  o << "</svg>";
+  return o.str();
+}
+
+nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, Series& s) {
+  nlohmann::json m;
+  m["device"] = dev.name();
+  m["effort_unit"] = dev.effortUnit();
+  m["patient"] = rec.header.value("patient", std::string());
+  m["start_utc"] = rec.header.value("start_utc", std::string());
+  m["cycles"] = rec.cycles.size();
+  m["duration_s"] = s.t.empty() ? 0.0 : s.t.back() - s.t.front();
+  m["complete"] = rec.complete();
+  m["torn_tail"] = rec.torn_tail;
+  m["damaged_records"] = rec.bad_records;
+  // Exercise segments.
+  nlohmann::json segs = nlohmann::json::array();
+  for (std::size_t i = 0; i < s.t.size(); ++i) {
+    if (i == 0 || s.exercise[i] != s.exercise[i - 1]) {
+      segs.push_back({{"exercise", s.exercise[i] < 0 ? std::string(rec.header.value("exercise", std::string("?")))
+                                                     : exerciseName(static_cast<ExerciseId>(s.exercise[i]))},
+                      {"start_s", s.t[i]}, {"end_s", s.t[i]}});
+    }
+    segs.back()["end_s"] = s.t[i];
+  }
+  m["exercises"] = segs;
+  const int kAssess = static_cast<int>(ExerciseId::kAssessment);
+  const bool has_assessment = std::find(s.exercise.begin(), s.exercise.end(), kAssess) != s.exercise.end();
+  m["rom_source"] = has_assessment ? "assessment" : "whole session (no assessment in this session)";
+  // ROM per joint (deg), from the 5 Hz low-passed angle.
+  nlohmann::json rom = nlohmann::json::object();
+  for (std::size_t j = 0; j < dev.jointCount(); ++j) {
+    double lp = std::nan(""), lo = 1e300, hi = -1e300, prev_t = 0.0;
+    for (std::size_t i = 0; i < s.t.size(); ++i) {
+      const double x = s.flex[j][i];
+      if (!std::isfinite(x)) continue;
+      const double dt = std::isfinite(lp) ? std::max(s.t[i] - prev_t, 0.0) : 0.0;
+      const double a = dt / (dt + 1.0 / (2.0 * M_PI * kRomCutoffHz));
+      lp = std::isfinite(lp) ? lp + a * (x - lp) : x;
+      prev_t = s.t[i];
+      if (has_assessment && s.exercise[i] != kAssess) continue;
+      lo = std::min(lo, lp);
+      hi = std::max(hi, lp);
+    }
+    if (lo <= hi) rom[dev.jointName(j)] = {lo * kDeg, hi * kDeg};
+  }
+  m["rom_deg"] = rom;
+  // Tracking (assistance, playback): RMS error and Pearson r between the target and the channel coordinate.
+  nlohmann::json tracking = nlohmann::json::object(), transparency = nlohmann::json::object(),
+                 effort = nlohmann::json::object();
+  for (std::size_t c = 0; c < dev.channelCount(); ++c) {
+    std::vector<double> tg, q;
+    double sq = 0.0, peak = 0.0, peak_cmd = 0.0, free_sq = 0.0, free_peak = 0.0;
+    long n_free = 0;
+    double tracked_s = 0.0;
+    for (std::size_t i = 0; i < s.t.size(); ++i) {
+      peak = std::max(peak, std::fabs(s.effort[c][i]));
+      if (std::isfinite(s.effort_cmd[c][i])) peak_cmd = std::max(peak_cmd, std::fabs(s.effort_cmd[c][i]));
+      const int ex = s.exercise[i];
+      if ((ex == static_cast<int>(ExerciseId::kAssistance) || ex == static_cast<int>(ExerciseId::kPlayback)) &&
+          std::isfinite(s.target[c][i]) && std::isfinite(s.q[c][i])) {
+        tg.push_back(s.target[c][i]);
+        q.push_back(s.q[c][i]);
+        if (i > 0) tracked_s += s.t[i] - s.t[i - 1];
+      }
+      if (ex == kAssess) {
+        free_sq += s.effort[c][i] * s.effort[c][i];
+        free_peak = std::max(free_peak, std::fabs(s.effort[c][i]));
+        ++n_free;
+      }
+    }
+    for (std::size_t i = 0; i < tg.size(); ++i) sq += (tg[i] - q[i]) * (tg[i] - q[i]);
+    if (!tg.empty()) {
+      const double r = pearson(tg, q);
+      tracking[dev.channelName(c)] = {{"rms_error_deg", std::sqrt(sq / static_cast<double>(tg.size())) * kDeg},
+                                      {"pearson_r", std::isfinite(r) ? nlohmann::json(r) : nlohmann::json(nullptr)},
+                                      {"seconds", tracked_s}};
+    }
+    if (n_free > 0) {
+      transparency[dev.channelName(c)] = {{"interaction_rms", std::sqrt(free_sq / static_cast<double>(n_free))},
+                                          {"interaction_peak", free_peak}};
+    }
+    effort[dev.channelName(c)] = {{"peak_measured", peak}, {"peak_command", peak_cmd}};
+  }
+  m["tracking"] = tracking;
+  m["transparency"] = transparency;
+  m["effort"] = effort;
+  // Faults and other events.
+  nlohmann::json faults = nlohmann::json::array();
+  uint16_t seen = 0;
+  for (std::size_t i = 0; i < s.faults.size(); ++i) {
+    if (s.faults[i] != 0 && (i == 0 || s.faults[i] != s.faults[i - 1])) {
+      faults.push_back({{"t_s", s.t[i]}, {"faults", faultList(s.faults[i])}});
+    }
+    seen |= s.faults[i];
+  }
+  m["faults"] = faults;
+  m["faults_seen"] = faultList(seen);
+  long limit_events = 0, gaps = 0;
+  nlohmann::json requests = nlohmann::json::array();
+  for (const auto& e : rec.events) {
+    const std::string kind = e.value("kind", std::string());
+    if (kind == "limit-active") ++limit_events;
+    if (kind == "record-gap") gaps = e.value("cycles_dropped_total", 0L);
+    if (kind.rfind("api-", 0) == 0) requests.push_back(e);
+  }
+  m["limit_onsets"] = limit_events;
+  m["record_cycles_dropped"] = gaps;
+  m["therapist_requests"] = requests;
+  return m;
+}
+
+}  // namespace
+
+nlohmann::json sessionMetrics(const record::SessionRecord& rec) {
+  Layout l = layoutFor(rec);
+  if (!l.device) return {{"error", l.error}};
+  Series s = extract(rec, *l.device);
+  return metricsOf(rec, *l.device, s);
+}
+
+std::string writeReport(const std::string& record_path, const std::string& previous_path, const std::string& html_path,
+                        const std::function<void(const std::string&)>& progress) {
+  auto say = [&](const std::string& m) {
+    if (progress) progress(m);
+  };
+  say("reading " + record_path);
+  record::SessionRecord rec;
+  if (std::string err = record::readRecord(record_path, rec); !err.empty()) return err;
+  Layout l = layoutFor(rec);
+  if (!l.device) return record_path + ": " + l.error;
+  say("computing metrics over " + std::to_string(rec.cycles.size()) + " cycles");
+  Series s = extract(rec, *l.device);
+  const nlohmann::json m = metricsOf(rec, *l.device, s);
+  nlohmann::json prev;
+  if (!previous_path.empty()) {
+    say("reading the previous session " + previous_path);
+    record::SessionRecord p;
+    if (record::readRecord(previous_path, p).empty()) {
+      prev = sessionMetrics(p);
+      if (prev.contains("error")) prev = nullptr;
+    }
+  }
+  say("writing " + html_path);
+  const TherapyDevice& dev = *l.device;
+  const std::string unit = dev.effortUnit();
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>Phalanx session report</title><style>"
+       "body{font-family:sans-serif;max-width:800px;margin:1em auto;color:#222}table{border-collapse:collapse;margin:.5em 0}"
+       "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#f4f4f4}td:first-child,th:first-child"
+       "{text-align:left}.warn{color:#b00}.note{color:#555;font-size:90%}</style></head><body>";
+  h << "<h1>Session report</h1><table><tr><th>patient</th><td>" << esc(m.value("patient", std::string("–")))
+    << "</td></tr><tr><th>device</th><td>" << esc(m["device"].get<std::string>()) << "</td></tr><tr><th>start (UTC)</th><td>"
+    << esc(m["start_utc"].get<std::string>()) << "</td></tr><tr><th>duration</th><td>" << fmt(m["duration_s"].get<double>(), 1)
+    << " s</td></tr><tr><th>record</th><td>" << esc(record_path) << "</td></tr></table>";
+  if (!rec.complete()) {
+    h << "<p class='warn'>The record has no end marker: the daemon stopped without closing the session (crash or power "
+         "loss). Everything up to the last "
+      << (rec.torn_tail ? "complete " : "") << "cycle is included.</p>";
+  }
+  if (rec.bad_records > 0) h << "<p class='warn'>" << rec.bad_records << " damaged record(s) were skipped.</p>";
+  h << "<h2>Exercises</h2><table><tr><th>exercise</th><th>from (s)</th><th>to (s)</th></tr>";
+  for (const auto& e : m["exercises"]) {
+    h << "<tr><td>" << esc(e["exercise"].get<std::string>()) << "</td><td>" << fmt(e["start_s"].get<double>(), 1)
+      << "</td><td>" << fmt(e["end_s"].get<double>(), 1) << "</td></tr>";
+  }
+  h << "</table>";
+  // Range of motion.
+  const nlohmann::json prom = prev.is_object() && prev.contains("rom_deg") ? prev["rom_deg"] : nlohmann::json();
+  h << "<h2>Active range of motion</h2><p class='note'>Joint flexion in degrees (flexion positive), measured during "
+    << esc(m["rom_source"].get<std::string>()) << "; 5 Hz low-passed."
+    << (prom.is_object() ? " Grey bars: previous session." : " No previous session to compare with.") << "</p>";
+  h << svgRom(m["rom_deg"], prom);
+  h << "<table><tr><th>joint</th><th>min</th><th>max</th><th>range</th><th>previous range</th><th>change</th></tr>";
+  for (const auto& [j, r] : m["rom_deg"].items()) {
+    const double range = r[1].get<double>() - r[0].get<double>();
+    h << "<tr><td>" << esc(j) << "</td><td>" << fmt(r[0].get<double>(), 1) << "</td><td>" << fmt(r[1].get<double>(), 1)
+      << "</td><td>" << fmt(range, 1) << "</td>";
+    if (prom.is_object() && prom.contains(j)) {
+      const double pr = prom[j][1].get<double>() - prom[j][0].get<double>();
+      h << "<td>" << fmt(pr, 1) << "</td><td>" << (range >= pr ? "+" : "") << fmt(range - pr, 1) << "</td>";
+    } else {
+      h << "<td>–</td><td>–</td>";
+    }
+    h << "</tr>";
+  }
+  h << "</table>";
+  // Transparency.
+  h << "<h2>Transparency</h2>";
+  if (m["transparency"].empty()) {
+    h << "<p>No assessment (transparent) phase in this session.</p>";
+  } else {
+    h << "<p class='note'>Interaction " << (unit == "N" ? "force" : "torque")
+      << " while the device followed the hand (assessment); the glove paper measured ≈ 0.1 N peak (000 §4.3). "
+         "The Pearson r of 000 Table 4 / 001 Table 2 compares joint trajectories with and without the device; the "
+         "daemon never sees the hand without the device, so that r is computed by the bench (phalanx bench "
+         "glove-free-motion), and here r is given for tracking (below).</p>";
+    h << "<table><tr><th>channel</th><th>RMS (" << esc(unit) << ")</th><th>peak (" << esc(unit) << ")</th></tr>";
+    for (const auto& [c, v] : m["transparency"].items()) {
+      h << "<tr><td>" << esc(c) << "</td><td>" << fmt(v["interaction_rms"].get<double>(), 3) << "</td><td>"
+        << fmt(v["interaction_peak"].get<double>(), 3) << "</td></tr>";
+    }
+    h << "</table>";
+  }
+  // Tracking.
+  h << "<h2>Tracking (assistance, playback)</h2>";
+  if (m["tracking"].empty()) {
+    h << "<p>No assistance or playback in this session.</p>";
+  } else {
+    h << "<p class='note'>Target vs measured finger flexion (sum of the finger's joints).</p><table><tr><th>channel</th>"
+         "<th>RMS error (deg)</th><th>Pearson r</th><th>time (s)</th></tr>";
+    for (const auto& [c, v] : m["tracking"].items()) {
+      h << "<tr><td>" << esc(c) << "</td><td>" << fmt(v["rms_error_deg"].get<double>(), 1) << "</td><td>"
+        << (v["pearson_r"].is_number() ? fmt(v["pearson_r"].get<double>(), 3) : "–") << "</td><td>"
+        << fmt(v["seconds"].get<double>(), 1) << "</td></tr>";
+    }
+    h << "</table>";
+  }
+  // Traces.
+  h << "<h2>Traces</h2>";
+  std::vector<std::pair<std::string, const std::vector<double>*>> forces, cmds, qs;
+  std::vector<std::vector<double>> q_deg(dev.channelCount()), tg_deg(dev.channelCount());
+  for (std::size_t c = 0; c < dev.channelCount(); ++c) {
+    for (double v : s.q[c]) q_deg[c].push_back(v * kDeg);
+    for (double v : s.target[c]) tg_deg[c].push_back(v * kDeg);
+  }
+  for (std::size_t c = 0; c < dev.channelCount(); ++c) {
+    forces.emplace_back(dev.channelName(c), &s.effort[c]);
+    cmds.emplace_back(dev.channelName(c), &s.effort_cmd[c]);
+    qs.emplace_back(dev.channelName(c), &q_deg[c]);
+  }
+  h << svgPlot(std::string("Measured ") + (unit == "N" ? "fingertip force" : "joint torque") + " (+ resists flexion)",
+               unit, s.t, forces);
+  h << svgPlot("Commanded effort", unit, s.t, cmds);
+  h << svgPlot("Finger flexion (sum of joints)", "deg", s.t, qs);
+  if (!m["tracking"].empty()) {
+    for (std::size_t c = 0; c < dev.channelCount(); ++c) {
+      if (!m["tracking"].contains(dev.channelName(c))) continue;
+      h << svgPlot("Tracking: " + dev.channelName(c), "deg", s.t,
+                   {{"target", &tg_deg[c]}, {"measured", &q_deg[c]}});
+      break;  // one example channel; the table has them all
+    }
+  }
+  // Faults and events.
+  h << "<h2>Faults and events</h2><p>Faults seen: <b>" << esc(m["faults_seen"].get<std::string>()) << "</b>; effort "
+    << "limits engaged " << m["limit_onsets"].get<long>() << " time(s)"
+    << (m["record_cycles_dropped"].get<long>() > 0
+            ? "; <span class='warn'>" + std::to_string(m["record_cycles_dropped"].get<long>()) + " cycles not recorded</span>"
+            : "")
+    << ".</p>";
+  if (!m["faults"].empty()) {
+    h << "<table><tr><th>time (s)</th><th>faults</th></tr>";
+    for (const auto& f : m["faults"]) {
+      h << "<tr><td>" << fmt(f["t_s"].get<double>(), 3) << "</td><td>" << esc(f["faults"].get<std::string>()) << "</td></tr>";
+    }
+    h << "</table>";
+  }
+  if (!m["therapist_requests"].empty()) {
+    h << "<table><tr><th>time (s)</th><th>therapist request</th></tr>";
+    for (const auto& e : m["therapist_requests"]) {
+      nlohmann::json rest = e;
+      rest.erase("t_s");
+      h << "<tr><td>" << fmt(e.value("t_s", 0.0), 1) << "</td><td>" << esc(rest.dump()) << "</td></tr>";
+    }
+    h << "</table>";
+  }
+  h << "<script type='application/json' id='metrics'>" << esc(m.dump()) << "</script>";
+  h << "<p class='note'>Generated by phalanx from the session record. Peak measured effort per channel: ";
+  for (const auto& [c, v] : m["effort"].items()) h << esc(c) << " " << fmt(v["peak_measured"].get<double>(), 2) << " ";
+  h << esc(unit) << ".</p></body></html>\n";
+  std::ofstream out(html_path);
+  if (!out) return "cannot write " + html_path;
+  out << h.str();
+  return out ? "" : "writing " + html_path + " failed";
+}
+
+}  // namespace phalanx::host::therapy
