@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
   fw_sim::SimDeviceOptions dev_opt;
   bool exit_with_parent = false;
   double seconds = 0.0;
-  cli.add_option("--device", device, "glove5 | sea_finger | pantograph");
+  cli.add_option("--device", device, "glove5 | sea_finger | sea_rig | pantograph");
   cli.add_option("--tick-hz", tick_hz, "firmware tick rate")->check(CLI::Range(100u, 10000u));
   cli.add_option("--substeps", substeps, "plant integration steps per tick")->check(CLI::Range(1u, 100u));
   cli.add_option("--seed", dev_opt.seed, "plant noise seed");

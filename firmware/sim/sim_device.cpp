@@ -15,6 +15,15 @@ bool parseHandScenario(const std::string& name, sim::HandScenario& out) {
   return true;
 }
 
+bool parseSeaUserMotion(const std::string& name, sim::SeaUserMotion& out) {
+  // The exoskeleton has no virtual objects to grasp: "grasp" (the CLI's default) is the relaxed finger too.
+  if (name == "still" || name == "grasp") out = sim::SeaUserMotion::kRelaxed;
+  else if (name == "random") out = sim::SeaUserMotion::kRandom;
+  else if (name == "close-open") out = sim::SeaUserMotion::kCloseOpen;
+  else return false;
+  return true;
+}
+
 std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDeviceOptions& options, std::string& error) {
   if (name == "glove5") {
     sim::GlovePlantConfig cfg;
@@ -31,11 +40,15 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
       return nullptr;
     }
   }
-  if (name == "sea_rig") {
+  if (name == "sea_rig" || name == "sea_finger") {
     sim::SeaPlantConfig cfg;
     cfg.seed = options.seed;
     cfg.noise = options.noise;
-    cfg.variant = sim::SeaVariant::kRig;
+    cfg.variant = name == "sea_rig" ? sim::SeaVariant::kRig : sim::SeaVariant::kFinger;
+    if (!parseSeaUserMotion(options.scenario, cfg.motion)) {
+      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random)";
+      return nullptr;
+    }
     try {
       return std::make_unique<SeaFingerSimDevice>(cfg);
     } catch (const std::invalid_argument& e) {
@@ -43,7 +56,7 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
       return nullptr;
     }
   }
-  if (name == "sea_finger" || name == "pantograph") {
+  if (name == "pantograph") {
     error = "the simulated " + name + " is not built yet (only glove5 is available)";
     return nullptr;
   }

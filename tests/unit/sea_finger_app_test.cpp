@@ -13,6 +13,8 @@ namespace board = phalanx::sea::board;
 
 namespace {
 
+const double kRm = static_cast<double>(board::kMotorPulleyRadius_m);  // motor pulley radius r_m
+
 struct AppRig {
   AppRig() : sim(board::kPwmChannelCount, board::kAdcChannelCount, board::kEncoderChannelCount, pipe.end(0)),
              app(apps::seaFingerDefaultCalibration(), apps::seaFingerDefaultConfig()) {
@@ -59,10 +61,10 @@ TEST(SeaFingerApp, Eq7EstimateFromEncoderAndJointCounts) {
   r.sense(32);  // fill the moving average
   const double th_m0 = 3000.0 * 2.0 * M_PI / (2048.0 * 33.0);
   const double th_j0 = 40.0 / (0.9 * 4096.0 / M_PI);
-  const double expect0 = 2.0 * 2816.0 * 0.010 * (0.0075 * th_m0 - 0.010 * th_j0);
+  const double expect0 = 2.0 * 2816.0 * 0.010 * (kRm * th_m0 - 0.010 * th_j0);
   EXPECT_NEAR(r.app.channel(0).tau_eq7_Nm, expect0, 1e-5);
   const double th_m1 = -1000.0 * 2.0 * M_PI / (2048.0 * 33.0);
-  EXPECT_NEAR(r.app.channel(1).tau_eq7_Nm, 2.0 * 744.0 * 0.010 * 0.0075 * th_m1, 1e-6);
+  EXPECT_NEAR(r.app.channel(1).tau_eq7_Nm, 2.0 * 744.0 * 0.010 * kRm * th_m1, 1e-6);
   // Dragged forward, the play model's spring side trails the motor side by half the play (b_0 + b_1|τ|)/2.
   const auto& c = r.app.channel(0);
   const double half = 0.5 * (0.4e-3 + 2.0e-3 * std::fabs(static_cast<double>(c.tau_play_Nm)));
@@ -75,9 +77,10 @@ TEST(SeaFingerApp, JointSensorsAreMovingAveraged) {
   r.sim.io().adc[board::kAdcFirstJoint + 2] = board::kAdcMidCounts + 80;
   r.sense(1);
   const float step = 80.0f / board::kJointCountsPerRad;
-  EXPECT_NEAR(r.app.jointSensor_rad(2), step / 8.0f, 1e-6f) << "one new sample in a window of 8";
+  const float centre = board::kJointCentre_rad[2];
+  EXPECT_NEAR(r.app.jointSensor_rad(2), centre + step / 8.0f, 1e-6f) << "one new sample in a window of 8";
   r.sense(7);
-  EXPECT_NEAR(r.app.jointSensor_rad(2), step, 1e-6f);
+  EXPECT_NEAR(r.app.jointSensor_rad(2), centre + step, 1e-6f);
 }
 
 TEST(SeaFingerApp, ZeroingTakesTheRestingJointAngleAsThetaJ0) {
@@ -120,7 +123,7 @@ TEST(SeaFingerApp, SetpointsAreClampedToTheTorqueLimitsAndTheMotorCommandToItsWi
   r.app.control(setpoint(0.9f, -0.9f), 1e-3f);
   EXPECT_FLOAT_EQ(r.app.channel(0).tau_desired_Nm, cfg.max_torque_Nm[0]);
   EXPECT_FLOAT_EQ(r.app.channel(1).tau_desired_Nm, -cfg.max_torque_Nm[1]);
-  // PIP at −0.15 N·m needs ≈ −77° of motor angle with the joint held: the command stops at −55°.
+  // PIP at −0.15 N·m needs ≈ −58° of motor angle with the joint held, plus the PID: the command stops at −55°.
   EXPECT_TRUE(r.app.channel(1).command_limited);
   EXPECT_FLOAT_EQ(r.app.channel(1).u_rad, -cfg.motor_command_limit_rad);
   for (int i = 0; i < 2; ++i) {
@@ -143,7 +146,7 @@ TEST(SeaFingerApp, SustainedOvertorqueIsAForceLimitFault) {
   AppRig r;
   r.zero();
   // 0.7 N·m on the MCP SEA (beyond the 0.6 N·m fault level) with the joint held: θ_m = 0.7 / (2 k r_j r_m).
-  const double th_m = 0.7 / (2.0 * 2816.0 * 0.010 * 0.0075);
+  const double th_m = 0.7 / (2.0 * 2816.0 * 0.010 * kRm);
   r.sim.io().encoder[0] = static_cast<int32_t>(th_m / static_cast<double>(board::kMotorRadPerCount));
   uint16_t faults = 0;
   for (int i = 0; i < 60 && faults == 0; ++i) {

@@ -13,6 +13,8 @@ namespace board = phalanx::sea::board;
 
 namespace {
 
+const double kRm = static_cast<double>(board::kMotorPulleyRadius_m);  // motor pulley radius r_m
+
 sim::SeaPlantConfig quietConfig() {
   sim::SeaPlantConfig c;
   c.noise = false;
@@ -59,7 +61,7 @@ TEST(SeaPlant, SpringTorqueFollowsEq2WhileBothCablesAreTaut) {
     const double k = ch.spring_stiffness_N_per_m, rj = ch.joint_pulley_radius_m, rm = ch.motor_pulley_radius_m;
     ASSERT_EQ(k, 2816.0);
     ASSERT_NEAR(rj, 0.010, 1e-9);
-    ASSERT_NEAR(rm, 0.0075, 1e-9);
+    ASSERT_NEAR(rm, 0.010, 1e-9);
     const double eq2 = 2.0 * k * (rm * t.motor_angle_rad - rj * t.joint_angle_rad) * rj;
     EXPECT_NEAR(t.joint_torque_Nm, eq2, 1e-12) << target;
     EXPECT_NEAR(plant.idealSeaTorque_Nm(0), eq2, 1e-12);
@@ -101,11 +103,11 @@ TEST(SeaPlant, CablePlayDelaysTheSpringByItsLoadDependentWidthOnReversal) {
   // Reverse by less than the play: the spring side (and the torque) does not move.
   const double x_e = t.cable_spring_m;
   const double tau = t.joint_torque_Nm;
-  moveMotorTo(plant, io, 0, 0.5 - 0.8 * b / 0.0075);
+  moveMotorTo(plant, io, 0, 0.5 - 0.8 * b / kRm);
   EXPECT_NEAR(plant.truth(0).cable_spring_m, x_e, 1e-12);
   EXPECT_NEAR(plant.truth(0).joint_torque_Nm, tau, 1e-12);
   // Reverse past it: now the spring follows, leading the motor by half the play.
-  moveMotorTo(plant, io, 0, 0.5 - 3.0 * b / 0.0075);
+  moveMotorTo(plant, io, 0, 0.5 - 3.0 * b / kRm);
   const auto& t2 = plant.truth(0);
   EXPECT_LT(t2.cable_spring_m, x_e - 1e-4);
   EXPECT_NEAR(t2.cable_spring_m - t2.cable_motor_m, 0.5 * t2.backlash_m, 1e-6);
@@ -180,8 +182,8 @@ TEST(SeaPlant, DisabledBridgeCarriesNoCurrentAndTheSpringBackDrivesTheMotor) {
   // The drive stops where the spring torque at the pulley no longer beats the friction (motor + sheath).
   const auto& p = quietConfig().params;
   const double hold_pulley = p.gear_ratio * p.torque_constant_Nm_per_A * p.no_load_current_A +
-                             0.0075 * 0.2 * (t.tension1_N + t.tension2_N);
-  EXPECT_LT(std::fabs(t.joint_torque_Nm), hold_pulley * 0.010 / 0.0075 + 1e-9);
+                             kRm * 0.2 * (t.tension1_N + t.tension2_N);
+  EXPECT_LT(std::fabs(t.joint_torque_Nm), hold_pulley * 0.010 / kRm + 1e-9);
   EXPECT_LT(t.joint_torque_Nm, 0.5 * tau_loaded);
 }
 

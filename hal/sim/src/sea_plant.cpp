@@ -22,7 +22,23 @@ void require(bool ok, const char* what) {
 
 void validate(const SeaPlantConfig& c) {
   const SeaPlantParams& p = c.params;
-  require(c.variant == SeaVariant::kRig, "SeaPlantConfig: unknown variant");
+  require(c.variant == SeaVariant::kRig || c.variant == SeaVariant::kFinger, "SeaPlantConfig: unknown variant");
+  require(c.motion == SeaUserMotion::kRelaxed || c.motion == SeaUserMotion::kRandom ||
+              c.motion == SeaUserMotion::kCloseOpen,
+          "SeaPlantConfig: unknown user motion");
+  const SeaFingerParams& f = c.params.finger;
+  for (size_t j = 0; j < 2; ++j) {
+    const double pos[] = {f.A_Nm[j], f.B_per_rad[j], f.C_Nm[j], f.D_per_rad[j], f.exo_inertia_kg_m2[j]};
+    for (double v : pos) require(finitePositive(v), "SeaFingerParams: A, B, C, D and exo_inertia must be > 0");
+    const double nonneg[] = {f.finger_damping_Nm_s_per_rad[j], f.exo_damping_Nm_s_per_rad[j],
+                             f.muscle_stiffness_Nm_per_rad[j], f.muscle_damping_Nm_s_per_rad[j],
+                             f.random_amplitude_rad[j], f.close_open_amplitude_rad[j]};
+    for (double v : nonneg) require(finiteNonNegative(v), "SeaFingerParams: a value that must be >= 0 is not");
+    require(std::isfinite(f.E_rad[j]) && std::isfinite(f.F_rad[j]) && f.E_rad[j] < f.F_rad[j],
+            "SeaFingerParams: E and F must be finite with E < F");
+  }
+  require(std::isfinite(f.dip_pip_coupling), "SeaFingerParams: dip_pip_coupling must be finite");
+  require(finitePositive(f.close_open_hz), "SeaFingerParams: close_open_hz must be > 0");
   for (const SeaChannelParams& s : p.channel) {
     require(finitePositive(s.spring_stiffness_N_per_m), "SeaChannelParams: spring_stiffness_N_per_m must be > 0");
     require(finitePositive(s.joint_pulley_radius_m), "SeaChannelParams: joint_pulley_radius_m must be > 0");
@@ -58,8 +74,155 @@ SeaPlant::SeaPlant(const SeaPlantConfig& config) : config_(config), rng_(config.
     Channel& c = ch_[i];
     c.p = p.channel[i];
     c.inertia = p.rotor_inertia_kg_m2 * p.gear_ratio * p.gear_ratio + p.output_inertia_kg_m2;
-    solveJoint(c);
+    if (config_.variant == SeaVariant::kRig) solveJoint(c);
   }
+  if (config_.variant == SeaVariant::kFinger) {
+    model_ = sea::defaultModel<double>();
+    // Rest pose: where eq 14 is zero (the relaxed finger); the springs are neutral there (θ_j0, eq 1).
+    const SeaFingerParams& f = p.finger;
+    for (size_t j = 0; j < 2; ++j) {
+      // Bisection on the monotone (decreasing in φ) passive torque over (E − 1, F + 1).
+      double lo = f.E_rad[j] - 1.0, hi = f.F_rad[j] + 1.0;
+      for (int it = 0; it < 100; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (passiveTorque_Nm(static_cast<int>(j), -mid) < 0.0 ? lo : hi) = mid;  // +θ torque < 0 ⇔ flexion torque > 0
+      }
+      rest_theta_[j] = -0.5 * (lo + hi);
+    }
+    sea::FingerAngles<double> rest{rest_theta_[0], rest_theta_[1], f.dip_pip_coupling * rest_theta_[1], 0.0};
+    const sea::Status st = sea::computeFromFinger(model_, rest, kin_);
+    require(sea::isUsable(st) && kin_.J_valid, "SeaPlant: the finger rest pose is outside the exoskeleton's workspace");
+    finger_.exo_rest_rad = {kin_.theta1_rad, kin_.theta6r_rad};
+    finger_.J_n = kin_.J_n;
+    // kRandom: sums of sinusoids, 0.2–1.5 Hz, seeded (a second stream, so noise and motion are independent).
+    std::mt19937 motion_rng(config_.seed * 7919u + 17u);
+    const auto uni = [&motion_rng](double lo, double hi) {
+      return lo + (hi - lo) * (static_cast<double>(motion_rng()) + 0.5) * (1.0 / 4294967296.0);
+    };
+    for (size_t j = 0; j < 2; ++j) {
+      double total = 0.0;
+      for (int k = 0; k < RandomMotion::kTerms; ++k) {
+        random_.amp[j][static_cast<size_t>(k)] = uni(0.5, 1.0);
+        random_.freq_hz[j][static_cast<size_t>(k)] = uni(0.2, 1.5);
+        random_.phase[j][static_cast<size_t>(k)] = uni(0.0, 2.0 * kPi);
+        total += random_.amp[j][static_cast<size_t>(k)];
+      }
+      for (auto& a : random_.amp[j]) a *= f.random_amplitude_rad[j] / total;  // peak ≤ the configured amplitude
+    }
+    fingerDynamics(0.0);
+    fingerSensors();
+  }
+}
+
+double SeaPlant::passiveTorque_Nm(int joint, double theta_rad) const {
+  const SeaFingerParams& f = config_.params.finger;
+  const auto j = static_cast<size_t>(joint);
+  const double phi = -theta_rad;  // flexion positive, the form of eq 14
+  const double flexion_torque = f.A_Nm[j] * (std::exp(-f.B_per_rad[j] * (phi - f.E_rad[j])) - 1.0) -
+                                f.C_Nm[j] * (std::exp(f.D_per_rad[j] * (phi - f.F_rad[j])) - 1.0);  // eq 14
+  return -flexion_torque;
+}
+
+void SeaPlant::intent(double t, std::array<double, 2>& theta_d, std::array<double, 2>& theta_d_dot) const {
+  const SeaFingerParams& f = config_.params.finger;
+  for (size_t j = 0; j < 2; ++j) {
+    theta_d[j] = rest_theta_[j];
+    theta_d_dot[j] = 0.0;
+    if (config_.motion == SeaUserMotion::kRandom) {
+      for (int k = 0; k < RandomMotion::kTerms; ++k) {
+        const auto kk = static_cast<size_t>(k);
+        const double w = 2.0 * kPi * random_.freq_hz[j][kk];
+        // Faded in over the first second, so the motion starts from rest.
+        const double fade = std::min(1.0, t);
+        theta_d[j] += fade * random_.amp[j][kk] * std::sin(w * t + random_.phase[j][kk]) -
+                      fade * random_.amp[j][kk] * std::sin(random_.phase[j][kk]);
+        theta_d_dot[j] += fade * random_.amp[j][kk] * w * std::cos(w * t + random_.phase[j][kk]);
+      }
+    } else if (config_.motion == SeaUserMotion::kCloseOpen) {
+      const double w = 2.0 * kPi * f.close_open_hz;
+      // Flexion is negative: the finger closes first.
+      theta_d[j] -= f.close_open_amplitude_rad[j] * std::sin(w * t);
+      theta_d_dot[j] -= f.close_open_amplitude_rad[j] * w * std::cos(w * t);
+    }
+  }
+}
+
+// eq 13 in Θ_r with τ_f = −(finger's own torques); finger angles and J_n from the kinematics (eq 3–5, 10).
+void SeaPlant::fingerDynamics(double h) {
+  const SeaFingerParams& f = config_.params.finger;
+  sea::Sensors<double> s{};
+  s[sea::kSensorExoMcp] = finger_.exo_rest_rad[0] + ch_[0].theta_j;
+  s[sea::kSensorExoPip] = finger_.exo_rest_rad[1] + ch_[1].theta_j;
+  s[sea::kSensorDip] = finger_.sensors_rad[sea::kSensorDip];
+  const sea::Status st = sea::computeFromSensors(model_, s, kin_);
+  finger_.kinematics_ok = sea::isUsable(st) && kin_.J_valid;
+  if (finger_.kinematics_ok) {
+    finger_.J_n = kin_.J_n;
+    finger_.theta_rad[0] = kin_.theta4_rad;
+    finger_.theta_rad[1] = kin_.theta8_rad;
+  }  // else: keep the last pose and J_n (the state cannot leave the workspace by more than a substep)
+  finger_.theta_rad[2] = f.dip_pip_coupling * finger_.theta_rad[1];
+  const auto& Jn = finger_.J_n;
+  const std::array<double, 2> wj = {ch_[0].omega_j, ch_[1].omega_j};
+  const std::array<double, 2> wf = {Jn[0][0] * wj[0] + Jn[0][1] * wj[1], Jn[1][0] * wj[0] + Jn[1][1] * wj[1]};
+  std::array<double, 2> th_d{}, th_d_dot{};
+  intent(time_s_, th_d, th_d_dot);
+  const bool active = config_.motion != SeaUserMotion::kRelaxed;
+  std::array<double, 2> tau_fin{};  // finger's own torques (+θ), without the damping (implicit below)
+  std::array<double, 2> damping{};  // finger-coordinate damping (finger + muscle)
+  for (size_t j = 0; j < 2; ++j) {
+    finger_.passive_Nm[j] = passiveTorque_Nm(static_cast<int>(j), finger_.theta_rad[j]);
+    // The user drives the intended motion: cancels their own passive torque at θ_d, plus an impedance.
+    finger_.muscle_Nm[j] = active ? -passiveTorque_Nm(static_cast<int>(j), th_d[j]) +
+                                        f.muscle_stiffness_Nm_per_rad[j] * (th_d[j] - finger_.theta_rad[j]) +
+                                        f.muscle_damping_Nm_s_per_rad[j] * (th_d_dot[j] - wf[j])
+                                  : 0.0;
+    tau_fin[j] = finger_.passive_Nm[j] + finger_.muscle_Nm[j] +
+                 (active ? f.muscle_damping_Nm_s_per_rad[j] * wf[j] : 0.0);  // the −D·θ̇_f part goes implicit
+    damping[j] = f.finger_damping_Nm_s_per_rad[j] + (active ? f.muscle_damping_Nm_s_per_rad[j] : 0.0);
+    finger_.intent_rad[j] = th_d[j];
+    finger_.theta_rate_rad_s[j] = wf[j];
+    finger_.exo_rate_rad_s[j] = wj[j];
+    finger_.exo_rad[j] = finger_.exo_rest_rad[j] + ch_[j].theta_j;
+  }
+  // Applied finger torques (eq 9 on the truth): τ_f = J_n^{-T} τ_j.
+  sea::Vec2<double> tau_f{};
+  sea::fingerTorqueFromExoTorque<double>(Jn, {ch_[0].truth.joint_torque_Nm, ch_[1].truth.joint_torque_Nm}, 1e-9,
+                                         tau_f);
+  finger_.applied_Nm = {tau_f[0], tau_f[1]};
+  if (h <= 0.0) return;
+
+  // Generalised forces at Θ_r: τ_j − B_j Θ̇_r + J_nᵀ τ_fin − J_nᵀ D J_n Θ̇_r. Semi-implicit in all damping:
+  // (I + h (B_j + J_nᵀ D J_n)) Θ̇⁺ = I Θ̇ + h (τ_j + J_nᵀ τ_fin).
+  const sea::Vec2<double> gen = sea::exoTorqueFromFingerTorque<double>(Jn, {tau_fin[0], tau_fin[1]});
+  double m[2][2];
+  double rhs[2];
+  for (size_t a = 0; a < 2; ++a) {
+    for (size_t b = 0; b < 2; ++b) {
+      const double jdj = Jn[0][a] * damping[0] * Jn[0][b] + Jn[1][a] * damping[1] * Jn[1][b];
+      m[a][b] = h * (jdj + (a == b ? f.exo_damping_Nm_s_per_rad[a] : 0.0)) + (a == b ? f.exo_inertia_kg_m2[a] : 0.0);
+    }
+    rhs[a] = f.exo_inertia_kg_m2[a] * wj[a] + h * (ch_[a].truth.joint_torque_Nm + gen[a]);
+  }
+  const double det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+  const double w0 = (rhs[0] * m[1][1] - m[0][1] * rhs[1]) / det;
+  const double w1 = (m[0][0] * rhs[1] - rhs[0] * m[1][0]) / det;
+  ch_[0].omega_j = w0;
+  ch_[1].omega_j = w1;
+  ch_[0].theta_j += h * w0;
+  ch_[1].theta_j += h * w1;
+}
+
+void SeaPlant::fingerSensors() {
+  const SeaFingerParams& f = config_.params.finger;
+  sea::Data<double> d;
+  const sea::FingerAngles<double> angles{finger_.theta_rad[0], finger_.theta_rad[1], finger_.theta_rad[2], 0.0};
+  sea::computeFromFinger(model_, angles, d);
+  finger_.sensors_rad = d.sensors_rad;
+  // θ_1r and θ_6r are the state itself (computeFromFinger reproduces them to rounding).
+  finger_.sensors_rad[sea::kSensorExoMcp] = finger_.exo_rest_rad[0] + ch_[0].theta_j;
+  finger_.sensors_rad[sea::kSensorExoPip] = finger_.exo_rest_rad[1] + ch_[1].theta_j;
+  (void)f;
 }
 
 int SeaPlant::idx(int sea) {
@@ -74,6 +237,22 @@ double SeaPlant::idealSeaTorque_Nm(int sea) const {
   const double rj = c.p.joint_pulley_radius_m;
   // eq 2 with θ_j0 = 0 (the plant's joint zero is the unloaded clamp pose).
   return 2.0 * c.p.spring_stiffness_N_per_m * (c.p.motor_pulley_radius_m * c.theta_m - rj * c.theta_j) * rj;
+}
+
+// Tensions and the joint torque for the current x_e and θ_j (finger variant; the rig solves θ_j first).
+void SeaPlant::tensions(Channel& c) const {
+  const double k = c.p.spring_stiffness_N_per_m;
+  const double r = c.p.joint_pulley_radius_m;
+  const double d = c.x_e - r * c.theta_j;
+  const double t1 = std::max(0.0, c.p.pretension_N - k * d);
+  const double t2 = std::max(0.0, c.p.pretension_N + k * d);
+  SeaTruth& t = c.truth;
+  t.joint_angle_rad = c.theta_j;
+  t.spring_deflection_m = d;
+  t.tension1_N = t1;
+  t.tension2_N = t2;
+  t.joint_torque_Nm = (t2 - t1) * r;  // eq 2 while both cables are taut
+  t.load_cell_torque_Nm = 0.0;
 }
 
 // Rig: massless joint pulley held by the clamp, k_clamp θ_j = τ_j(θ_j). τ_j is piecewise linear in θ_j (both
@@ -104,7 +283,7 @@ void SeaPlant::solveJoint(Channel& c) const {
   t.load_cell_torque_Nm = a * theta;
 }
 
-void SeaPlant::substep(Channel& c, double duty, bool bridge_on, double h) {
+void SeaPlant::electrical(Channel& c, double duty, bool bridge_on, double h) {
   const SeaPlantParams& p = config_.params;
   const double n = p.gear_ratio;
   const double kt = p.torque_constant_Nm_per_A;
@@ -122,13 +301,25 @@ void SeaPlant::substep(Channel& c, double duty, bool bridge_on, double h) {
   } else {
     c.current = 0.0;
   }
+  c.truth.motor_voltage_V = voltage;
+  c.truth.bridge_on = bridge_on;
+}
 
-  // Bowden cable play: the spring side follows the motor side only once the motor has taken up the play.
+// Bowden cable play: the spring side follows the motor side only once the motor has taken up the play.
+void SeaPlant::play(Channel& c) {
   const double x_m = c.p.motor_pulley_radius_m * c.theta_m;
   const double half = 0.5 * (c.p.backlash_base_m + c.p.backlash_per_Nm_m * std::fabs(c.truth.joint_torque_Nm));
   c.x_e = std::clamp(c.x_e, x_m - half, x_m + half);
-  solveJoint(c);
+  c.truth.cable_motor_m = x_m;
+  c.truth.backlash_m = 2.0 * half;
+}
 
+void SeaPlant::motorMechanics(Channel& c, double h) {
+  const SeaPlantParams& p = config_.params;
+  const double n = p.gear_ratio;
+  const double kt = p.torque_constant_Nm_per_A;
+  const double x_m = c.truth.cable_motor_m;
+  const double half = 0.5 * c.truth.backlash_m;
   const double sheath_N = c.p.sheath_friction * (c.truth.tension1_N + c.truth.tension2_N);
   const double s = half > 0.0 ? (x_m - c.x_e) / half : 0.0;
   const double cable_load = c.p.motor_pulley_radius_m * ((c.truth.tension2_N - c.truth.tension1_N) + sheath_N * s);
@@ -147,12 +338,8 @@ void SeaPlant::substep(Channel& c, double duty, bool bridge_on, double h) {
   t.motor_angle_rad = c.theta_m;
   t.motor_speed_rad_s = c.omega_m;
   t.motor_current_A = c.current;
-  t.motor_voltage_V = voltage;
-  t.cable_motor_m = x_m;
   t.cable_spring_m = c.x_e;
-  t.backlash_m = 2.0 * half;
   t.cable_load_torque_Nm = cable_load;
-  t.bridge_on = bridge_on;
 }
 
 void SeaPlant::step(double dt_s, SimIo& io) {
@@ -162,11 +349,31 @@ void SeaPlant::step(double dt_s, SimIo& io) {
   const bool bridge_on = io.pwm_enabled && io.drive_enable && !io.estop_pressed;
   const auto n = static_cast<long>(std::ceil(dt_s / config_.params.max_substep_s - 1e-9));
   const double h = dt_s / static_cast<double>(n);
+  std::array<double, 2> duty{};
   for (size_t i = 0; i < ch_.size(); ++i) {
-    const double duty = asDouble(io.pwm_duty[i]);
-    for (long k = 0; k < n; ++k) substep(ch_[i], std::isfinite(duty) ? duty : 0.0, bridge_on, h);
+    duty[i] = asDouble(io.pwm_duty[i]);
+    if (!std::isfinite(duty[i])) duty[i] = 0.0;
   }
-  time_s_ += dt_s;
+  const bool rig = config_.variant == SeaVariant::kRig;
+  for (long k = 0; k < n; ++k) {
+    for (size_t i = 0; i < ch_.size(); ++i) {
+      Channel& c = ch_[i];
+      electrical(c, duty[i], bridge_on, h);
+      play(c);
+      if (rig) {
+        solveJoint(c);
+      } else {
+        tensions(c);
+      }
+      motorMechanics(c, h);
+    }
+    if (!rig) fingerDynamics(h);
+    time_s_ += h;
+  }
+  if (!rig) {
+    fingerDynamics(0.0);  // truth at the end of the step
+    fingerSensors();
+  }
   sample(io);
 }
 
@@ -181,11 +388,14 @@ void SeaPlant::sample(SimIo& io) {
   const SeaPlantParams& p = config_.params;
   const double noise = config_.noise ? 1.0 : 0.0;
   const double mid = static_cast<double>(board::kAdcMidCounts);
-  // Joint sensors: 0 and 1 are the SEA joints; on the rig the other three sit on an unmoving fixture.
+  // Joint sensors. Rig: sensors 0 and 1 sit on the clamped SEA joints, mounted at mid-scale; the other three
+  // on an unmoving fixture. Finger: the five angles of the closed chains (kinematics.h SensorIndex).
+  const bool rig = config_.variant == SeaVariant::kRig;
   for (int s = 0; s < board::kJointSensorCount; ++s) {
-    const double angle = s < 2 ? ch_[static_cast<size_t>(s)].theta_j : 0.0;
-    const double counts = mid + (angle - asDouble(board::kJointCentre_rad[static_cast<size_t>(s)])) *
-                                    asDouble(board::kJointCountsPerRad);
+    const auto si = static_cast<size_t>(s);
+    const double centre = asDouble(board::kJointCentre_rad[si]);
+    const double angle = rig ? centre + (s < 2 ? ch_[si].theta_j : 0.0) : finger_.sensors_rad[si];
+    const double counts = mid + (angle - centre) * asDouble(board::kJointCountsPerRad);
     io.adc[static_cast<size_t>(board::kAdcFirstJoint + s)] = toCounts(counts + noise * p.joint_noise_counts * gaussian());
   }
   for (size_t i = 0; i < ch_.size(); ++i) {
@@ -196,9 +406,10 @@ void SeaPlant::sample(SimIo& io) {
     const double current_counts = mid + c.current * asDouble(board::kCurrentCountsPerAmp);
     io.adc[static_cast<size_t>(board::kAdcFirstCurrent) + i] =
         toCounts(current_counts + noise * p.current_noise_counts * gaussian());
+    // Load cell: only on the rig (the finger device has none; its input reads mid-scale).
     const double lc_counts = mid + c.truth.load_cell_torque_Nm * asDouble(board::kLoadCellCountsPerNm);
     io.adc[static_cast<size_t>(board::kAdcFirstLoadCell) + i] =
-        toCounts(lc_counts + noise * p.load_cell_noise_counts * gaussian());
+        rig ? toCounts(lc_counts + noise * p.load_cell_noise_counts * gaussian()) : board::kAdcMidCounts;
   }
 }
 

@@ -174,7 +174,7 @@ nlohmann::json benchRigSine(const SeaBenchOptions& o) {
 }
 
 nlohmann::json benchRigChirp(const SeaBenchOptions& o) {
-  const double seconds = o.seconds > 0.0 ? o.seconds : 20.0;
+  const double seconds = o.seconds > 0.0 ? o.seconds : 25.0;
   // eq 16: instantaneous frequency f0 + 2 f1 t reaches fmax at the end.
   const double f1 = (o.chirp_fmax_hz - o.chirp_f0_hz) / (2.0 * seconds);
   nlohmann::json out = commonHeader(o, "sea-rig-chirp", seconds);

@@ -1,6 +1,7 @@
 #pragma once
 /// The simulated sea_finger: the firmware's SeaFingerApp together with the SEA plant (hal/sim SeaPlant).
-/// Variants: "sea_rig" (§7.1 test rig, joints clamped to load cells).
+/// Variants: "sea_finger" (the exoskeleton on a simulated index finger, eq 13–14) and "sea_rig" (§7.1 test rig,
+/// joints clamped to load cells).
 #include "phalanx/apps/sea_finger.h"
 #include "phalanx/fw_sim/sim_device.h"
 #include "phalanx/sea/board.h"
@@ -27,5 +28,8 @@ class SeaFingerSimDevice : public SimDevice {
   apps::SeaFingerApp app_;
   sim::SeaPlant plant_;
 };
+
+/// "still" | "grasp" → relaxed finger, "random" → random motion, "close-open" → sinusoidal flexion; false otherwise.
+bool parseSeaUserMotion(const std::string& name, sim::SeaUserMotion& out);
 
 }  // namespace phalanx::fw_sim

@@ -17,6 +17,14 @@
 ///   Rig variant (§7.1): the exoskeleton joint is clamped to a load cell through a compliant interface
 ///   (k_clamp; §8.1.1 reports the joint still moving slightly under load). The joint side is massless and
 ///   quasi-static: θ_j solves k_clamp θ_j = τ_j(θ_j). The load cell reads k_clamp θ_j.
+///   Finger variant (§4.2, §6.1): the SEAs drive the exoskeleton's MCP and PIP chains closed around an index
+///   finger (phalanx/sea/kinematics.h: four-bar/slider chains MCP → PIP → DIP, Table 4 subject). Dynamics of
+///   eq 13 in the exoskeleton joint coordinates Θ_r = (θ_1r, θ_6r):
+///       I_j Θ̈_r + B_j Θ̇_r + J_nᵀ τ_f = τ_j,     τ_f = −(τ_passive(θ_f) − B_f θ̇_f + τ_muscle)
+///   with the double-exponential passive joint torque of eq 14 at the finger MCP and PIP, a linear finger
+///   damping, and the user's muscle torque (an impedance around the intended motion θ_d(t) of the scenario).
+///   The DIP follows the PIP (anatomical coupling θ_dip = c·θ_8); its chain only sets the DIP sensor.
+///   The velocity update is semi-implicit in the damping (J_nᵀ B J_n grows large near the workspace edge).
 ///   Sensors: joint angle (KMA210) counts with white noise and 12-bit quantisation (the paper's moving-average
 ///   filter is the firmware's job), motor encoders (quantised, noise-free), motor current sense with noise,
 ///   load-cell counts with noise.
@@ -28,13 +36,43 @@
 #include <random>
 
 #include "phalanx/sea/board.h"
+#include "phalanx/sea/kinematics.h"
 #include "phalanx/sim/plant.h"
 
 namespace phalanx::sim {
 
 /// Which mechanism the SEAs drive.
 enum class SeaVariant : std::uint8_t {
-  kRig = 0,  ///< §7.1 test rig: each exoskeleton joint clamped to a load cell
+  kRig = 0,     ///< §7.1 test rig: each exoskeleton joint clamped to a load cell
+  kFinger = 1,  ///< the exoskeleton on an index finger (eq 13–14)
+};
+
+/// What the simulated user does (finger variant).
+enum class SeaUserMotion : std::uint8_t {
+  kRelaxed = 0,    ///< muscles off: the finger is moved by the device against its passive torque (eq 14)
+  kRandom = 1,     ///< band-limited random flexion/extension around the rest pose (§7.7 "fast random motions")
+  kCloseOpen = 2,  ///< slow sinusoidal flexion/extension of MCP and PIP, 0.5 Hz
+};
+
+/// Finger and exoskeleton-link dynamics (eq 13–14). Index 0: MCP, 1: PIP. docs/sea-plant.md gives the sources.
+struct SeaFingerParams {
+  /// eq 14, τ(φ) = A(e^{−B(φ−E)} − 1) − C(e^{D(φ−F)} − 1) in the FLEXION-positive angle φ = −θ (the paper's
+  /// form; kinematics.h counts flexion negative). A, C in N·m, B, D in 1/rad, E, F in rad.
+  std::array<double, 2> A_Nm = {0.04, 0.015};
+  std::array<double, 2> B_per_rad = {5.0, 5.0};
+  std::array<double, 2> C_Nm = {0.04, 0.015};
+  std::array<double, 2> D_per_rad = {5.0, 5.0};
+  std::array<double, 2> E_rad = {-0.2, -0.1};
+  std::array<double, 2> F_rad = {1.2, 1.4};
+  std::array<double, 2> finger_damping_Nm_s_per_rad = {0.01, 0.005};  ///< human joint damping (finger coords)
+  std::array<double, 2> exo_inertia_kg_m2 = {4.0e-5, 1.5e-5};          ///< I_j: exo links + phalanges, at Θ_r
+  std::array<double, 2> exo_damping_Nm_s_per_rad = {0.002, 0.001};     ///< B_j: exo joint bearings
+  std::array<double, 2> muscle_stiffness_Nm_per_rad = {1.0, 0.5};      ///< user's impedance around θ_d
+  std::array<double, 2> muscle_damping_Nm_s_per_rad = {0.02, 0.01};
+  double dip_pip_coupling = 2.0 / 3.0;                                  ///< θ_dip = c·θ_8
+  std::array<double, 2> random_amplitude_rad = {0.30, 0.42};          ///< kRandom: ±17° MCP, ±24° PIP peak
+  std::array<double, 2> close_open_amplitude_rad = {0.30, 0.40};      ///< kCloseOpen
+  double close_open_hz = 0.5;
 };
 
 /// Constants of one SEA channel (MCP or PIP).
@@ -59,6 +97,7 @@ inline SeaChannelParams seaChannelDefaults(int sea) {
 /// Physical constants of the plant. SI units. Defaults: docs/sea-plant.md.
 struct SeaPlantParams {
   std::array<SeaChannelParams, 2> channel = {seaChannelDefaults(0), seaChannelDefaults(1)};  ///< MCP, PIP
+  SeaFingerParams finger{};
   // Motor + gearhead (per SEA, identical).
   double supply_V = static_cast<double>(::phalanx::sea::board::kSupply_V);
   double motor_resistance_Ohm = static_cast<double>(::phalanx::sea::board::kMotorResistance_Ohm);
@@ -83,6 +122,7 @@ struct SeaPlantConfig {
   std::uint32_t seed = 1;
   bool noise = true;
   SeaVariant variant = SeaVariant::kRig;
+  SeaUserMotion motion = SeaUserMotion::kRelaxed;  ///< finger variant only
   SeaPlantParams params{};
 };
 
@@ -97,11 +137,28 @@ struct SeaTruth {
   double backlash_m = 0;             ///< current play width b
   double spring_deflection_m = 0;    ///< d = x_e − r_j(θ_j − θ_j0)
   double tension1_N = 0, tension2_N = 0;
-  double joint_angle_rad = 0;        ///< θ_j − θ_j0
+  double joint_angle_rad = 0;        ///< θ_j − θ_j0 (exoskeleton joint θ_1r or θ_6r on the finger)
   double joint_torque_Nm = 0;        ///< τ_j = (T_2 − T_1) r_j, what the SEA applies to the joint
   double load_cell_torque_Nm = 0;    ///< rig: k_clamp θ_j (equal to τ_j, quasi-static)
   double cable_load_torque_Nm = 0;   ///< what the cables exert on the motor pulley (incl. sheath friction)
   bool bridge_on = false;
+};
+
+/// Ground truth of the finger (finger variant). Angles in kinematics.h's convention (flexion negative).
+struct SeaFingerTruth {
+  std::array<double, 2> exo_rad{};            ///< Θ_r = (θ_1r, θ_6r)
+  std::array<double, 2> exo_rate_rad_s{};
+  std::array<double, 2> exo_rest_rad{};       ///< Θ_r0: exoskeleton angles where the springs are neutral
+  std::array<double, 3> theta_rad{};          ///< finger MCP θ_4, PIP θ_8, DIP
+  std::array<double, 2> theta_rate_rad_s{};
+  std::array<double, 2> intent_rad{};         ///< the user's intended MCP, PIP (kRandom, kCloseOpen)
+  std::array<double, 2> passive_Nm{};         ///< eq 14 in the +θ direction
+  std::array<double, 2> muscle_Nm{};
+  /// Finger joint torques the exoskeleton applies (+θ = extension): J_n^{-T} τ_j (eq 9 on the true state).
+  std::array<double, 2> applied_Nm{};
+  std::array<std::array<double, 2>, 2> J_n{};  ///< eq 10 at the true pose
+  std::array<double, 5> sensors_rad{};        ///< true sensor angles (kinematics.h SensorIndex)
+  bool kinematics_ok = true;
 };
 
 class SeaPlant final : public Plant {
@@ -116,6 +173,11 @@ class SeaPlant final : public Plant {
   const SeaPlantConfig& config() const { return config_; }
   /// Ground truth of SEA 0 (MCP) or 1 (PIP); throws std::out_of_range otherwise.
   const SeaTruth& truth(int sea) const;
+  /// Finger ground truth (finger variant; zeros on the rig).
+  const SeaFingerTruth& finger() const { return finger_; }
+  /// Passive finger joint torque of eq 14 for joint 0 (MCP) / 1 (PIP) at angle θ (kinematics.h convention), in
+  /// the +θ direction.
+  double passiveTorque_Nm(int joint, double theta_rad) const;
   /// The ideal SEA law of eq 2 evaluated on the true state: 2k(r_m θ_m − r_j(θ_j − θ_j0)) r_j — what a perfect
   /// estimator (eq 7, noise-free sensors) would report. Differs from truth().joint_torque_Nm by the cable play.
   double idealSeaTorque_Nm(int sea) const;
@@ -126,18 +188,34 @@ class SeaPlant final : public Plant {
     double inertia = 0;         ///< at the pulley
     double theta_m = 0, omega_m = 0, current = 0;
     double x_e = 0;             ///< spring-side cable travel
-    double theta_j = 0;
+    double theta_j = 0;         ///< exoskeleton joint angle relative to θ_j0
+    double omega_j = 0;
     SeaTruth truth{};
   };
+  struct RandomMotion {
+    static constexpr int kTerms = 4;
+    std::array<std::array<double, kTerms>, 2> amp{}, freq_hz{}, phase{};
+  };
   static int idx(int sea);
-  void substep(Channel& c, double duty, bool bridge_on, double h);
+  void electrical(Channel& c, double duty, bool bridge_on, double h);
+  void play(Channel& c);
+  void tensions(Channel& c) const;
   void solveJoint(Channel& c) const;
+  void motorMechanics(Channel& c, double h);
+  void fingerDynamics(double h);
+  void intent(double t, std::array<double, 2>& theta_d, std::array<double, 2>& theta_d_dot) const;
+  void fingerSensors();
   void sample(SimIo& io);
   double gaussian();
 
   SeaPlantConfig config_;
   double time_s_ = 0;
   std::array<Channel, 2> ch_{};
+  SeaFingerTruth finger_{};
+  sea::Model<double> model_{};
+  sea::Data<double> kin_{};
+  std::array<double, 2> rest_theta_{};  ///< finger rest pose (eq 14 zero), MCP and PIP
+  RandomMotion random_{};
   std::mt19937 rng_;
 };
 

@@ -25,7 +25,7 @@ struct SeaBenchOptions {
   double hz = 0.5;                  ///< sine: frequency (§7.1.2: 0.5 Hz)
   double chirp_amplitude_Nm = 0.15; ///< chirp: τ_A (eq 16)
   double chirp_f0_hz = 0.1;         ///< chirp: start frequency
-  double chirp_fmax_hz = 12.0;      ///< chirp: frequency reached at the end
+  double chirp_fmax_hz = 25.0;      ///< chirp: frequency reached at the end
   double plant_backlash_scale = 1.0;  ///< scales the plant's cable play b_0, b_1 (model-mismatch studies)
 };
 
