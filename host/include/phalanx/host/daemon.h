@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "phalanx/host/modbus/server_options.h"
+
 namespace phalanx::host {
 
 struct RunOptions {
@@ -24,6 +26,7 @@ struct RunOptions {
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   double handshake_timeout_s = 2.0;
+  modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
 };
 
 /// Validate options; returns an empty string or the first problem, naming the option.
