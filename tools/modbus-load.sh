@@ -44,8 +44,10 @@ sleep 1  # all clients connected and polling
 T2=$(uptime_ms)
 sleep "$PHASE"
 T3=$(uptime_ms)
-for p in "${PIDS[@]}"; do kill "$p"; done
-wait "${PIDS[@]}" 2>/dev/null || true
+if [ "${#PIDS[@]}" -gt 0 ]; then
+  kill "${PIDS[@]}"
+  wait "${PIDS[@]}" 2>/dev/null || true
+fi
 wait "$DAEMON" || true
 
 python3 - "$WORK" "$T0" "$T1" "$T2" "$T3" "$CLIENTS" <<'PY'
