@@ -98,7 +98,7 @@ void apply(const YAML::Node& root, Plan& p) {
     if (s["settle_s"]) st.settle_s = number(s["settle_s"], w + ".settle_s", 0.0, 60.0);
     if (st.kind == "sea-rig-chirp") st.settle_s = s["settle_s"] ? st.settle_s : 0.0;
     if (st.settle_s >= st.seconds) throw Bad{w + ".settle_s: must be shorter than seconds"};
-    // 0.4 N·m: the rig's commanded-torque range (SEA board limits) — see docs/bench-runner.md.
+    // 0.4 N·m: the range phalanx bench sea-rig-sine accepts (docs/bench-runner.md, constants).
     if (s["peak_Nm"]) st.peak_Nm = number(s["peak_Nm"], w + ".peak_Nm", 0.001, 0.4);
     if (s["hz"]) st.hz = number(s["hz"], w + ".hz", 0.01, 50.0);
     if (s["amplitude_Nm"]) st.amplitude_Nm = number(s["amplitude_Nm"], w + ".amplitude_Nm", 0.001, 0.4);
