@@ -20,6 +20,7 @@ bool parseSeaUserMotion(const std::string& name, sim::SeaUserMotion& out) {
   if (name == "still" || name == "grasp") out = sim::SeaUserMotion::kRelaxed;
   else if (name == "random") out = sim::SeaUserMotion::kRandom;
   else if (name == "close-open") out = sim::SeaUserMotion::kCloseOpen;
+  else if (name == "hold") out = sim::SeaUserMotion::kHold;
   else return false;
   return true;
 }

@@ -1,6 +1,7 @@
 // phalanx: the user's command-line entry point.
 //   phalanx run     start a session (the simulated firmware too, for sim:* devices) and print a summary
 //   phalanx version protocol and build information
+//   phalanx sea-calibrate  SEA finger subject parameters from a recording (001 eq 12)
 #include <cstdio>
 #include <iostream>
 
@@ -9,6 +10,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/sea/sea_bench.h"
+#include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -60,6 +62,22 @@ int main(int argc, char** argv) {
   add_sea_options(sea_chirp);
   sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
   sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
+  CLI::App* sea_finger_torque =
+      bench->add_subcommand("sea-finger-torque", "SEA exoskeleton on the simulated finger: finger MCP/PIP torque tracking (001 §7.6, eq 9-11)");
+  add_sea_options(sea_finger_torque);
+  sea_finger_torque->add_flag("--user-holds", sea_opt.finger_user_holds,
+                              "the simulated user holds the rest posture (default: relaxed finger)");
+  CLI::App* sea_transparency =
+      bench->add_subcommand("sea-transparency", "SEA exoskeleton: residual torque during random finger motion (001 §7.7)");
+  add_sea_options(sea_transparency);
+  CLI::App* sea_cal = app.add_subcommand("sea-calibrate", "estimate SEA finger subject parameters (001 eq 12)");
+  std::string sea_cal_csv;
+  std::string sea_cal_subject;
+  int sea_cal_stride = 1;
+  sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record)")->required();
+  sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
+  sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(CLI::Range(1, 1000));
+  sea_cal->add_flag("--json", json, "JSON output");
 
   std::string plan_path, plan_report;
   CLI::App* plan_run = bench->add_subcommand("run", "run a bench plan (YAML) against a reference instrument; HTML report");
@@ -72,12 +90,18 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   if (plan_run->parsed()) return phalanx::host::benchrun::benchRunMain(plan_path, plan_report);
-  if (sea_sine->parsed() || sea_chirp->parsed()) {
+  if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
     sea_opt.noise = !bench_no_noise;
-    const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
-                                                     : phalanx::host::sea::benchRigChirp(sea_opt);
+    namespace hs = phalanx::host::sea;
+    const nlohmann::json result = sea_sine->parsed()            ? hs::benchRigSine(sea_opt)
+                                  : sea_chirp->parsed()         ? hs::benchRigChirp(sea_opt)
+                                  : sea_finger_torque->parsed() ? hs::benchFingerTorque(sea_opt)
+                                                                : hs::benchTransparency(sea_opt);
     std::cout << result.dump(2) << std::endl;
     return 0;
+  }
+  if (sea_cal->parsed()) {
+    return phalanx::host::sea::seaCalibrateCommand(sea_cal_csv, sea_cal_subject, json, sea_cal_stride);
   }
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;

@@ -3,6 +3,7 @@
 #include "phalanx/host/controller.h"
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/sea/sea_finger_controller.h"
 
 namespace phalanx::host {
 
@@ -27,6 +28,13 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
       return nullptr;
     }
     return std::make_unique<glove::GloveController>(cfg);
+  }
+  if (layout.type == protocol::DeviceType::kSeaFinger) {
+    // mode transparent: zero finger (= zero exoskeleton) torque, §7.7; otherwise the finger-torque profile
+    // (eq 18 sine on the finger MCP/PIP torques) through eq 9–11.
+    sea::SeaFingerControllerConfig cfg;
+    cfg.mode = opt.mode == "transparent" ? sea::SeaFingerMode::kTransparent : sea::SeaFingerMode::kFingerTorque;
+    return std::make_unique<sea::SeaFingerController>(cfg);
   }
   (void)error;
   return std::make_unique<TransparentController>();

@@ -118,12 +118,16 @@ TEST(SeaFingerApp, OpenOrShortedJointSensorIsARangeFault) {
 TEST(SeaFingerApp, SetpointsAreClampedToTheTorqueLimitsAndTheMotorCommandToItsWindow) {
   AppRig r;
   r.zero();
-  r.sense();
+  // The PIP joint flexed by −70° since zeroing: eq 8's feed-forward alone asks for (r_j/r_m)·(−70°) = −47°, and
+  // −0.15 N·m another −39°: the command stops at −55°.
+  r.sim.io().adc[board::kAdcFirstJoint + 1] =
+      board::kAdcMidCounts - static_cast<int32_t>(std::lround(70.0 * M_PI / 180.0 * static_cast<double>(board::kJointCountsPerRad)));
+  r.sense(32);
   const auto cfg = apps::seaFingerDefaultConfig();
   r.app.control(setpoint(0.9f, -0.9f), 1e-3f);
   EXPECT_FLOAT_EQ(r.app.channel(0).tau_desired_Nm, cfg.max_torque_Nm[0]);
   EXPECT_FLOAT_EQ(r.app.channel(1).tau_desired_Nm, -cfg.max_torque_Nm[1]);
-  // PIP at −0.15 N·m needs ≈ −58° of motor angle with the joint held, plus the PID: the command stops at −55°.
+  EXPECT_FALSE(r.app.channel(0).command_limited);
   EXPECT_TRUE(r.app.channel(1).command_limited);
   EXPECT_FLOAT_EQ(r.app.channel(1).u_rad, -cfg.motor_command_limit_rad);
   for (int i = 0; i < 2; ++i) {

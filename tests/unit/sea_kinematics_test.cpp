@@ -85,7 +85,9 @@ TEST(SeaKinematics, FingerToSensorsToFingerIsIdentityOverTheWorkspace) {
     EXPECT_NEAR(est.theta8_rad, f.pip_rad, 1e-12);
     EXPECT_NEAR(est.theta_dip_rad, f.dip_rad, 1e-12);
     EXPECT_NEAR(est.x3_m, plant.x3_m, 1e-14);
-    EXPECT_NEAR(est.theta5_rad, plant.sensors_rad[kSensorRedundant], 1e-12);
+    EXPECT_NEAR(est.theta5_rad, plant.theta5_rad, 1e-12);
+    EXPECT_NEAR(est.theta7r_rad, plant.sensors_rad[kSensorRedundant], 1e-12);
+    EXPECT_NEAR(est.theta7r_rad, est.theta5_rad + est.theta6r_rad - est.theta8_rad - 90 * kDeg, 1e-12);
     // The solved pose satisfies the loop equations (checked independently of the solver).
     const auto err = loopErrors(m, est.theta1_rad, est.x3_m, est.theta4_rad, est.theta5_rad, est.theta6r_rad,
                                 est.theta8_rad);
@@ -368,7 +370,7 @@ TEST(SeaKinematics, SinglePrecisionInstantiationAgreesWithDouble) {
   EXPECT_NEAR(static_cast<double>(e.theta8_rad), -0.7, 2e-4);
 }
 
-TEST(SeaKinematics, RedundantPredictionEqualsTheEstimatorsTheta5) {
+TEST(SeaKinematics, RedundantPredictionEqualsTheRedundantSensorReading) {
   const Model<double> m = model();
   D plant;
   ASSERT_EQ(computeFromFinger(m, finger(-20, -50, -10), plant), Status::kOk);

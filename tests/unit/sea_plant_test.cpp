@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "phalanx/sea/board.h"
+#include "phalanx/sea/kinematics.h"
 #include "phalanx/sim/sea_plant.h"
 
 using namespace phalanx;
@@ -61,7 +62,7 @@ TEST(SeaPlant, SpringTorqueFollowsEq2WhileBothCablesAreTaut) {
     const double k = ch.spring_stiffness_N_per_m, rj = ch.joint_pulley_radius_m, rm = ch.motor_pulley_radius_m;
     ASSERT_EQ(k, 2816.0);
     ASSERT_NEAR(rj, 0.010, 1e-9);
-    ASSERT_NEAR(rm, 0.010, 1e-9);
+    ASSERT_NEAR(rm, 0.015, 1e-9);
     const double eq2 = 2.0 * k * (rm * t.motor_angle_rad - rj * t.joint_angle_rad) * rj;
     EXPECT_NEAR(t.joint_torque_Nm, eq2, 1e-12) << target;
     EXPECT_NEAR(plant.idealSeaTorque_Nm(0), eq2, 1e-12);
@@ -202,4 +203,112 @@ TEST(SeaPlant, RejectsBadConfigurationAndBadSteps) {
   EXPECT_THROW(plant.step(0.0, io), std::invalid_argument);
   EXPECT_THROW(plant.step(std::nan(""), io), std::invalid_argument);
   EXPECT_THROW((void)plant.truth(2), std::out_of_range);
+}
+
+// ---- Finger variant (eq 13–14) ------------------------------------------------------------------------------
+
+namespace {
+
+sim::SeaPlantConfig fingerConfig(sim::SeaUserMotion motion = sim::SeaUserMotion::kRelaxed) {
+  sim::SeaPlantConfig c;
+  c.noise = false;
+  c.variant = sim::SeaVariant::kFinger;
+  c.motion = motion;
+  return c;
+}
+
+}  // namespace
+
+TEST(SeaPlantFinger, PassiveTorqueIsTheDoubleExponentialOfEq14) {
+  sim::SeaPlant plant(fingerConfig());
+  const auto& f = fingerConfig().params.finger;
+  for (int j = 0; j < 2; ++j) {
+    const auto jj = static_cast<size_t>(j);
+    for (double deg : {-80.0, -45.0, -20.0, 0.0, 10.0}) {
+      const double theta = deg * M_PI / 180.0;
+      const double phi = -theta;  // eq 14's flexion-positive angle
+      const double eq14 = f.A_Nm[jj] * (std::exp(-f.B_per_rad[jj] * (phi - f.E_rad[jj])) - 1.0) -
+                          f.C_Nm[jj] * (std::exp(f.D_per_rad[jj] * (phi - f.F_rad[jj])) - 1.0);
+      EXPECT_NEAR(plant.passiveTorque_Nm(j, theta), -eq14, 1e-12) << j << " " << deg;
+    }
+    // Restoring: extension beyond the rest pose is pushed back towards flexion (−θ) and vice versa.
+    EXPECT_LT(plant.passiveTorque_Nm(j, 0.2), 0.0);
+    EXPECT_GT(plant.passiveTorque_Nm(j, -1.4), 0.0);
+  }
+}
+
+TEST(SeaPlantFinger, RelaxedFingerStaysAtItsRestPoseWithTheBridgesOff) {
+  sim::SeaPlant plant(fingerConfig());
+  sim::SimIo io;
+  const auto rest = plant.finger().theta_rad;
+  EXPECT_NEAR(plant.passiveTorque_Nm(0, rest[0]), 0.0, 1e-9);
+  EXPECT_NEAR(plant.passiveTorque_Nm(1, rest[1]), 0.0, 1e-9);
+  for (int i = 0; i < 1000; ++i) plant.step(1e-3, io);
+  EXPECT_NEAR(plant.finger().theta_rad[0], rest[0], 1e-9);
+  EXPECT_NEAR(plant.finger().theta_rad[1], rest[1], 1e-9);
+  EXPECT_NEAR(plant.truth(0).joint_torque_Nm, 0.0, 1e-12);
+}
+
+TEST(SeaPlantFinger, SensorAnglesReproduceTheFingerThroughTheKinematicsEstimator) {
+  sim::SeaPlant plant(fingerConfig(sim::SeaUserMotion::kRandom));
+  sim::SimIo io;
+  const auto model = sea::defaultModel<double>();
+  for (int k = 0; k < 5; ++k) {
+    for (int i = 0; i < 400; ++i) plant.step(1e-3, io);
+    const auto& f = plant.finger();
+    sea::Data<double> d;
+    const sea::Status st = sea::computeFromSensors(model, f.sensors_rad, d);
+    ASSERT_TRUE(sea::isUsable(st));
+    EXPECT_NEAR(d.theta4_rad, f.theta_rad[0], 1e-9);
+    EXPECT_NEAR(d.theta8_rad, f.theta_rad[1], 1e-9);
+    EXPECT_NEAR(d.theta_dip_rad, f.theta_rad[2], 1e-6);
+    // The redundant sensor agrees with the model prediction from the two SEA joints (eq 12's y_m).
+    EXPECT_NEAR(f.sensors_rad[sea::kSensorRedundant],
+                sea::predictRedundant(model.subject, model.fixed, f.sensors_rad[0], f.sensors_rad[1]), 1e-9);
+    // Counts decode to the sensor angles within one count.
+    for (int s = 0; s < 5; ++s) {
+      const double angle = static_cast<double>(board::kJointCentre_rad[static_cast<size_t>(s)]) +
+                           (io.adc[static_cast<size_t>(s)] - board::kAdcMidCounts) / static_cast<double>(board::kJointCountsPerRad);
+      EXPECT_NEAR(angle, f.sensors_rad[static_cast<size_t>(s)], 0.6 / static_cast<double>(board::kJointCountsPerRad)) << s;
+    }
+  }
+  EXPECT_EQ(io.adc[board::kAdcFirstLoadCell], board::kAdcMidCounts) << "no load cell on the finger";
+}
+
+TEST(SeaPlantFinger, AppliedFingerTorqueIsEq9OfTheSeaTorques) {
+  sim::SeaPlant plant(fingerConfig());
+  sim::SimIo io;
+  io.pwm_enabled = true;
+  io.drive_enable = true;
+  io.pwm_duty[0] = 0.15f;
+  io.pwm_duty[1] = -0.1f;
+  for (int i = 0; i < 200; ++i) plant.step(1e-3, io);
+  const auto& f = plant.finger();
+  ASSERT_GT(std::fabs(plant.truth(0).joint_torque_Nm), 0.01);
+  // Virtual work: τ_jᵀ Θ̇_r = τ_fᵀ θ̇_f for any Θ̇_r, with θ̇_f = J_n Θ̇_r.
+  for (const auto& w : {std::array<double, 2>{1.0, 0.0}, std::array<double, 2>{0.3, -0.7}}) {
+    const double p_exo = plant.truth(0).joint_torque_Nm * w[0] + plant.truth(1).joint_torque_Nm * w[1];
+    const double wf0 = f.J_n[0][0] * w[0] + f.J_n[0][1] * w[1];
+    const double wf1 = f.J_n[1][0] * w[0] + f.J_n[1][1] * w[1];
+    EXPECT_NEAR(f.applied_Nm[0] * wf0 + f.applied_Nm[1] * wf1, p_exo, 1e-9);
+  }
+  // The finger flexes or extends under it: it left the rest pose.
+  EXPECT_GT(std::fabs(f.theta_rad[0] - f.intent_rad[0]) + std::fabs(f.theta_rad[1] - f.intent_rad[1]), 0.01);
+}
+
+TEST(SeaPlantFinger, RandomUserMotionSpansTheConfiguredRange) {
+  sim::SeaPlant plant(fingerConfig(sim::SeaUserMotion::kRandom));
+  sim::SimIo io;  // bridges off: the user back-drives the SEAs
+  double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
+  for (int i = 0; i < 10000; ++i) {
+    plant.step(1e-3, io);
+    for (int j = 0; j < 2; ++j) {
+      lo[j] = std::fmin(lo[j], plant.finger().theta_rad[static_cast<size_t>(j)]);
+      hi[j] = std::fmax(hi[j], plant.finger().theta_rad[static_cast<size_t>(j)]);
+    }
+  }
+  EXPECT_GT(hi[0] - lo[0], 0.3);
+  EXPECT_GT(hi[1] - lo[1], 0.3);
+  EXPECT_LT(hi[0] - lo[0], 2.0 * 0.30 + 0.1);
+  EXPECT_TRUE(plant.finger().kinematics_ok);
 }

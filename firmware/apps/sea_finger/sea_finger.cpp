@@ -123,6 +123,8 @@ void SeaFingerApp::resetControllers() {
     c.tau_desired_rate_Nm_s = 0.0f;
     c.tau_hat_rate_Nm_s = 0.0f;
     c.u_ff_rate_rad_s = 0.0f;
+    c.play_side = 0.0f;
+    c.play_side_target = 0.0f;
     c.duty = 0.0f;
     c.command_limited = false;
   }
@@ -167,12 +169,19 @@ uint16_t SeaFingerApp::control(const protocol::Command& cmd, float dt_s) {
     last_tau_hat_[i] = c.tau_hat_Nm;
 
     // eq 8 feed-forward: the motor angle at which the ideal SEA (eq 2) delivers y_d at the current joint angle.
-    float u_ff = (tau_d / (2.0f * k * rj) + rj * c.joint_rad) / rm;
+    const float joint_ff = ours ? c.joint_rad + cfg_.joint_lead_s * c.joint_rate_rad_s : c.joint_rad;
+    // Spring-side cable position at which the ideal SEA (eq 2) delivers y_d at the current joint angle.
+    const float x_d = tau_d / (2.0f * k * rj) + rj * joint_ff;
+    float u_ff = x_d / rm;
     if (ours) {
-      // Inverse of the cable play: the motor must lead the spring by b̂/2 in the direction the cable moves.
-      const float cable_speed = c.tau_desired_rate_Nm_s / (2.0f * k * rj) + rj * c.joint_rate_rad_s;
-      const float side = std::tanh(cable_speed / cfg_.backlash_direction_m_per_s);
-      u_ff += side * 0.5f * playWidth(i, std::fabs(tau_d)) / rm;
+      // Inverse of the cable play: to move the spring side towards x_d the motor must hold the play's far edge,
+      // b̂/2 beyond x_d in that direction; the play model (sense()) says which edge.
+      const float gap = x_d - c.cable_spring_m;
+      if (gap > cfg_.backlash_deadband_m) c.play_side_target = 1.0f;
+      if (gap < -cfg_.backlash_deadband_m) c.play_side_target = -1.0f;
+      const float max_step = 2.0f * dt_s / cfg_.backlash_switch_s;
+      c.play_side += clampf(c.play_side_target - c.play_side, -max_step, max_step);
+      u_ff += c.play_side * 0.5f * playWidth(i, std::fabs(tau_d)) / rm;
     }
     if (ctl_primed_) c.u_ff_rate_rad_s += a_d * ((u_ff - last_u_ff_[i]) / dt_s - c.u_ff_rate_rad_s);
     last_u_ff_[i] = u_ff;

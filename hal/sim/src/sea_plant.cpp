@@ -24,7 +24,7 @@ void validate(const SeaPlantConfig& c) {
   const SeaPlantParams& p = c.params;
   require(c.variant == SeaVariant::kRig || c.variant == SeaVariant::kFinger, "SeaPlantConfig: unknown variant");
   require(c.motion == SeaUserMotion::kRelaxed || c.motion == SeaUserMotion::kRandom ||
-              c.motion == SeaUserMotion::kCloseOpen,
+              c.motion == SeaUserMotion::kCloseOpen || c.motion == SeaUserMotion::kHold,
           "SeaPlantConfig: unknown user motion");
   const SeaFingerParams& f = c.params.finger;
   for (size_t j = 0; j < 2; ++j) {
@@ -46,6 +46,7 @@ void validate(const SeaPlantConfig& c) {
     require(finiteNonNegative(s.pretension_N), "SeaChannelParams: pretension_N must be >= 0");
     require(finiteNonNegative(s.backlash_base_m), "SeaChannelParams: backlash_base_m must be >= 0");
     require(finiteNonNegative(s.backlash_per_Nm_m), "SeaChannelParams: backlash_per_Nm_m must be >= 0");
+    require(finiteNonNegative(s.play_damping_ratio), "SeaChannelParams: play_damping_ratio must be >= 0");
     require(finiteNonNegative(s.sheath_friction) && s.sheath_friction < 1.0,
             "SeaChannelParams: sheath_friction must be in [0, 1)");
     require(finitePositive(s.clamp_stiffness_Nm_per_rad), "SeaChannelParams: clamp_stiffness_Nm_per_rad must be > 0");
@@ -322,7 +323,12 @@ void SeaPlant::motorMechanics(Channel& c, double h) {
   const double half = 0.5 * c.truth.backlash_m;
   const double sheath_N = c.p.sheath_friction * (c.truth.tension1_N + c.truth.tension2_N);
   const double s = half > 0.0 ? (x_m - c.x_e) / half : 0.0;
-  const double cable_load = c.p.motor_pulley_radius_m * ((c.truth.tension2_N - c.truth.tension1_N) + sheath_N * s);
+  double cable_load = c.p.motor_pulley_radius_m * ((c.truth.tension2_N - c.truth.tension1_N) + sheath_N * s);
+  if (half > 0.0 && std::fabs(s) < 1.0) {
+    // Damping of the stretch inside the play: ζ · 2√(k_play J) with k_play = r_m² F_s / (b/2) at the pulley.
+    const double k_play = c.p.motor_pulley_radius_m * c.p.motor_pulley_radius_m * sheath_N / half;
+    cable_load += c.p.play_damping_ratio * 2.0 * std::sqrt(k_play * c.inertia) * c.omega_m;
+  }
 
   // Motor + gearhead at the pulley: Coulomb friction (no-load friction + the gear loss on the transmitted motor
   // torque), with stiction, integrated at the velocity level so that a stuck drive stays exactly stuck.

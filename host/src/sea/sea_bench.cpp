@@ -1,12 +1,14 @@
 #include "phalanx/host/sea/sea_bench.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "phalanx/apps/sea_finger.h"
 #include "phalanx/fw_sim/sea_finger_sim.h"
 #include "phalanx/host/lockstep.h"
 #include "phalanx/host/metrics.h"
+#include "phalanx/host/sea/sea_finger_controller.h"
 
 namespace phalanx::host::sea {
 namespace {
@@ -83,6 +85,95 @@ nlohmann::json commonHeader(const SeaBenchOptions& o, const char* scenario, doub
   out["sea"] = "MCP (k = 2816 N/m), joint clamped to the load cell (001 §7.1)";
   out["plant_backlash_scale"] = o.plant_backlash_scale;
   return out;
+}
+
+/// Forwards to a host controller and selects the firmware's torque controller at start-up.
+class FirmwareSelect : public Controller {
+ public:
+  FirmwareSelect(Controller& inner, bool paper) : inner_(inner), paper_(paper) {}
+  const char* name() const override { return inner_.name(); }
+  void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override {
+    inner_.update(tel, t_s, dt_s, cmd);
+  }
+  std::vector<std::pair<uint16_t, float>> startupParams() const override {
+    auto p = inner_.startupParams();
+    p.emplace_back(apps::sea_param::kController, paper_ ? 1.0f : 0.0f);
+    return p;
+  }
+  double startupSettleS() const override { return std::max(0.2, inner_.startupSettleS()); }
+
+ private:
+  Controller& inner_;
+  bool paper_;
+};
+
+struct FingerTrace {
+  std::array<std::vector<double>, 2> desired, estimate_f, truth_f, exo_est, exo_truth, theta, exo_cmd;
+  std::array<double, 2> motor_peak_deg{};
+  uint16_t faults = 0;
+  long invalid = 0;
+  std::string error;
+};
+
+FingerTrace runFinger(const SeaBenchOptions& o, sim::SeaUserMotion motion, sea::SeaFingerMode mode, bool paper,
+                      double seconds, double settle_s) {
+  FingerTrace tr;
+  sim::SeaPlantConfig plant;
+  plant.seed = o.seed;
+  plant.noise = o.noise;
+  plant.variant = sim::SeaVariant::kFinger;
+  plant.motion = motion;
+  for (auto& ch : plant.params.channel) {
+    ch.backlash_base_m *= o.plant_backlash_scale;
+    ch.backlash_per_Nm_m *= o.plant_backlash_scale;
+  }
+  fw_sim::SeaFingerSimDevice device(plant);
+  sea::SeaFingerControllerConfig cfg;
+  cfg.mode = mode;
+  sea::SeaFingerController ctl(cfg);
+  FirmwareSelect select(ctl, paper);
+  LockstepRig rig(device, select);
+  if (std::string err = rig.handshake(); !err.empty()) {
+    tr.error = err;
+    return tr;
+  }
+  const auto steps = static_cast<long>(std::lround(seconds * 1000.0));
+  for (long i = 0; i < steps; ++i) {
+    rig.step();
+    const TelemetryFrame& tel = rig.session().latest();
+    tr.faults |= tel.fault_bits;
+    for (size_t j = 0; j < 2; ++j) {
+      tr.motor_peak_deg[j] = std::max(tr.motor_peak_deg[j], std::fabs(device.seaPlant().truth(static_cast<int>(j)).motor_angle_rad) * 180.0 / kPi);
+    }
+    if (rig.timeS() < settle_s) continue;
+    const auto& map = ctl.lastMap();
+    if (!map.tau_f_hat_valid) ++tr.invalid;
+    sea::Vec2 y_d{}, y_d_rate{};
+    ctl.desired(rig.timeS(), y_d, y_d_rate);
+    const auto& f = device.seaPlant().finger();
+    for (size_t j = 0; j < 2; ++j) {
+      tr.desired[j].push_back(y_d[j]);
+      tr.estimate_f[j].push_back(map.tau_f_hat_valid ? map.tau_f_hat_Nm[j] : 0.0);
+      tr.truth_f[j].push_back(f.applied_Nm[j]);
+      tr.exo_est[j].push_back(tel.value[kSampleTorque0 + j]);
+      tr.exo_truth[j].push_back(device.seaPlant().truth(static_cast<int>(j)).joint_torque_Nm);
+      tr.theta[j].push_back(f.theta_rad[j]);
+      tr.exo_cmd[j].push_back(rig.lastCommand().setpoint[j]);
+    }
+  }
+  return tr;
+}
+
+double range(const std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return *hi - *lo;
+}
+
+double rms(const std::vector<double>& v) {
+  double s = 0.0;
+  for (double x : v) s += x * x;
+  return v.empty() ? 0.0 : std::sqrt(s / static_cast<double>(v.size()));
 }
 
 }  // namespace
@@ -249,6 +340,95 @@ nlohmann::json benchRigChirp(const SeaBenchOptions& o) {
   }
   out["paper_reported"] = {{"bandwidth_hz", 2.5}};
   out["target"] = {{"bandwidth_hz_min", 5.0}};
+  return out;
+}
+
+nlohmann::json benchFingerTorque(const SeaBenchOptions& o) {
+  const double seconds = o.seconds > 0.0 ? o.seconds : 12.0;
+  const double settle_s = 2.0;
+  nlohmann::json out;
+  out["scenario"] = "sea-finger-torque";
+  out["seconds"] = seconds;
+  out["window_s"] = {settle_s, seconds};
+  out["seed"] = o.seed;
+  out["noise"] = o.noise;
+  out["plant_backlash_scale"] = o.plant_backlash_scale;
+  out["user"] = o.finger_user_holds ? "user holds the rest posture (muscle impedance), eq 13-14, Table 4 subject"
+                                    : "relaxed finger (eq 13-14), Table 4 subject, host model = plant model";
+  const sea::FingerTorqueProfile profile{};
+  out["profile"] = {{"amplitude_Nm", profile.amplitude_Nm}, {"mean_Nm", profile.mean_Nm}, {"hz", profile.frequency_hz}};
+  static const char* kJoint[] = {"mcp", "pip"};
+  for (const std::string& name : controllersOf(o)) {
+    const FingerTrace tr = runFinger(o, o.finger_user_holds ? sim::SeaUserMotion::kHold : sim::SeaUserMotion::kRelaxed,
+                                     sea::SeaFingerMode::kFingerTorque,
+                                     name == "paper", seconds, settle_s);
+    nlohmann::json r;
+    if (!tr.error.empty()) {
+      r["error"] = tr.error;
+      out["controllers"][name] = r;
+      continue;
+    }
+    r["faults"] = tr.faults;
+    r["cycles_without_estimate"] = tr.invalid;
+    for (size_t j = 0; j < 2; ++j) {
+      const double span = range(tr.desired[j]);
+      const double e_est = rmse(tr.estimate_f[j], tr.desired[j]);
+      const double e_true = rmse(tr.truth_f[j], tr.desired[j]);
+      r[kJoint[j]] = {{"nrmse_percent", 100.0 * e_est / span},
+                      {"rmse_Nm", e_est},
+                      {"truth", {{"nrmse_percent", 100.0 * e_true / span}, {"rmse_Nm", e_true}}},
+                      {"desired_peak_to_peak_Nm", span},
+                      {"finger_angle_range_deg", range(tr.theta[j]) * 180.0 / kPi},
+                      {"exo_setpoint_peak_Nm", std::max(std::fabs(*std::min_element(tr.exo_cmd[j].begin(), tr.exo_cmd[j].end())),
+                                                        std::fabs(*std::max_element(tr.exo_cmd[j].begin(), tr.exo_cmd[j].end())))},
+                      {"peak_motor_angle_deg", tr.motor_peak_deg[j]}};
+    }
+    out["controllers"][name] = r;
+  }
+  out["paper_reported"] = {{"mcp", {{"nrmse_percent", 1.7}, {"rmse_Nm", 0.0041}}},
+                           {"pip", {{"nrmse_percent", 3.4}, {"rmse_Nm", 0.0012}}}};
+  out["target"] = {{"mcp_nrmse_percent_max", 2.0}, {"pip_nrmse_percent_max", 3.0}};
+  return out;
+}
+
+nlohmann::json benchTransparency(const SeaBenchOptions& o) {
+  const double seconds = o.seconds > 0.0 ? o.seconds : 20.0;
+  const double settle_s = 2.0;
+  nlohmann::json out;
+  out["scenario"] = "sea-transparency";
+  out["seconds"] = seconds;
+  out["window_s"] = {settle_s, seconds};
+  out["seed"] = o.seed;
+  out["noise"] = o.noise;
+  out["plant_backlash_scale"] = o.plant_backlash_scale;
+  out["user"] = "random finger motion, 0.2-1.5 Hz (SeaUserMotion::kRandom)";
+  static const char* kJoint[] = {"mcp", "pip"};
+  for (const std::string& name : controllersOf(o)) {
+    const FingerTrace tr = runFinger(o, sim::SeaUserMotion::kRandom, sea::SeaFingerMode::kTransparent,
+                                     name == "paper", seconds, settle_s);
+    nlohmann::json r;
+    if (!tr.error.empty()) {
+      r["error"] = tr.error;
+      out["controllers"][name] = r;
+      continue;
+    }
+    r["faults"] = tr.faults;
+    for (size_t j = 0; j < 2; ++j) {
+      double peak_rate = 0.0;
+      for (size_t i = 1; i < tr.theta[j].size(); ++i) {
+        peak_rate = std::max(peak_rate, std::fabs(tr.theta[j][i] - tr.theta[j][i - 1]) * 1000.0);
+      }
+      r[kJoint[j]] = {{"residual_rmse_Nm", rms(tr.exo_est[j])},
+                      {"truth", {{"residual_rmse_Nm", rms(tr.exo_truth[j])},
+                                 {"finger_torque_rmse_Nm", rms(tr.truth_f[j])}}},
+                      {"finger_angle_range_deg", range(tr.theta[j]) * 180.0 / kPi},
+                      {"finger_peak_speed_deg_s", peak_rate * 180.0 / kPi},
+                      {"peak_motor_angle_deg", tr.motor_peak_deg[j]}};
+    }
+    out["controllers"][name] = r;
+  }
+  out["paper_reported"] = {{"mcp", {{"residual_rmse_Nm", 0.0029}}}, {"pip", {{"residual_rmse_Nm", 0.0092}}}};
+  out["target"] = {{"mcp_residual_rmse_Nm_max", 0.002}, {"pip_residual_rmse_Nm_max", 0.005}};
   return out;
 }
 

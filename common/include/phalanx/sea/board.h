@@ -33,7 +33,7 @@ inline constexpr int kPwmChannelCount = 2;
 /// Encoder channels 0..1: MCP motor, PIP motor (counts at the motor shaft).
 inline constexpr int kEncoderChannelCount = 2;
 /// ADC 0..4: joint angle sensors in the order of phalanx/sea/kinematics.h SensorIndex: 0 θ_1r (exoskeleton MCP
-/// SEA joint), 1 θ_6r (exoskeleton PIP SEA joint), 2 θ_5 (the redundant sensor of eq 12), 3 the DIP chain
+/// SEA joint), 1 θ_6r (exoskeleton PIP SEA joint), 2 θ_7r (the redundant sensor of eq 12), 3 the DIP chain
 /// sensor, 4 the passive abduction joint.
 inline constexpr int kAdcFirstJoint = 0;
 /// ADC 5..6: motor current sense, MCP, PIP.
@@ -58,9 +58,10 @@ inline constexpr float kAdcCountsPerVolt = 4096.0f / 3.3f;
 // -------------------------------------------------------------------------------------------------------
 inline constexpr float kJointCountsPerRad = 0.90f * 4096.0f / 3.14159265f;  ///< 1173.4 counts/rad, 0.049°/count
 /// Joint angle (rad) that reads mid-scale, per sensor (magnet mounting): the middle of each sensor's range over
-/// the finger workspace MCP −60…0°, PIP −80…0° of the default model (kinematics.h): θ_1r −36…−1°,
-/// θ_6r 34…159°, θ_5 −32…43°, DIP chain −32…−6°, abduction 0 → centres −20°, 95°, 5°, −20°, 0°.
-inline constexpr std::array<float, kJointSensorCount> kJointCentre_rad = {-0.34906585f, 1.65806279f, 0.08726646f,
+/// the finger workspace MCP −60…0°, PIP −80…0° (DIP = ⅔ PIP) of the default model (kinematics.h): θ_1r −36…−1°,
+/// θ_6r 34…159°, θ_7r (redundant, at F) −16…117°, DIP chain −32…−6°, abduction 0 → centres −20°, 95°, 50°,
+/// −20°, 0°.
+inline constexpr std::array<float, kJointSensorCount> kJointCentre_rad = {-0.34906585f, 1.65806279f, 0.87266463f,
                                                                           -0.34906585f, 0.0f};
 /// Plausible output band: 5 %…95 % of 4096 (outside: KMA210 diagnostic clamp levels, open wire, short).
 inline constexpr int32_t kJointPlausibleMinCounts = 180;
@@ -96,13 +97,13 @@ inline constexpr float kCurrentCountsPerAmp = 0.4f * kAdcCountsPerVolt;  ///< 49
 // -------------------------------------------------------------------------------------------------------
 /// Effective spring stiffness k of each compression spring (§6.2: k_MCP = 2816 N/m, k_PIP = 744 N/m).
 inline constexpr std::array<float, kSeaCount> kSpringStiffness_N_per_m = {2816.0f, 744.0f};
-/// Joint pulley radius r_j and motor pulley radius r_m (not given in the paper). Design choice: equal radii, so
-/// the motor angle follows the joint angle 1:1 (eq 1) and the finger's motion uses as little of the ±60° window
-/// as possible; with the MCP spring, 0.3 N·m (§1) then needs θ_m = 0.3 / (2 k r_j r_m) = 31° with the joint
-/// held — inside §6.2's window (> 20° for resolution, < 60° for the watchdog). The PIP SEA uses the same
-/// pulleys (0.1 N·m → 38°).
+/// Joint pulley radius r_j and motor pulley radius r_m (not given in the paper). Design choice: the motor angle
+/// is θ_m = (r_j/r_m)(θ_j − θ_j0) + τ_j / (2 k r_j r_m) (eq 1–2), and both terms share §6.2's ±60° window. The
+/// largest r_m that keeps the MCP SEA's 0.3 N·m (§1) above §6.2's 20° resolution floor is 15 mm (0.3 N·m →
+/// 20.4°; PIP SEA 0.1 N·m → 25.7°); it maps the exoskeleton joints' motion to ⅔ at the motor, so the finger's
+/// motion (θ_6r spans 125° over the full workspace) leaves room for torque inside the window.
 inline constexpr float kJointPulleyRadius_m = 0.010f;
-inline constexpr float kMotorPulleyRadius_m = 0.010f;
+inline constexpr float kMotorPulleyRadius_m = 0.015f;
 /// Motor-angle watchdog window (§6.2: "motor angle lies within ±60 degrees at peak torque").
 inline constexpr float kMotorAngleLimit_rad = 1.04719755f;
 

@@ -19,10 +19,13 @@
 ///    phalanx rest F-G-H (G = foot of F on the middle phalanx axis, |FG| = l_FG, |GH| = l_GH, so
 ///    l_FH = hypot(l_FG, l_GH), θ_HFG = atan2(l_GH, l_FG)). In the proximal-phalanx frame at H:
 ///      (x3 − l_AH) + i l_CD + l_CE e^{iθ5} − l_EF e^{i(θ5+θ6r)} = l_FH e^{i(θ8 + π/2 − θ_HFG)}
-///    θ5: direction of C→E relative to the proximal phalanx (the REDUNDANT sensor, at C);
+///    θ5: direction of C→E relative to the proximal phalanx (passive joint at C);
 ///    θ6r: interior angle at E from E→C to E→F, counter-clockwise, in (0, π) (exo PIP sensor, actuated);
 ///    θ8: finger PIP angle (middle relative to proximal phalanx). With these definitions the appendix's
 ///    J32 and J42 (eq 19) hold literally with a = θ_HFG + θ5 − θ8.
+///    θ7r: the REDUNDANT sensor, at the passive joint F: direction of F→E relative to the middle rest's axis
+///    G→F, θ7r = θ5 + θ6r − θ8 − π/2. (A sensor at C would see l_FG, l_GH only through l_FH = hypot(l_FG, l_GH),
+///    so eq 12 could not separate them; at F it also sees θ_HFG. docs/sea-model.md §Redundant sensor.)
 ///  - DIP chain (3R + 1P, same structure as the MCP chain, parameters chosen — the paper gives none): in the
 ///    middle-phalanx frame at H, exo pivot K = (x_K, y_K) on the middle rest, link KL at angle θ_K (the DIP
 ///    chain sensor), link LM ⟂ distal phalanx, slider M at x_dip from the finger DIP joint I = (l_HI, 0).
@@ -70,7 +73,7 @@ constexpr bool isUsable(Status s) { return s == Status::kOk || s == Status::kLea
 enum SensorIndex : std::size_t {
   kSensorExoMcp = 0,     ///< θ1r at B: actuated exoskeleton MCP joint (SEA)
   kSensorExoPip = 1,     ///< θ6r at E: actuated exoskeleton PIP joint (SEA), interior angle in (0, π)
-  kSensorRedundant = 2,  ///< θ5 at C: link CE relative to the proximal phalanx; redundant, used by eq 12
+  kSensorRedundant = 2,  ///< θ7r at F: link FE relative to the middle rest (G→F); redundant, used by eq 12
   kSensorDip = 3,        ///< θ_K at K: DIP chain link KL relative to the middle phalanx
   kSensorAbduction = 4,  ///< passive MCP abduction–adduction joint (§3.4); not part of the planar model
 };
@@ -201,7 +204,8 @@ struct Data {
   T theta6r_rad{};  ///< θ6r
   T x3_m{};         ///< MCP slider
   T theta4_rad{};   ///< finger MCP
-  T theta5_rad{};   ///< CE relative to the proximal phalanx (redundant sensor)
+  T theta5_rad{};   ///< CE relative to the proximal phalanx (passive joint C)
+  T theta7r_rad{};  ///< redundant sensor at F: θ5 + θ6r − θ8 − π/2 (wrapped)
   T theta8_rad{};   ///< finger PIP
   // DIP chain
   T theta_K_rad{};  ///< DIP chain sensor
@@ -394,6 +398,12 @@ inline bool pipRates(const PipGeometry<T>& g, T theta5, T theta6r, T theta8, T m
   return true;
 }
 
+/// Redundant sensor at F: θ7r = ∠(F→E) − ∠(G→F) = θ5 + θ6r − θ8 − π/2, wrapped to (−π, π].
+template <class T>
+inline T redundantAngle(T theta5, T theta6r, T theta8) {
+  return wrapToPi(theta5 + theta6r - theta8 - kPi<T> / T(2));
+}
+
 template <class T>
 inline bool allFinite(const Sensors<T>& s) {
   for (const T v : s) {
@@ -515,6 +525,7 @@ inline Status computeFromSensors(const Model<T>& m, const Sensors<T>& sensors_ra
   d.least_squares[1] = !detail::pipFromInput(g, d.theta6r_rad, d.theta5_rad, d.theta8_rad, d.residual_m[1]);
   d.theta5_rad = detail::wrapToPi(d.theta5_rad);
   d.theta8_rad = detail::wrapToPi(d.theta8_rad);
+  d.theta7r_rad = detail::redundantAngle(d.theta5_rad, d.theta6r_rad, d.theta8_rad);
   // DIP chain, with the PIP chain's solution fixed (its frame is the middle phalanx).
   d.least_squares[2] =
       !detail::sliderFromInput(m.fixed.l_HI_m - m.fixed.x_K_m, -m.fixed.y_K_m, m.fixed.l_KL_m, m.fixed.l_LM_m,
@@ -547,12 +558,13 @@ inline Status computeFromFinger(const Model<T>& m, const FingerAngles<T>& finger
   const detail::PipGeometry<T> g = detail::pipGeometry(m, d.x3_m);
   d.least_squares[1] = !detail::pipFromOutput(g, d.theta8_rad, d.theta5_rad, d.theta6r_rad, d.residual_m[1]);
   d.theta5_rad = detail::wrapToPi(d.theta5_rad);
+  d.theta7r_rad = detail::redundantAngle(d.theta5_rad, d.theta6r_rad, d.theta8_rad);
   d.least_squares[2] =
       !detail::sliderFromOutput(m.fixed.l_HI_m - m.fixed.x_K_m, -m.fixed.y_K_m, m.fixed.l_KL_m, m.fixed.l_LM_m,
                                 d.theta_dip_rad, d.x_dip_m, d.theta_K_rad, d.residual_m[2]);
   d.sensors_rad[kSensorExoMcp] = d.theta1_rad;
   d.sensors_rad[kSensorExoPip] = d.theta6r_rad;
-  d.sensors_rad[kSensorRedundant] = d.theta5_rad;
+  d.sensors_rad[kSensorRedundant] = d.theta7r_rad;
   d.sensors_rad[kSensorDip] = d.theta_K_rad;
   d.sensors_rad[kSensorAbduction] = d.abduction_rad;
   const Status js = computeJacobian(m, d);
@@ -561,7 +573,7 @@ inline Status computeFromFinger(const Model<T>& m, const FingerAngles<T>& finger
   return d.status;
 }
 
-/// Model-based redundant sensor reading y_m (eq 12): θ5 predicted from θ1r and θ6r with parameters `p`.
+/// Model-based redundant sensor reading y_m (eq 12): θ7r predicted from θ1r and θ6r with parameters `p`.
 /// `residual_m` (optional) receives the larger chain residual. Used by the parameter estimator.
 template <class T>
 inline T predictRedundant(const SubjectParams<T>& p, const FixedGeometry<T>& fixed, T theta1r_rad, T theta6r_rad,
@@ -578,7 +590,7 @@ inline T predictRedundant(const SubjectParams<T>& p, const FixedGeometry<T>& fix
   T r1 = T(0);
   detail::pipFromInput(detail::pipGeometry(m, x3), theta6r_rad, t5, t8, r1);
   if (residual_m != nullptr) *residual_m = r0 > r1 ? r0 : r1;
-  return detail::wrapToPi(t5);
+  return detail::redundantAngle(t5, theta6r_rad, t8);
 }
 
 }  // namespace phalanx::sea

@@ -79,15 +79,22 @@ struct SeaFingerConfig {
   SeaTorqueGains paper[kSeaCount] = {};
   uint8_t paper_rate_divider = 2;        ///< eq 8 runs every n-th tick for kPaper (500 Hz at a 1 kHz tick, §7.5)
   uint8_t joint_ma_samples = 8;          ///< moving-average window on the joint sensors (§7.5)
-  float torque_derivative_filter_hz = 30.0f;
+  float torque_derivative_filter_hz = 60.0f;
   float joint_velocity_filter_hz = 20.0f;
   float motor_velocity_filter_hz = 150.0f;
   // Motor position loop, kOurs: PD with bandwidth ω_c and damping ζ on the inertia at the pulley, plus
   // feed-forward; kPaper: a position PID (EPOS-like) without feed-forward.
-  float pos_bandwidth_hz = 30.0f;
-  float pos_damping = 0.8f;
+  float pos_bandwidth_hz = 50.0f;
+  float pos_damping = 1.0f;
   float backlash_compensation = 1.0f;    ///< scale of the play model and its inverse (0: off)
-  float backlash_direction_m_per_s = 2e-3f;  ///< cable speed over which the inverse switches sides (tanh)
+  /// kOurs: the feed-forward uses the joint angle predicted this far ahead (θ_j + θ̇_j·lead), which makes up
+  /// for the moving average's group delay ((n − 1)/2 ticks) and the motor position loop's lag.
+  float joint_lead_s = 0.008f;
+  /// The inverse moves the motor to the other side of the play once the desired spring-side cable position is
+  /// this far beyond the play model's spring side (a deadband: sensor noise on a still joint, ≈ 6 µm of cable,
+  /// must not dither the motor across the play), ramping over backlash_switch_s.
+  float backlash_deadband_m = 20e-6f;
+  float backlash_switch_s = 0.002f;
   float paper_pos_kp_Nm_per_rad = 20.0f;
   float paper_pos_ki_Nm_per_rad_s = 200.0f;
   float paper_pos_kd_Nm_s_per_rad = 0.25f;
@@ -136,6 +143,8 @@ struct SeaChannelState {
   float u_ff_rad = 0.0f;
   float u_ff_rate_rad_s = 0.0f;
   float pos_integral_Nm = 0.0f;       ///< kPaper position PID integral
+  float play_side = 0.0f;             ///< kOurs: side of the play the feed-forward holds the motor on, −1…1
+  float play_side_target = 0.0f;
   float duty = 0.0f;
   bool command_limited = false;
 };

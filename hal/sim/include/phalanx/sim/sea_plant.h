@@ -11,7 +11,8 @@
 ///   between the motor-side cable travel x_m = r_m θ_m and the spring-side travel x_e, with a load-dependent
 ///   width b = b_0 + b_1·|τ_j| (Kaneko et al. 1991, cited in §8.1.1: "load- and configuration-dependent
 ///   effective backlash"); inside the play the sheath friction F_s (μΘ times the cable tensions) builds up
-///   linearly at the motor side, and when the motor drags the cable the full F_s opposes it.
+///   linearly at the motor side (an elastic cable stretch, damped by the sheath's micro-slip), and when the motor
+///   drags the cable the full F_s opposes it.
 ///   Spring deflection d = x_e − r_j(θ_j − θ_j0); tensions T_{1,2} = max(0, T_0 ∓ k d) (a cable goes slack
 ///   beyond the pretension); joint torque τ_j = (T_2 − T_1) r_j, which is eq 2 while both cables are taut.
 ///   Rig variant (§7.1): the exoskeleton joint is clamped to a load cell through a compliant interface
@@ -52,18 +53,19 @@ enum class SeaUserMotion : std::uint8_t {
   kRelaxed = 0,    ///< muscles off: the finger is moved by the device against its passive torque (eq 14)
   kRandom = 1,     ///< band-limited random flexion/extension around the rest pose (§7.7 "fast random motions")
   kCloseOpen = 2,  ///< slow sinusoidal flexion/extension of MCP and PIP, 0.5 Hz
+  kHold = 3,       ///< the user keeps the rest posture with the muscle impedance (resists the device gently)
 };
 
 /// Finger and exoskeleton-link dynamics (eq 13–14). Index 0: MCP, 1: PIP. docs/sea-plant.md gives the sources.
 struct SeaFingerParams {
   /// eq 14, τ(φ) = A(e^{−B(φ−E)} − 1) − C(e^{D(φ−F)} − 1) in the FLEXION-positive angle φ = −θ (the paper's
   /// form; kinematics.h counts flexion negative). A, C in N·m, B, D in 1/rad, E, F in rad.
-  std::array<double, 2> A_Nm = {0.04, 0.015};
-  std::array<double, 2> B_per_rad = {5.0, 5.0};
-  std::array<double, 2> C_Nm = {0.04, 0.015};
-  std::array<double, 2> D_per_rad = {5.0, 5.0};
-  std::array<double, 2> E_rad = {-0.2, -0.1};
-  std::array<double, 2> F_rad = {1.2, 1.4};
+  std::array<double, 2> A_Nm = {0.15, 0.04};
+  std::array<double, 2> B_per_rad = {3.0, 3.0};
+  std::array<double, 2> C_Nm = {0.15, 0.04};
+  std::array<double, 2> D_per_rad = {3.0, 3.0};
+  std::array<double, 2> E_rad = {-0.1, 0.05};
+  std::array<double, 2> F_rad = {1.1, 1.25};
   std::array<double, 2> finger_damping_Nm_s_per_rad = {0.01, 0.005};  ///< human joint damping (finger coords)
   std::array<double, 2> exo_inertia_kg_m2 = {4.0e-5, 1.5e-5};          ///< I_j: exo links + phalanges, at Θ_r
   std::array<double, 2> exo_damping_Nm_s_per_rad = {0.002, 0.001};     ///< B_j: exo joint bearings
@@ -84,6 +86,9 @@ struct SeaChannelParams {
   double backlash_base_m = 0.4e-3;           ///< b_0: cable play at zero load (cable travel, full width)
   double backlash_per_Nm_m = 2.0e-3;         ///< b_1: additional play per N·m of joint torque
   double sheath_friction = 0.2;              ///< μΘ: sheath friction force F_s = μΘ·(T_1 + T_2)
+  /// Inside the play the motor-side cable stretch is an elastic element (stiffness F_s / (b/2)) with the micro-
+  /// slip damping of the sheath; this is its damping ratio against the motor inertia (1: critically damped).
+  double play_damping_ratio = 1.0;
   double clamp_stiffness_Nm_per_rad = 30.0;  ///< rig: joint-to-load-cell interface (three cantilever screws)
 };
 

@@ -27,6 +27,7 @@ struct SeaBenchOptions {
   double chirp_f0_hz = 0.1;         ///< chirp: start frequency
   double chirp_fmax_hz = 25.0;      ///< chirp: frequency reached at the end
   double plant_backlash_scale = 1.0;  ///< scales the plant's cable play b_0, b_1 (model-mismatch studies)
+  bool finger_user_holds = false;     ///< finger torque: the user holds the rest posture instead of relaxing
 };
 
 /// Streams τ_d(t) to SEA `sea` in setpoint mode (the other SEA gets 0) and selects the firmware controller at
@@ -61,6 +62,16 @@ double amplitudeAt(const std::vector<double>& x, double fs_hz, double f_hz);
 /// Sinusoid tracking on the rig (§7.1.1–7.1.2): RMSE, NRMSE (RMSE / peak, the paper's "percent error"),
 /// fidelity (eq 15) of the load-cell torque, the same for the SEA estimate, per controller.
 nlohmann::json benchRigSine(const SeaBenchOptions& options);
+
+/// Finger-joint torque tracking on the simulated finger (§7.6, §8.6): the host's SeaFingerController (eq 9–11)
+/// maps sinusoidal finger MCP/PIP torques (eq 18) to exoskeleton torque setpoints; the relaxed finger (eq 13–14)
+/// moves under them. NRMSE = RMSE / peak-to-peak of y_d (the paper's 1.7 % = 0.0041 N·m of 0.24 N·m), of the
+/// host's eq 9 estimate from telemetry and of the true applied finger torque, per firmware controller.
+nlohmann::json benchFingerTorque(const SeaBenchOptions& options);
+
+/// Dynamic transparency (§7.7, §8.7): the simulated user moves the finger randomly while the device renders zero
+/// exoskeleton torque; residual exoskeleton joint torque RMSE (telemetry estimate and truth), per controller.
+nlohmann::json benchTransparency(const SeaBenchOptions& options);
 
 /// Linear chirp on the rig (§7.1.3, eq 16–17): closed-loop magnitude |G_CL| = |τ_measured(jω)| / |τ_r(jω)|
 /// from single-sided amplitude spectra, moving-averaged over frequency, and the −3 dB bandwidth, per controller.

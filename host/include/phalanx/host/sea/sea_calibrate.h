@@ -1,0 +1,78 @@
+#pragma once
+/// SEA finger exoskeleton: subject parameter estimation from the redundant sensor (eq 12, §5.3), the CSV
+/// recordings it reads and the subject YAML it writes. Bounded nonlinear least squares with Ceres.
+#include <array>
+#include <string>
+#include <vector>
+
+#include "phalanx/sea/kinematics.h"
+
+namespace phalanx::host::sea {
+
+using SubjectParams = phalanx::sea::SubjectParams<double>;
+using FixedGeometry = phalanx::sea::FixedGeometry<double>;
+
+/// One row of a recording: the two actuated joint sensors and the redundant one (rad).
+struct CalibrationSample {
+  double theta1r_rad = 0.0;  ///< sensor 0 (sample0)
+  double theta6r_rad = 0.0;  ///< sensor 1 (sample1)
+  double theta7r_rad = 0.0;  ///< sensor 2 (sample2), the redundant θ7r
+};
+
+struct CalibrationOptions {
+  SubjectParams initial = phalanx::sea::table4Initial<double>();  ///< P0 (Table 4)
+  SubjectParams lower = phalanx::sea::table4Lower<double>();      ///< LB (Table 4, y_A corrected)
+  SubjectParams upper = phalanx::sea::table4Upper<double>();      ///< UB (Table 4)
+  FixedGeometry fixed = phalanx::sea::defaultModel<double>().fixed;
+  int max_iterations = 200;
+  /// Use every n-th sample (1 = all). A 1 kHz recording over a 2 s range of motion is 2000 rows; more rows
+  /// add time, not information (the noise is white, the model smooth).
+  int stride = 1;
+  /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
+  /// local minima (docs/sea-model.md §Parameter estimation).
+  int restarts = 24;
+};
+
+struct CalibrationResult {
+  SubjectParams estimate{};
+  double initial_rms_rad = 0.0;   ///< RMS of y_k − y_m,k at P0
+  double final_rms_rad = 0.0;     ///< … at P̂
+  double max_abs_residual_rad = 0.0;
+  int iterations = 0;
+  bool converged = false;
+  std::size_t samples_used = 0;
+  std::size_t least_squares_samples = 0;  ///< samples where a chain needed the least-squares fallback at P̂
+  std::array<bool, phalanx::sea::kNumSubjectParams> at_bound{};
+  std::string solver_report;      ///< Ceres' one-line summary
+};
+
+/// Eq 12: P̂ = argmin Σ (y_k − y_m,k(P))² subject to LB ≤ P ≤ UB. Returns an empty string or the problem
+/// (fewer than 20 samples, non-finite values, inconsistent bounds).
+std::string calibrate(const std::vector<CalibrationSample>& samples, const CalibrationOptions& options,
+                      CalibrationResult& result);
+
+/// RMS of y_k − y_m,k(P) over `samples` (rad): the eq 12 objective as an RMS.
+double redundantResidualRms(const std::vector<CalibrationSample>& samples, const SubjectParams& p,
+                            const FixedGeometry& fixed);
+
+/// Reads a CSV with a header row. Columns: `sample0,sample1,sample2` (what `phalanx run --record` writes for
+/// sea_finger) or `theta1r_rad,theta6r_rad,theta7r_rad`; other columns are ignored; rows with a non-finite value
+/// are skipped. Returns "" or an error naming the file, line and column.
+std::string readCalibrationCsv(const std::string& path, std::vector<CalibrationSample>& samples);
+
+/// Subject YAML: a mapping `sea_subject:` with the seven keys of phalanx::sea::kSubjectParamNames and
+/// optionally l_CE_m, l_EF_m, l_HI_m, x_K_m, y_K_m, l_KL_m, l_LM_m. Missing keys keep the values passed in.
+/// Unknown keys and non-numeric values are errors naming the key.
+std::string loadSubjectYaml(const std::string& path, SubjectParams& subject, FixedGeometry& fixed);
+
+/// Writes (creating or updating) the subject YAML: the seven estimated parameters, the fixed geometry used,
+/// and a `calibration:` block with the residuals. Other top-level keys of an existing file are kept.
+std::string writeSubjectYaml(const std::string& path, const CalibrationResult& result, const FixedGeometry& fixed,
+                             const std::string& source);
+
+/// `phalanx sea-calibrate`: read the recording, estimate (eq 12) starting from the subject file's parameters
+/// when it exists (else Table 4's P0), write the subject file, print the result (JSON or text) to stdout.
+/// Returns the process exit code: 0 ok, 2 bad input (message on stderr).
+int seaCalibrateCommand(const std::string& recording_csv, const std::string& subject_yaml, bool json, int stride);
+
+}  // namespace phalanx::host::sea
