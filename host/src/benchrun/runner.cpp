@@ -123,6 +123,11 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   std::vector<std::pair<uint64_t, double>> samples;  // instrument samples: (arrival time, value)
   samples.reserve(steps);
   uint64_t last_sample_ns = 0;
+  size_t last_sample_step = 0;
+  uint64_t paused_ns = 0;
+  bool instrument_answering = true;
+  // A sample is "young" for two poll periods of rig time (see the alignment below).
+  const auto max_age_steps = static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)));
   bool hung = false;
   const uint64_t t0 = linux_hal::monotonicNs();
   size_t next_progress = 0;
@@ -139,12 +144,27 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
       hung = true;
     }
     // Real time: the instrument is polled by its own thread while the rig runs at 1 kHz.
-    sleepUntil(t0 + static_cast<uint64_t>(k + 1) * 1000000ull);
-    const modbus::InstrumentReading rd = inst.latest(linux_hal::monotonicNs());
+    sleepUntil(t0 + paused_ns + static_cast<uint64_t>(k + 1) * 1000000ull);
+    modbus::InstrumentReading rd = inst.latest(linux_hal::monotonicNs());
+    // Simulation only: the rig's clock is virtual, so when the machine starved the polling thread the rig
+    // waits for the instrument instead of running ahead unmeasured (bounded by the request timeout; after a
+    // timeout it stops waiting until the instrument answers again, and those samples count as stale).
+    if (rd.sample_ns == last_sample_ns && k > last_sample_step + max_age_steps && instrument_answering) {
+      const uint64_t w0 = linux_hal::monotonicNs();
+      const uint64_t w_end = w0 + static_cast<uint64_t>(plan.instrument.timeout_ms) * 2000000ull;
+      while (rd.sample_ns == last_sample_ns && linux_hal::monotonicNs() < w_end) {
+        sleepUntil(linux_hal::monotonicNs() + 200000ull);
+        rd = inst.latest(linux_hal::monotonicNs());
+      }
+      paused_ns += linux_hal::monotonicNs() - w0;
+      instrument_answering = rd.sample_ns != last_sample_ns;
+    }
     stale[k] = rd.stale ? 1 : 0;
     if (rd.valid && rd.sample_ns != last_sample_ns) {
       samples.emplace_back(rd.sample_ns, rd.value);
       last_sample_ns = rd.sample_ns;
+      last_sample_step = k;
+      instrument_answering = true;
     }
     if (k >= next_progress) {
       progress(index, plan.steps.size(), st.name, static_cast<double>(k) / static_cast<double>(steps));
@@ -156,15 +176,19 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
 
   // Align each instrument sample with the rig step whose ground truth it carried: the last step published
   // before the response arrived (the rig may have run in bursts on a loaded machine; sim time is what counts).
+  // A held sample is scored only while it is young in *sim* time too: at most two poll periods old. When the
+  // machine starves the rig and it catches up in a burst, the steps of the burst were never measured.
   std::vector<double> inst_zoh(steps, std::nan(""));
-  size_t si = 0;
+  size_t si = 0, held_at = 0;
   double held = std::nan("");
   for (size_t k = 0; k < steps; ++k) {
     while (si < samples.size() && (k + 1 >= steps || samples[si].first < set_ns[k + 1])) {
       held = samples[si].second;
+      held_at = k;
       ++si;
     }
     inst_zoh[k] = held;
+    if (k - held_at > max_age_steps) stale[k] = 1;
   }
   for (size_t k = settle; k < steps; ++k) {
     ++r.samples_total;
