@@ -29,7 +29,8 @@ class TestApp : public fw::DeviceApp {
   int safe_calls = 0;
 
  private:
-  protocol::DeviceLayout layout_{protocol::DeviceType::kSeaFinger, "test", 2, 1.0f, 11, {}};
+  // A two-channel app that identifies as the SEA finger (its real layout, so the host accepts the handshake).
+  protocol::DeviceLayout layout_ = protocol::kSeaFingerLayout;
   hal::Board* board_ = nullptr;
 };
 
