@@ -7,6 +7,7 @@
 
 #include "common_options.h"
 #include "phalanx/host/can_budget.h"
+#include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/mcu_diag.h"
@@ -130,12 +131,17 @@ int main(int argc, char** argv) {
   pen_wall->add_flag("--json", json, "JSON output (the default; kept for scripts)");
   phalanx::host::cli::TherapyCli therapy_cli;
   phalanx::host::cli::addTherapyCommands(app, therapy_cli);
+  std::string plan_path, plan_report;
+  CLI::App* plan_run = bench->add_subcommand("run", "run a bench plan (YAML) against a reference instrument; HTML report");
+  plan_run->add_option("plan", plan_path, "plan file (docs/bench-runner.md)")->required()->check(CLI::ExistingFile);
+  plan_run->add_option("--report", plan_report, "HTML report path (default: the plan's report key, or PLAN.html)");
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (plan_run->parsed()) return phalanx::host::benchrun::benchRunMain(plan_path, plan_report);
   if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
     sea_opt.noise = !bench_no_noise;
     namespace hs = phalanx::host::sea;

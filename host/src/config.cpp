@@ -38,7 +38,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove"});
+                         "seed", "clear_faults", "glove", "modbus"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -55,6 +55,9 @@ void apply(const YAML::Node& root, RunOptions& opt) {
     requireKeys(rt, "realtime", {"enabled", "priority"});
     if (rt["enabled"]) opt.realtime = scalar<bool>(rt["enabled"], "realtime.enabled", "boolean");
     if (rt["priority"]) opt.rt_priority = scalar<int>(rt["priority"], "realtime.priority", "integer");
+  }
+  if (const YAML::Node mb = root["modbus"]) {
+    if (std::string err = modbus::loadServerOptions(mb, opt.modbus); !err.empty()) throw ConfigError{err};
   }
   if (const YAML::Node g = root["glove"]) {
     requireKeys(g, "glove", {"scene", "scenario", "mode"});

@@ -16,6 +16,7 @@
 #include <random>
 
 #include "phalanx/host/controller.h"
+#include "phalanx/host/modbus/server.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/realtime.h"
@@ -243,7 +244,7 @@ std::string validate(const RunOptions& opt) {
     return "scene: '" + opt.scene + "' is not one of none, rigid-ball, soft-ball, wall";
   }
   if (opt.mode != "render" && opt.mode != "transparent") return "mode: '" + opt.mode + "' is not one of render, transparent";
-  return {};
+  return modbus::validateServerOptions(opt.modbus);
 }
 
 int runSession(const RunOptions& opt, nlohmann::json& summary) {
@@ -374,6 +375,22 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   usleep(static_cast<useconds_t>(controller->startupSettleS() * 1e6));
   session.poll(linux_hal::monotonicNs());
 
+  // Optional Modbus TCP server (docs/modbus.md): its own thread; the loop only publishes and polls, wait-free.
+  std::unique_ptr<modbus::Server> mb_server;
+  std::unique_ptr<modbus::LoopPort> mb_port;
+  if (opt.modbus.enabled) {
+    modbus::WriteLimits limits{layout.setpoint_count, layout.setpoint_limit};
+    if (opt.modbus.setpoint_limit > 0.0) {
+      limits.setpoint_limit = std::min(limits.setpoint_limit, static_cast<float>(opt.modbus.setpoint_limit));
+    }
+    mb_server = std::make_unique<modbus::Server>(opt.modbus, limits);
+    if (std::string err = mb_server->start(); !err.empty()) return fail(err, 3);
+    std::fprintf(stderr, "phalanxd: modbus: serving on %s:%u (%s)\n", opt.modbus.address.c_str(), mb_server->port(),
+                 opt.modbus.writes_enabled ? "writes enabled" : "read-only");
+    mb_port = std::make_unique<modbus::LoopPort>(*mb_server, opt.modbus, static_cast<uint16_t>(layout.type),
+                                                 layout.sample_count, layout.setpoint_count);
+  }
+
   const uint64_t period_ns = 1000000000ull / opt.rate_hz;
   const double dt_s = 1.0 / opt.rate_hz;
   Histogram jitter_us(5000);
@@ -400,7 +417,8 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
          (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
     const uint64_t wake_ns = linux_hal::monotonicNs();
-    jitter_us.add(std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns)) / 1000.0);
+    const double jitter = std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns)) / 1000.0;
+    jitter_us.add(jitter);
     overruns += missed;
     expected_wake_ns += (1 + missed) * period_ns;
     ++cycles;
@@ -411,6 +429,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
     controller->update(tel, t_s, dt_s, cmd);
     cmd.channel_count = layout.setpoint_count;
+    if (mb_port) mb_port->overrideCommand(cmd, wake_ns);
     if (!commandIsSafe(cmd, layout)) {
       ++host_refused;
       cmd.mode = protocol::Mode::kSafe;
@@ -431,7 +450,12 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       opt.hooks->onCycle(wake_ns, t_s, tel, cmd);
       if (opt.hooks->takeClearFaultsRequest()) session.sendClearFaults();
     }
-    cycle_us.add(static_cast<double>(linux_hal::monotonicNs() - wake_ns) / 1000.0);
+    const uint64_t done_ns = linux_hal::monotonicNs();
+    cycle_us.add(static_cast<double>(done_ns - wake_ns) / 1000.0);
+    if (mb_port) {
+      mb_port->publish(tel, cmd, cycles, overruns, jitter, static_cast<double>(done_ns - wake_ns) / 1000.0, wake_ns - start_ns,
+                       session.stats().telemetry_lost, modbus::LoopState::kRunning);
+    }
 
     if (opt.live_view && wake_ns >= next_live_ns) {
       next_live_ns = wake_ns + 100000000ull;
@@ -453,6 +477,12 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   session.poll(linux_hal::monotonicNs());
   recorder.close();
   sim.stop();
+  if (mb_server) {
+    mb_server->stop();
+    summary["modbus"] = mb_server->statsJson();
+    summary["modbus"]["cycles_under_modbus_control"] = mb_port->remoteCycles();
+    summary["modbus"]["command_timeouts"] = mb_port->remoteTimeouts();
+  }
 
   const LinkStats& s = session.stats();
   summary["seconds"] = static_cast<double>(linux_hal::monotonicNs() - start_ns) * 1e-9;

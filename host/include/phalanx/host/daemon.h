@@ -10,6 +10,7 @@
 #include "phalanx/linux/can_link.h"
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
+#include "phalanx/host/modbus/server_options.h"
 
 namespace phalanx::host {
 
@@ -60,6 +61,7 @@ struct RunOptions {
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
+  modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
 };
 
 /// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).

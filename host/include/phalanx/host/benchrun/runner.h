@@ -1,0 +1,116 @@
+#pragma once
+/// The hardware-in-the-loop bench runner (`phalanx bench run PLAN.yaml`, docs/bench-runner.md): executes a plan of
+/// steps against a device while a reference instrument (a Modbus load-cell / torque-transducer amplifier) measures
+/// what the device really does, records device estimate, instrument reading and setpoint, scores them with the
+/// SEA paper's metrics (seeds/001: RMSE, NRMSE, fidelity eq 15, −3 dB bandwidth eq 16–17) and judges each step
+/// against the plan's limits.
+///
+/// Devices: sim:sea_rig (the §7.1 SEA test rig: sea_finger firmware + rig plant, joint clamped to the load cell)
+/// and sim:glove5 (fingertip force sensor on one finger). In simulation the instrument is a simulated Modbus
+/// amplifier served from the plant's ground truth and read back through the real Modbus client, in real time.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/modbus/instrument.h"
+
+namespace phalanx::host::benchrun {
+
+/// Limits on one comparison (absent: not judged).
+struct PairLimits {
+  std::optional<double> rmse_max;             ///< SI units of the signal
+  std::optional<double> nrmse_percent_max;    ///< RMSE / peak |reference| · 100
+  std::optional<double> fidelity_percent_min; ///< eq 15
+  std::optional<double> bandwidth_hz_min;     ///< eq 17, −3 dB (chirp steps)
+};
+
+struct Step {
+  std::string name;
+  std::string kind;              ///< sea-rig-sine | sea-rig-chirp | glove-free-motion
+  double seconds = 8.0;
+  double settle_s = 1.0;         ///< excluded from the metrics (start transient)
+  double peak_Nm = 0.3;          ///< sine
+  double hz = 0.5;               ///< sine
+  double amplitude_Nm = 0.15;    ///< chirp τ_A (eq 16)
+  double f0_hz = 0.1;            ///< chirp
+  double fmax_hz = 10.0;         ///< chirp: instantaneous frequency at the end
+  int finger = 1;                ///< glove: 0 thumb … 4 little
+  double instrument_hang_at_s = -1.0;  ///< simulation fault: the amplifier stops answering at this time
+  PairLimits estimate_vs_instrument;
+  PairLimits setpoint_vs_instrument;
+};
+
+struct Plan {
+  std::string source;                 ///< file name, for messages
+  std::string device = "sim:sea_rig"; ///< sim:sea_rig | sim:glove5
+  std::string controller = "ours";    ///< sea: ours | paper (001 plain PID)
+  uint32_t seed = 1;
+  bool noise = true;
+  std::string report;                 ///< HTML path ("" → <plan>.html)
+  modbus::InstrumentConfig instrument;
+  double max_stale_percent = 1.0;     ///< a step fails if more of its samples had no fresh instrument reading
+  std::vector<Step> steps;
+};
+
+/// Parse and validate a plan; "" or "<source>: <key>: <problem>".
+std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan);
+std::string loadPlanFile(const std::string& path, Plan& plan);
+
+/// One comparison's scores. NaN where a metric is undefined (e.g. NRMSE of a zero reference).
+struct PairMetrics {
+  double rmse = 0, nrmse_percent = 0, fidelity_percent = 0;
+  double bandwidth_hz = -1;          ///< chirp only; −1 otherwise
+  bool bandwidth_beyond_band = false;
+  std::vector<double> freq_hz, magnitude_db;  ///< smoothed |G| over the evaluated band (chirp)
+};
+
+struct Check {
+  std::string what;  ///< "estimate_vs_instrument.rmse"
+  double value, limit;
+  bool is_min;       ///< limit is a minimum (else a maximum)
+  bool pass;
+};
+
+struct StepResult {
+  std::string name, kind, unit;
+  std::string error;                 ///< device/instrument problem; the step fails
+  std::vector<double> t, setpoint, estimate, instrument;  ///< fresh-instrument samples after settle
+  uint64_t samples_total = 0, samples_stale = 0;
+  uint16_t faults = 0;
+  PairMetrics est, sp;               ///< estimate vs instrument, setpoint vs instrument
+  std::vector<Check> checks;
+  nlohmann::json instrument_stats;
+  bool pass = false;
+};
+
+struct PlanResult {
+  std::vector<StepResult> steps;
+  bool pass = false;
+  double wall_s = 0;
+};
+
+/// Progress: (step index, step count, step name, fraction 0..1 of that step).
+using Progress = std::function<void(size_t, size_t, const std::string&, double)>;
+
+/// Run every step in order (real time: the instrument is polled as it would be on the bench).
+PlanResult runPlan(const Plan& plan, const Progress& progress);
+
+/// Metrics of y (the instrument) against a reference r, sampled at fs_hz. chirp: also eq 17 between f_lo and f_hi.
+PairMetrics comparePair(const std::vector<double>& y, const std::vector<double>& r, double fs_hz, bool chirp,
+                        double f_lo, double f_hi);
+
+nlohmann::json toJson(const PlanResult& r);
+
+}  // namespace phalanx::host::benchrun
+
+namespace phalanx::host::benchrun {
+/// `phalanx bench run`: load the plan, run it with progress on stderr, write the HTML report, print the JSON
+/// summary on stdout. Returns the exit code: 0 every step passed, 1 a step failed, 2 the plan is invalid,
+/// 3 the report could not be written.
+int benchRunMain(const std::string& plan_path, const std::string& report_path);
+}  // namespace phalanx::host::benchrun

@@ -1,0 +1,58 @@
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+
+#include "phalanx/host/benchrun/report.h"
+#include "phalanx/host/benchrun/runner.h"
+
+namespace phalanx::host::benchrun {
+
+int benchRunMain(const std::string& plan_path, const std::string& report_path) {
+  Plan plan;
+  if (std::string err = loadPlanFile(plan_path, plan); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+    return 2;
+  }
+  std::string report = report_path.empty() ? plan.report : report_path;
+  if (report.empty()) {
+    const auto dot = plan_path.rfind('.');
+    report = (dot == std::string::npos ? plan_path : plan_path.substr(0, dot)) + ".html";
+  }
+  const bool tty = isatty(STDERR_FILENO) != 0;
+  int last_pct = -1;
+  size_t last_step = static_cast<size_t>(-1);
+  const PlanResult result = runPlan(plan, [&](size_t i, size_t n, const std::string& name, double frac) {
+    const int pct = static_cast<int>(frac * 100.0);
+    if (i != last_step) {
+      last_step = i;
+      last_pct = -1;
+    }
+    // On a terminal: one line updated in place; in a log: a line every 25 %.
+    if (tty ? pct != last_pct : (pct / 25 != last_pct / 25 || last_pct < 0)) {
+      std::fprintf(stderr, tty ? "\r\033[K[%zu/%zu] %s %3d %%" : "[%zu/%zu] %s %3d %%\n", i + 1, n, name.c_str(), pct);
+      std::fflush(stderr);
+    }
+    last_pct = pct;
+  });
+  if (tty) std::fputc('\n', stderr);
+  for (const StepResult& s : result.steps) {
+    std::fprintf(stderr, "%s  %s%s%s\n", s.pass ? "PASS" : "FAIL", s.name.c_str(), s.error.empty() ? "" : ": ",
+                 s.error.c_str());
+    for (const Check& c : s.checks) {
+      if (!c.pass) std::fprintf(stderr, "      %s = %.4g, limit %s %.4g\n", c.what.c_str(), c.value, c.is_min ? "≥" : "≤", c.limit);
+    }
+  }
+  nlohmann::json j = toJson(result);
+  j["plan"] = plan_path;
+  j["report"] = report;
+  std::cout << j.dump(2) << std::endl;
+  if (std::string err = writeHtml(report, plan, result); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+    return 3;
+  }
+  std::fprintf(stderr, "report: %s  (%s)\n", report.c_str(), result.pass ? "PASS" : "FAIL");
+  return result.pass ? 0 : 1;
+}
+
+}  // namespace phalanx::host::benchrun

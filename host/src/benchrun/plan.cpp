@@ -1,0 +1,156 @@
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "phalanx/host/benchrun/runner.h"
+
+namespace phalanx::host::benchrun {
+namespace {
+
+struct Bad {
+  std::string what;
+};
+
+template <class T>
+T get(const YAML::Node& n, const std::string& key, const char* type) {
+  if (!n.IsScalar()) throw Bad{key + ": expected a " + type};
+  try {
+    return n.as<T>();
+  } catch (const YAML::Exception&) {
+    throw Bad{key + ": expected a " + type + ", got '" + n.Scalar() + "'"};
+  }
+}
+
+void onlyKeys(const YAML::Node& m, const std::string& where, const std::set<std::string>& allowed) {
+  if (!m.IsMap()) throw Bad{where + ": expected a mapping"};
+  for (const auto& kv : m) {
+    const std::string key = kv.first.as<std::string>();
+    if (allowed.count(key) == 0) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw Bad{(where.empty() ? "" : where + ".") + key + ": unknown key (allowed: " + list + ")"};
+    }
+  }
+}
+
+double number(const YAML::Node& n, const std::string& key, double lo, double hi) {
+  const double v = get<double>(n, key, "number");
+  if (!std::isfinite(v) || v < lo || v > hi) {
+    throw Bad{key + ": " + n.Scalar() + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]"};
+  }
+  return v;
+}
+
+PairLimits limitsOf(const YAML::Node& n, const std::string& where) {
+  PairLimits l;
+  onlyKeys(n, where, {"rmse_max", "nrmse_percent_max", "fidelity_percent_min", "bandwidth_hz_min"});
+  if (n["rmse_max"]) l.rmse_max = number(n["rmse_max"], where + ".rmse_max", 0.0, 1e6);
+  if (n["nrmse_percent_max"]) l.nrmse_percent_max = number(n["nrmse_percent_max"], where + ".nrmse_percent_max", 0.0, 1e6);
+  if (n["fidelity_percent_min"]) {
+    l.fidelity_percent_min = number(n["fidelity_percent_min"], where + ".fidelity_percent_min", -1e6, 100.0);
+  }
+  if (n["bandwidth_hz_min"]) l.bandwidth_hz_min = number(n["bandwidth_hz_min"], where + ".bandwidth_hz_min", 0.0, 500.0);
+  return l;
+}
+
+void apply(const YAML::Node& root, Plan& p) {
+  onlyKeys(root, "", {"version", "device", "controller", "seed", "noise", "report", "instrument", "max_stale_percent",
+                      "steps"});
+  if (root["version"] && get<int>(root["version"], "version", "integer") != 1) {
+    throw Bad{"version: only version 1 is understood"};
+  }
+  if (root["device"]) p.device = get<std::string>(root["device"], "device", "string");
+  if (p.device != "sim:sea_rig" && p.device != "sim:glove5") {
+    throw Bad{"device: '" + p.device + "' is not supported (sim:sea_rig, sim:glove5; real devices: not yet)"};
+  }
+  if (root["controller"]) p.controller = get<std::string>(root["controller"], "controller", "string");
+  if (p.controller != "ours" && p.controller != "paper") throw Bad{"controller: must be ours or paper"};
+  if (root["seed"]) p.seed = get<uint32_t>(root["seed"], "seed", "non-negative integer");
+  if (root["noise"]) p.noise = get<bool>(root["noise"], "noise", "boolean");
+  if (root["report"]) p.report = get<std::string>(root["report"], "report", "path");
+  if (root["max_stale_percent"]) p.max_stale_percent = number(root["max_stale_percent"], "max_stale_percent", 0.0, 100.0);
+  if (root["instrument"]) {
+    if (std::string err = modbus::loadInstrumentConfig(root["instrument"], "instrument", p.instrument); !err.empty()) {
+      throw Bad{err};
+    }
+  }
+  const YAML::Node steps = root["steps"];
+  if (!steps || !steps.IsSequence() || steps.size() == 0) throw Bad{"steps: expected a non-empty list"};
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const std::string w = "steps[" + std::to_string(i) + "]";
+    const YAML::Node s = steps[i];
+    onlyKeys(s, w, {"name", "kind", "seconds", "settle_s", "peak_Nm", "hz", "amplitude_Nm", "f0_hz", "fmax_hz", "finger",
+                    "instrument_hang_at_s", "limits"});
+    Step st;
+    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion)"};
+    st.kind = get<std::string>(s["kind"], w + ".kind", "string");
+    const bool sea = st.kind == "sea-rig-sine" || st.kind == "sea-rig-chirp";
+    if (!sea && st.kind != "glove-free-motion") {
+      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp or glove-free-motion"};
+    }
+    if (sea != (p.device == "sim:sea_rig")) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device};
+    st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
+    if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
+    if (s["seconds"]) st.seconds = number(s["seconds"], w + ".seconds", 0.5, 600.0);
+    if (s["settle_s"]) st.settle_s = number(s["settle_s"], w + ".settle_s", 0.0, 60.0);
+    if (st.kind == "sea-rig-chirp") st.settle_s = s["settle_s"] ? st.settle_s : 0.0;
+    if (st.settle_s >= st.seconds) throw Bad{w + ".settle_s: must be shorter than seconds"};
+    // 0.4 N·m: the range phalanx bench sea-rig-sine accepts (docs/bench-runner.md, constants).
+    if (s["peak_Nm"]) st.peak_Nm = number(s["peak_Nm"], w + ".peak_Nm", 0.001, 0.4);
+    if (s["hz"]) st.hz = number(s["hz"], w + ".hz", 0.01, 50.0);
+    if (s["amplitude_Nm"]) st.amplitude_Nm = number(s["amplitude_Nm"], w + ".amplitude_Nm", 0.001, 0.4);
+    if (s["f0_hz"]) st.f0_hz = number(s["f0_hz"], w + ".f0_hz", 0.0, 50.0);
+    if (s["fmax_hz"]) st.fmax_hz = number(s["fmax_hz"], w + ".fmax_hz", 0.5, 200.0);
+    if (st.kind == "sea-rig-chirp" && st.fmax_hz <= st.f0_hz + 1.0) throw Bad{w + ".fmax_hz: must exceed f0_hz by 1 Hz or more"};
+    if (s["finger"]) st.finger = static_cast<int>(number(s["finger"], w + ".finger", 0.0, 4.0));
+    if (s["instrument_hang_at_s"]) {
+      st.instrument_hang_at_s = number(s["instrument_hang_at_s"], w + ".instrument_hang_at_s", 0.0, 600.0);
+    }
+    if (const YAML::Node l = s["limits"]) {
+      onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument"});
+      if (l["estimate_vs_instrument"]) {
+        st.estimate_vs_instrument = limitsOf(l["estimate_vs_instrument"], w + ".limits.estimate_vs_instrument");
+      }
+      if (l["setpoint_vs_instrument"]) {
+        st.setpoint_vs_instrument = limitsOf(l["setpoint_vs_instrument"], w + ".limits.setpoint_vs_instrument");
+      }
+    }
+    if (st.kind != "sea-rig-chirp" &&
+        (st.estimate_vs_instrument.bandwidth_hz_min || st.setpoint_vs_instrument.bandwidth_hz_min)) {
+      throw Bad{w + ".limits: bandwidth_hz_min needs a sea-rig-chirp step"};
+    }
+    p.steps.push_back(st);
+  }
+}
+
+}  // namespace
+
+std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan) {
+  Plan p;
+  p.source = source;
+  // The simulated amplifier's default map: int32 counts at 10 µN·m per count, input register 0.
+  p.instrument.type = "int32";
+  p.instrument.scale = 1e-5;
+  try {
+    apply(YAML::Load(yaml), p);
+  } catch (const Bad& b) {
+    return source + ": " + b.what;
+  } catch (const YAML::Exception& e) {
+    return source + ": YAML syntax error at line " + std::to_string(e.mark.line + 1) + ": " + e.msg;
+  }
+  plan = p;
+  return {};
+}
+
+std::string loadPlanFile(const std::string& path, Plan& plan) {
+  std::ifstream in(path);
+  if (!in) return path + ": cannot read the plan";
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return loadPlanText(ss.str(), path, plan);
+}
+
+}  // namespace phalanx::host::benchrun

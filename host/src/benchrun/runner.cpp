@@ -1,0 +1,345 @@
+#include "phalanx/host/benchrun/runner.h"
+
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "phalanx/fw_sim/glove5_sim.h"
+#include "phalanx/fw_sim/sea_finger_sim.h"
+#include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/lockstep.h"
+#include "phalanx/host/metrics.h"
+#include "phalanx/host/sea/sea_bench.h"
+#include "phalanx/linux/realtime.h"
+
+namespace phalanx::host::benchrun {
+namespace {
+
+constexpr double kFs = 1000.0;          // lockstep rig period: 1 kHz
+constexpr double kSmoothHz = 0.5;       // moving average of |G| over frequency (the paper's "filtered", §8.1.3)
+constexpr size_t kSeaTorque0 = 7;       // sea_finger sample: SEA 0 joint torque estimate (devices.h)
+constexpr size_t kGloveForce0 = 15;     // glove5 sample: pad force of finger 0 (devices.h)
+
+void sleepUntil(uint64_t t_ns) {
+  timespec ts{static_cast<time_t>(t_ns / 1000000000ull), static_cast<long>(t_ns % 1000000000ull)};
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+double peakAbs(const std::vector<double>& v) {
+  double p = 0.0;
+  for (double x : v) p = std::max(p, std::fabs(x));
+  return p;
+}
+
+/// The simulated device of one step: a lockstep rig plus accessors for the three signals.
+struct SimTarget {
+  std::unique_ptr<fw_sim::SimDevice> device;
+  std::unique_ptr<Controller> controller;
+  std::unique_ptr<LockstepRig> rig;
+  std::function<double()> truth, estimate, setpoint;
+};
+
+SimTarget makeTarget(const Plan& plan, const Step& st) {
+  SimTarget t;
+  if (st.kind == "glove-free-motion") {
+    sim::GlovePlantConfig pc;
+    pc.seed = plan.seed;
+    pc.noise = plan.noise;
+    pc.scenario = sim::HandScenario::kCloseOpen;
+    auto dev = std::make_unique<fw_sim::Glove5SimDevice>(pc);
+    glove::GloveControllerConfig cc;
+    cc.transparent = true;
+    t.controller = std::make_unique<glove::GloveController>(cc);
+    auto* d = dev.get();
+    const int f = st.finger;
+    t.truth = [d, f] { return d->glovePlant().padForce_N(f); };
+    t.device = std::move(dev);
+  } else {
+    sim::SeaPlantConfig pc;
+    pc.seed = plan.seed;
+    pc.noise = plan.noise;
+    pc.variant = sim::SeaVariant::kRig;
+    auto dev = std::make_unique<fw_sim::SeaFingerSimDevice>(pc);
+    const bool chirp = st.kind == "sea-rig-chirp";
+    // eq 16: the instantaneous frequency f0 + 2 f1 t reaches fmax at the end of the step.
+    const double f1 = chirp ? (st.fmax_hz - st.f0_hz) / (2.0 * st.seconds) : 0.0;
+    t.controller = std::make_unique<sea::SeaTrajectoryController>(
+        chirp ? sea::SeaTrajectoryController::Shape::kChirp : sea::SeaTrajectoryController::Shape::kSine,
+        chirp ? st.amplitude_Nm : st.peak_Nm, chirp ? st.f0_hz : st.hz, f1, plan.controller == "paper");
+    auto* d = dev.get();
+    t.truth = [d] { return d->seaPlant().truth(0).joint_torque_Nm; };  // the load cell's true torque
+    t.device = std::move(dev);
+  }
+  t.rig = std::make_unique<LockstepRig>(*t.device, *t.controller);
+  auto* rig = t.rig.get();
+  const size_t est_index = st.kind == "glove-free-motion" ? kGloveForce0 + static_cast<size_t>(st.finger) : kSeaTorque0;
+  const size_t sp_index = st.kind == "glove-free-motion" ? static_cast<size_t>(st.finger) : 0;
+  t.estimate = [rig, est_index] { return static_cast<double>(rig->session().latest().value[est_index]); };
+  t.setpoint = [rig, sp_index] { return static_cast<double>(rig->lastCommand().setpoint[sp_index]); };
+  return t;
+}
+
+void judge(const PairLimits& l, const PairMetrics& m, const std::string& pair, std::vector<Check>& out) {
+  auto add = [&](const char* name, const std::optional<double>& limit, double value, bool is_min) {
+    if (!limit) return;
+    const bool pass = std::isfinite(value) && (is_min ? value >= *limit : value <= *limit);
+    out.push_back({pair + "." + name, value, *limit, is_min, pass});
+  };
+  add("rmse", l.rmse_max, m.rmse, false);
+  add("nrmse_percent", l.nrmse_percent_max, m.nrmse_percent, false);
+  add("fidelity_percent", l.fidelity_percent_min, m.fidelity_percent, true);
+  add("bandwidth_hz", l.bandwidth_hz_min, m.bandwidth_hz, true);
+}
+
+StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
+                   size_t index, const Progress& progress) {
+  StepResult r;
+  r.name = st.name;
+  r.kind = st.kind;
+  r.unit = plan.instrument.unit;
+  SimTarget target = makeTarget(plan, st);
+  if (std::string err = target.rig->handshake(); !err.empty()) {
+    r.error = "device: " + err;
+    return r;
+  }
+  amp.setResponsive(true);
+  amp.set(target.truth());
+  // The instrument must be live before the step starts (bounded wait).
+  const uint64_t wait_end = linux_hal::monotonicNs() + 1000000000ull;
+  while (inst.latest(linux_hal::monotonicNs()).stale && linux_hal::monotonicNs() < wait_end) sleepUntil(linux_hal::monotonicNs() + 2000000ull);
+  if (const auto rd = inst.latest(linux_hal::monotonicNs()); rd.stale) {
+    r.error = std::string("instrument: no fresh reading before the step (") + rd.last_error + ")";
+    return r;
+  }
+
+  const auto steps = static_cast<size_t>(std::lround(st.seconds * kFs));
+  const auto settle = static_cast<size_t>(std::lround(st.settle_s * kFs));
+  std::vector<double> sp(steps), est(steps), truth_set(steps);
+  std::vector<uint64_t> set_ns(steps);
+  std::vector<uint8_t> stale(steps);
+  std::vector<std::pair<uint64_t, double>> samples;  // instrument samples: (arrival time, value)
+  samples.reserve(steps);
+  uint64_t last_sample_ns = 0;
+  size_t last_sample_step = 0;
+  uint64_t paused_ns = 0;
+  bool instrument_answering = true;
+  // A sample is "young" for two poll periods of rig time (see the alignment below).
+  const auto max_age_steps = static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)));
+  bool hung = false;
+  const uint64_t t0 = linux_hal::monotonicNs();
+  size_t next_progress = 0;
+  for (size_t k = 0; k < steps; ++k) {
+    target.rig->step();
+    r.faults |= target.rig->session().latest().fault_bits;
+    sp[k] = target.setpoint();
+    est[k] = target.estimate();
+    truth_set[k] = target.truth();
+    amp.set(truth_set[k]);
+    set_ns[k] = linux_hal::monotonicNs();
+    if (!hung && st.instrument_hang_at_s >= 0.0 && static_cast<double>(k) / kFs >= st.instrument_hang_at_s) {
+      amp.setResponsive(false);
+      hung = true;
+    }
+    // Real time: the instrument is polled by its own thread while the rig runs at 1 kHz.
+    sleepUntil(t0 + paused_ns + static_cast<uint64_t>(k + 1) * 1000000ull);
+    modbus::InstrumentReading rd = inst.latest(linux_hal::monotonicNs());
+    // Simulation only: the rig's clock is virtual, so when the machine starved the polling thread the rig
+    // waits for the instrument instead of running ahead unmeasured (bounded by the request timeout; after a
+    // timeout it stops waiting until the instrument answers again, and those samples count as stale).
+    if (rd.sample_ns == last_sample_ns && k > last_sample_step + max_age_steps && instrument_answering) {
+      const uint64_t w0 = linux_hal::monotonicNs();
+      const uint64_t w_end = w0 + static_cast<uint64_t>(plan.instrument.timeout_ms) * 2000000ull;
+      while (rd.sample_ns == last_sample_ns && linux_hal::monotonicNs() < w_end) {
+        sleepUntil(linux_hal::monotonicNs() + 200000ull);
+        rd = inst.latest(linux_hal::monotonicNs());
+      }
+      paused_ns += linux_hal::monotonicNs() - w0;
+      instrument_answering = rd.sample_ns != last_sample_ns;
+    }
+    stale[k] = rd.stale ? 1 : 0;
+    if (rd.valid && rd.sample_ns != last_sample_ns) {
+      samples.emplace_back(rd.sample_ns, rd.value);
+      last_sample_ns = rd.sample_ns;
+      last_sample_step = k;
+      instrument_answering = true;
+    }
+    if (k >= next_progress) {
+      progress(index, plan.steps.size(), st.name, static_cast<double>(k) / static_cast<double>(steps));
+      next_progress += 100;
+    }
+  }
+  progress(index, plan.steps.size(), st.name, 1.0);
+  amp.setResponsive(true);
+
+  // Align each instrument sample with the rig step whose ground truth it carried: the last step published
+  // before the response arrived (the rig may have run in bursts on a loaded machine; sim time is what counts).
+  // A held sample is scored only while it is young in *sim* time too: at most two poll periods old. When the
+  // machine starves the rig and it catches up in a burst, the steps of the burst were never measured.
+  std::vector<double> inst_zoh(steps, std::nan(""));
+  size_t si = 0, held_at = 0;
+  double held = std::nan("");
+  for (size_t k = 0; k < steps; ++k) {
+    while (si < samples.size() && (k + 1 >= steps || samples[si].first < set_ns[k + 1])) {
+      held = samples[si].second;
+      held_at = k;
+      ++si;
+    }
+    inst_zoh[k] = held;
+    if (k - held_at > max_age_steps) stale[k] = 1;
+  }
+  for (size_t k = settle; k < steps; ++k) {
+    ++r.samples_total;
+    if (stale[k] || !std::isfinite(inst_zoh[k])) {
+      ++r.samples_stale;
+      continue;
+    }
+    r.t.push_back(static_cast<double>(k) / kFs);
+    r.setpoint.push_back(sp[k]);
+    r.estimate.push_back(est[k]);
+    r.instrument.push_back(inst_zoh[k]);
+  }
+  r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
+  const double stale_pct = r.samples_total > 0 ? 100.0 * static_cast<double>(r.samples_stale) / static_cast<double>(r.samples_total) : 100.0;
+  if (stale_pct > plan.max_stale_percent) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "instrument: no fresh reading for %.1f %% of the samples (limit %.1f %%); last error: %s",
+                  stale_pct, plan.max_stale_percent, inst.latest(linux_hal::monotonicNs()).last_error);
+    r.error = buf;
+  }
+  if (r.instrument.size() < 100) {
+    if (r.error.empty()) r.error = "instrument: too few fresh samples to score";
+    return r;
+  }
+  const bool chirp = st.kind == "sea-rig-chirp";
+  // For a chirp the analysis needs an unbroken 1 kHz record: stale samples (if any, within the allowance) are
+  // held at the last fresh value.
+  std::vector<double> y_inst = r.instrument, y_est = r.estimate, y_sp = r.setpoint;
+  if (chirp) {
+    y_inst.assign(inst_zoh.begin() + static_cast<long>(settle), inst_zoh.end());
+    y_est.assign(est.begin() + static_cast<long>(settle), est.end());
+    y_sp.assign(sp.begin() + static_cast<long>(settle), sp.end());
+    double last = 0.0;
+    for (double& v : y_inst) {
+      if (std::isfinite(v)) last = v;
+      else v = last;
+    }
+  }
+  const double f_lo = st.f0_hz + 0.2, f_hi = st.fmax_hz - 0.5;  // the sweep's edges are ramps in the spectrum
+  r.est = comparePair(y_est, y_inst, kFs, chirp, f_lo, f_hi);
+  r.sp = comparePair(y_inst, y_sp, kFs, chirp, f_lo, f_hi);
+  judge(st.estimate_vs_instrument, r.est, "estimate_vs_instrument", r.checks);
+  judge(st.setpoint_vs_instrument, r.sp, "setpoint_vs_instrument", r.checks);
+  if (r.faults != 0 && r.error.empty()) r.error = "device latched faults during the step (bits " + std::to_string(r.faults) + ")";
+  r.pass = r.error.empty() && std::all_of(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.pass; });
+  return r;
+}
+
+nlohmann::json pairJson(const PairMetrics& m) {
+  nlohmann::json j = {{"rmse", m.rmse}, {"nrmse_percent", m.nrmse_percent}, {"fidelity_percent", m.fidelity_percent}};
+  if (m.bandwidth_hz >= 0) {
+    j["bandwidth_hz"] = m.bandwidth_hz;
+    j["bandwidth_beyond_band"] = m.bandwidth_beyond_band;
+  }
+  return j;
+}
+
+}  // namespace
+
+PairMetrics comparePair(const std::vector<double>& y, const std::vector<double>& r, double fs, bool chirp, double f_lo,
+                        double f_hi) {
+  PairMetrics m;
+  m.rmse = rmse(y, r);
+  const double peak = peakAbs(r);
+  m.nrmse_percent = peak > 0.0 ? 100.0 * m.rmse / peak : std::nan("");  // the paper's "percent error" (Table 1)
+  m.fidelity_percent = sea::fidelityPercent(y, r);                       // eq 15, y measured, y_d reference
+  if (!chirp) return m;
+  // eq 17: |G(jω)| = |Y(jω)| / |R(jω)| on every DFT bin of the swept band, moving-averaged over kSmoothHz.
+  const double df = fs / static_cast<double>(y.size());
+  std::vector<double> f, g;
+  for (double fr = std::max(df, f_lo - kSmoothHz); fr <= f_hi + kSmoothHz + 1e-9; fr += df) {
+    const double ref = sea::amplitudeAt(r, fs, fr);
+    f.push_back(fr);
+    g.push_back(ref > 0.0 ? sea::amplitudeAt(y, fs, fr) / ref : 0.0);
+  }
+  const auto half = static_cast<long>(std::lround(0.5 * kSmoothHz / df));
+  const double limit = std::pow(10.0, -3.0 / 20.0);
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (f[i] < f_lo || f[i] > f_hi) continue;
+    double s = 0.0;
+    long n = 0;
+    for (long j = static_cast<long>(i) - half; j <= static_cast<long>(i) + half; ++j) {
+      if (j < 0 || j >= static_cast<long>(g.size())) continue;
+      s += g[static_cast<size_t>(j)];
+      ++n;
+    }
+    const double gs = s / static_cast<double>(n);
+    m.freq_hz.push_back(f[i]);
+    m.magnitude_db.push_back(20.0 * std::log10(std::max(gs, 1e-12)));
+    if (m.bandwidth_hz < 0.0 && gs < limit) m.bandwidth_hz = f[i];
+  }
+  if (m.bandwidth_hz < 0.0) {
+    m.bandwidth_hz = f_hi;  // never dropped below −3 dB inside the band: at least f_hi
+    m.bandwidth_beyond_band = true;
+  }
+  return m;
+}
+
+PlanResult runPlan(const Plan& plan, const Progress& progress) {
+  PlanResult out;
+  const uint64_t start = linux_hal::monotonicNs();
+  // The simulated amplifier serves the plan's register map; the client reads it through the real Modbus path.
+  modbus::SimInstrumentServer amp(plan.instrument);
+  modbus::InstrumentConfig cfg = plan.instrument;
+  std::string err;
+  if (cfg.transport == "tcp") {
+    err = amp.startTcp(0);
+    cfg.host = "127.0.0.1";
+    cfg.port = amp.port();
+  } else {
+    err = amp.startRtu(cfg.serial_device);
+  }
+  modbus::InstrumentClient inst(cfg);
+  if (err.empty()) err = inst.start();
+  for (size_t i = 0; i < plan.steps.size(); ++i) {
+    StepResult r;
+    if (!err.empty()) {
+      r.name = plan.steps[i].name;
+      r.kind = plan.steps[i].kind;
+      r.error = err;
+    } else {
+      r = runStep(plan, plan.steps[i], amp, inst, i, progress);
+    }
+    out.steps.push_back(std::move(r));
+  }
+  inst.stop();
+  amp.stop();
+  out.pass = std::all_of(out.steps.begin(), out.steps.end(), [](const StepResult& s) { return s.pass; });
+  out.wall_s = static_cast<double>(linux_hal::monotonicNs() - start) * 1e-9;
+  return out;
+}
+
+nlohmann::json toJson(const PlanResult& r) {
+  nlohmann::json j;
+  j["pass"] = r.pass;
+  j["wall_s"] = r.wall_s;
+  for (const StepResult& s : r.steps) {
+    nlohmann::json sj = {{"name", s.name}, {"kind", s.kind}, {"pass", s.pass}, {"samples", s.samples_total},
+                         {"samples_stale", s.samples_stale}, {"faults", s.faults}};
+    if (!s.error.empty()) sj["error"] = s.error;
+    if (!s.instrument.empty()) {
+      sj["estimate_vs_instrument"] = pairJson(s.est);
+      sj["setpoint_vs_instrument"] = pairJson(s.sp);
+    }
+    for (const Check& c : s.checks) {
+      sj["checks"].push_back({{"what", c.what}, {"value", c.value}, {c.is_min ? "min" : "max", c.limit}, {"pass", c.pass}});
+    }
+    sj["instrument"] = s.instrument_stats;
+    j["steps"].push_back(sj);
+  }
+  return j;
+}
+
+}  // namespace phalanx::host::benchrun

@@ -1,0 +1,160 @@
+// The bench runner end to end on the simulated SEA rig (real time: the reference instrument is polled over
+// Modbus as on the bench), with short plans so the suite stays within its time budget.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "phalanx/host/benchrun/report.h"
+#include "phalanx/host/benchrun/runner.h"
+
+namespace br = phalanx::host::benchrun;
+
+namespace {
+
+br::Plan plan(const std::string& yaml) {
+  br::Plan p;
+  const std::string err = br::loadPlanText(yaml, "test-plan", p);
+  EXPECT_EQ(err, "");
+  return p;
+}
+
+const char* kHeader = R"(
+version: 1
+device: sim:sea_rig
+seed: 3
+instrument: {type: int32, scale: 1.0e-5, poll_hz: 500, timeout_ms: 30, stale_ms: 50}
+max_stale_percent: 5
+)";
+
+void noProgress(size_t, size_t, const std::string&, double) {}
+
+}  // namespace
+
+TEST(BenchRun, PlanPassesAgainstTheSimulatedSeaRigAndTheReportIsSelfContained) {
+  const br::Plan p = plan(std::string(kHeader) + R"(
+steps:
+  - name: sine 0.3
+    kind: sea-rig-sine
+    peak_Nm: 0.3
+    hz: 0.5
+    seconds: 4
+    settle_s: 1
+    limits:
+      setpoint_vs_instrument: {nrmse_percent_max: 11.59, fidelity_percent_min: 97.7}
+      estimate_vs_instrument: {nrmse_percent_max: 6.0, rmse_max: 0.02}
+  - name: chirp
+    kind: sea-rig-chirp
+    amplitude_Nm: 0.15
+    f0_hz: 0.1
+    fmax_hz: 6
+    seconds: 6
+    limits:
+      setpoint_vs_instrument: {bandwidth_hz_min: 2.5}
+)");
+  size_t progress_calls = 0;
+  const br::PlanResult r = br::runPlan(p, [&](size_t, size_t, const std::string&, double) { ++progress_calls; });
+  ASSERT_EQ(r.steps.size(), 2u);
+  for (const auto& s : r.steps) EXPECT_TRUE(s.pass) << s.name << ": " << s.error << "\n" << br::toJson(r).dump(1);
+  EXPECT_TRUE(r.pass);
+  EXPECT_GT(progress_calls, 20u);
+  const br::StepResult& sine = r.steps[0];
+  EXPECT_LT(sine.samples_stale, 150u) << "a shared machine may starve the polling thread briefly, no more";
+  EXPECT_GT(sine.instrument.size(), 2900u);
+  // The instrument really measures the torque: its amplitude matches the commanded 0.3 N·m within 5 %.
+  double peak = 0.0;
+  for (double v : sine.instrument) peak = std::max(peak, std::fabs(v));
+  EXPECT_NEAR(peak, 0.3, 0.015);
+  EXPECT_EQ(r.steps[1].sp.bandwidth_hz >= 2.5, true);
+  EXPECT_FALSE(r.steps[1].sp.magnitude_db.empty());
+
+  const std::string html = br::renderHtml(p, r);
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  EXPECT_NE(html.find("Magnitude response"), std::string::npos);
+  EXPECT_NE(html.find("Error distribution"), std::string::npos);
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+  EXPECT_EQ(html.find("https://"), std::string::npos) << "nothing fetched from outside";
+}
+
+TEST(BenchRun, PlanWithLimitsTooTightFailsAndNamesTheCheck) {
+  const br::Plan p = plan(std::string(kHeader) + R"(
+steps:
+  - name: sine 0.15
+    kind: sea-rig-sine
+    peak_Nm: 0.15
+    seconds: 3
+    settle_s: 1
+    limits:
+      setpoint_vs_instrument: {rmse_max: 0.00001, fidelity_percent_min: 99.99999}
+)");
+  const br::PlanResult r = br::runPlan(p, noProgress);
+  ASSERT_EQ(r.steps.size(), 1u);
+  EXPECT_FALSE(r.pass);
+  EXPECT_TRUE(r.steps[0].error.empty()) << r.steps[0].error;
+  ASSERT_EQ(r.steps[0].checks.size(), 2u);
+  EXPECT_EQ(r.steps[0].checks[0].what, "setpoint_vs_instrument.rmse");
+  EXPECT_FALSE(r.steps[0].checks[0].pass);
+  EXPECT_FALSE(r.steps[0].checks[1].pass);
+}
+
+TEST(BenchRun, InstrumentThatStopsAnsweringFailsTheStepWithATimeoutNotAScore) {
+  const br::Plan p = plan(std::string(kHeader) + R"(
+steps:
+  - name: hung amplifier
+    kind: sea-rig-sine
+    peak_Nm: 0.15
+    seconds: 3
+    settle_s: 0.5
+    instrument_hang_at_s: 1.5
+    limits:
+      setpoint_vs_instrument: {nrmse_percent_max: 50}
+)");
+  const br::PlanResult r = br::runPlan(p, noProgress);
+  ASSERT_EQ(r.steps.size(), 1u);
+  const br::StepResult& s = r.steps[0];
+  EXPECT_FALSE(s.pass);
+  EXPECT_NE(s.error.find("no fresh reading"), std::string::npos) << s.error;
+  EXPECT_NE(s.error.find("timed out"), std::string::npos) << s.error;
+  EXPECT_GT(s.samples_stale, 1000u);
+  EXPECT_GT(s.instrument_stats["timeouts"].get<int>(), 0);
+  EXPECT_LT(s.instrument.size(), 1100u) << "stale samples are never scored";
+}
+
+TEST(BenchRun, PlanErrorsNameTheKey) {
+  br::Plan p;
+  EXPECT_NE(br::loadPlanText("version: 1\nsteps: []\n", "p", p).find("steps: expected a non-empty list"), std::string::npos);
+  EXPECT_NE(br::loadPlanText("steps: [{kind: sea-rig-sine, peak_Nm: 2}]\n", "p", p).find("steps[0].peak_Nm"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("steps: [{kind: glove-free-motion}]\n", "p", p).find("does not run on sim:sea_rig"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("steps: [{kind: sea-rig-sine, limits: {setpoint_vs_instrument: {bandwidth_hz_min: 2}}}]\n", "p", p)
+                .find("needs a sea-rig-chirp"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: serial:/dev/ttyACM0\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("not supported"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("instrument: {baud_rate: 9600}\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("instrument.baud_rate"),
+            std::string::npos);
+}
+
+TEST(BenchRun, MetricsFollowTheirDefinitions) {
+  // y = r exactly: zero error, 100 % fidelity, |G| = 0 dB everywhere (bandwidth beyond the band).
+  std::vector<double> r(8000), y(8000), half(8000);
+  const double f1 = (8.0 - 0.1) / (2.0 * 8.0);
+  for (size_t i = 0; i < r.size(); ++i) {
+    const double t = static_cast<double>(i) / 1000.0;
+    r[i] = 0.15 * std::sin(2.0 * M_PI * (0.1 + f1 * t) * t);  // eq 16
+    y[i] = r[i];
+    half[i] = 0.5 * r[i];
+  }
+  br::PairMetrics m = br::comparePair(y, r, 1000.0, true, 0.3, 7.5);
+  EXPECT_NEAR(m.rmse, 0.0, 1e-15);
+  EXPECT_NEAR(m.fidelity_percent, 100.0, 1e-9);
+  EXPECT_TRUE(m.bandwidth_beyond_band);
+  // Half amplitude: −6 dB from the first bin, so the −3 dB bandwidth is the band's lower edge; NRMSE 50 %/√2.
+  m = br::comparePair(half, r, 1000.0, true, 0.3, 7.5);
+  EXPECT_FALSE(m.bandwidth_beyond_band);
+  EXPECT_NEAR(m.bandwidth_hz, 0.3, 0.2);
+  EXPECT_NEAR(m.magnitude_db[m.magnitude_db.size() / 2], -6.02, 0.3);
+  EXPECT_NEAR(m.nrmse_percent, 50.0 / std::sqrt(2.0), 0.5);
+}
