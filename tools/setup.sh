@@ -9,7 +9,7 @@ else
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
-  nlohmann-json3-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev
+  nlohmann-json3-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev libnlopt-dev
   clang libclang-rt-14-dev valgrind
 )
 fi

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "common_options.h"
+#include "design_cli.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/sea/sea_bench.h"
@@ -60,11 +61,14 @@ int main(int argc, char** argv) {
   sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(CLI::Range(0.01, 0.4));
   sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(CLI::Range(2.0, 50.0));
 
+  DesignCommands design_cmds(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (design_cmds.parsed()) return design_cmds.run();
   if (sea_sine->parsed() || sea_chirp->parsed()) {
     sea_opt.noise = !bench_no_noise;
     const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
