@@ -9,6 +9,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/sea/sea_bench.h"
+#include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/protocol/messages.h"
 
 int main(int argc, char** argv) {
@@ -39,6 +40,14 @@ int main(int argc, char** argv) {
   add_bench_options(free_motion);
   CLI::App* grasp = bench->add_subcommand("glove-grasp", "grasp the rigid virtual ball (000 eq 1)");
   add_bench_options(grasp);
+
+  phalanx::host::pen::PenSplitBenchOptions pen_split_opt;
+  CLI::App* pen_split = bench->add_subcommand("pen-split", "pen force split over the workspace: accuracy, effort, saturation (004 Fig. 18)");
+  pen_split->add_option("--seed", pen_split_opt.seed, "random-wrench seed");
+  pen_split->add_option("--grid", pen_split_opt.grid, "samples per workspace axis (grid^5 poses)")->check(CLI::Range(2, 15));
+  pen_split->add_option("--wrenches-per-pose", pen_split_opt.wrenches_per_pose, "random wrenches per pose and class")
+      ->check(CLI::Range(1, 1000));
+  pen_split->add_flag("--json", json, "JSON output (the default; kept for scripts)");
 
   phalanx::host::sea::SeaBenchOptions sea_opt;
   auto add_sea_options = [&](CLI::App* sc) {
@@ -74,6 +83,10 @@ int main(int argc, char** argv) {
     const nlohmann::json result = sea_sine->parsed() ? phalanx::host::sea::benchRigSine(sea_opt)
                                                      : phalanx::host::sea::benchRigChirp(sea_opt);
     std::cout << result.dump(2) << std::endl;
+    return 0;
+  }
+  if (pen_split->parsed()) {
+    std::cout << phalanx::host::pen::benchSplit(pen_split_opt).dump(2) << std::endl;
     return 0;
   }
   if (bench->parsed()) {

@@ -3,6 +3,7 @@
 #include "phalanx/host/controller.h"
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/pen/pen_controller.h"
 
 namespace phalanx::host {
 
@@ -27,6 +28,22 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
       return nullptr;
     }
     return std::make_unique<glove::GloveController>(cfg);
+  }
+  if (layout.type == protocol::DeviceType::kPantograph) {
+    // Pen scenes through the shared --scene option: none = gravity compensation only, wall = the stiff pencil
+    // box, rigid-ball/soft-ball (the default) = the box with the click button (docs/pen-plant.md).
+    pen::PenControllerConfig cfg;
+    cfg.transparent = opt.mode == "transparent";
+    if (opt.scene == "none") {
+      cfg.scene.box = false;
+      cfg.scene.button = false;
+    } else if (opt.scene == "wall") {
+      cfg.scene.button = false;
+    } else if (opt.scene != "rigid-ball" && opt.scene != "soft-ball") {
+      error = "unknown pen scene '" + opt.scene + "'";
+      return nullptr;
+    }
+    return std::make_unique<pen::PenController>(cfg);
   }
   (void)error;
   return std::make_unique<TransparentController>();

@@ -70,9 +70,11 @@ constexpr DeviceLayout kSeaFingerLayout{
      SampleKind::kAngle, SampleKind::kAngle, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kDuty,
      SampleKind::kDuty, SampleKind::kTorque, SampleKind::kTorque}};
 
-/// pantograph: samples 0..5 joint angles, 6..11 motor torque. Setpoints 0..5: motor torque in N·m.
+/// pantograph: samples 0..5 joint angles q1..q6 relative to home (encoder counts · 2π/4000), 6..11 measured motor
+/// torque (current sense · K_t). Setpoints 0..5: joint torque in N·m, |τ| ≤ 2.1 N·m (the amplifier peak,
+/// pen/board.h; docs/pen-model.md §"Torque limits").
 constexpr DeviceLayout kPantographLayout{
-    DeviceType::kPantograph, "pantograph", 6, 1.0f, 12,
+    DeviceType::kPantograph, "pantograph", 6, 2.1f, 12,
     {SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
      SampleKind::kAngle, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kTorque, SampleKind::kTorque,
      SampleKind::kTorque, SampleKind::kTorque}};

@@ -1,0 +1,80 @@
+#pragma once
+/// Firmware app for the Twin-Pantograph haptic pen (004: Stocco, Salcudean & Sassani, §VI): six direct-drive
+/// motors on current-mode amplifiers (the PWM duty is the current command), six 4000 counts/turn encoders, six
+/// motor current sense channels (pen/board.h).
+///
+/// The pen is an impedance device: the firmware is a joint-torque servo. Each tick:
+///   q_i     = counts_i · 2π/4000                 joint angle relative to home (the host adds q_home)
+///   q̇_i     = low-pass(Δq_i / dt)                for telemetry and the velocity plausibility check
+///   τ_i     = clamp(setpoint_i · gain_i, ±τmax_i) kSetpoint; 0 in kTransparent / kLock (back-drivable)
+///   duty_i  = τ_i / (K_t · I_peak)
+/// Safety (faults latch in the core, which then calls safe(): every duty 0, bridges off): encoder jump beyond a
+/// physical speed (kSensorRange), joint outside its window (kJointLimit), measured current beyond the amplifier
+/// limit or disagreeing with the command for too long (kCurrentLimit), current sense at full scale
+/// (kSensorSaturated). The core adds the command watchdog (link loss) and the e-stop.
+/// Freestanding: no heap, no exceptions, single precision.
+#include <cstdint>
+
+#include "phalanx/control/pid.h"
+#include "phalanx/fw/app.h"
+#include "phalanx/pen/board.h"
+
+namespace phalanx::apps {
+
+constexpr int kPenJoints = pen::board::kJointCount;
+
+struct PantographConfig {
+  float torque_limit_Nm[kPenJoints] = {2.1f, 2.1f, 2.1f, 2.1f, 2.1f, 2.1f};
+  /// Joint windows relative to home (rad). The soft-stop workspace spans waist −19…+31°, shoulders ±56°
+  /// (docs/pen-plant.md); the windows add ≥ 14° margin.
+  float joint_min_rad[kPenJoints] = {-0.785f, -1.309f, -1.309f, -0.785f, -1.309f, -1.309f};
+  float joint_max_rad[kPenJoints] = {0.785f, 1.309f, 1.309f, 0.785f, 1.309f, 1.309f};
+  /// An encoder moving more than this in one tick is a glitch (500 counts/ms = 785 rad/s, far beyond a hand).
+  int32_t max_counts_per_tick = 500;
+  float velocity_filter_hz = 100.0f;
+  /// |I_measured − I_commanded| above this for current_mismatch_ticks: amplifier or wiring fault.
+  float current_mismatch_A = 3.0f;
+  uint16_t current_mismatch_ticks = 20;
+  float overcurrent_A = 1.1f * pen::board::kPeakCurrent_A;
+};
+
+PantographConfig pantographDefaultConfig();
+
+/// Device parameters (ParamGet/ParamSet).
+namespace pantograph_param {
+constexpr uint16_t kTorqueLimitBase = 0x0100;  ///< 0x0100 + joint: torque limit (N·m), 0 < value ≤ 2.1
+}  // namespace pantograph_param
+
+struct PenJointState {
+  int32_t counts = 0;
+  float angle_rad = 0.0f;        ///< relative to home
+  float rate_rad_per_s = 0.0f;
+  float current_A = 0.0f;        ///< measured
+  float torque_cmd_Nm = 0.0f;
+  float duty = 0.0f;
+};
+
+class PantographApp : public fw::DeviceApp {
+ public:
+  explicit PantographApp(const PantographConfig& config = pantographDefaultConfig());
+  const protocol::DeviceLayout& layout() const override;
+  void init(hal::Board& board) override;
+  uint16_t sense(float dt_s) override;
+  uint16_t control(const protocol::Command& cmd, float dt_s) override;
+  void safe() override;
+  void fillSamples(int16_t* samples) const override;
+  protocol::ParamStatus getParam(uint16_t id, float& value) const override;
+  protocol::ParamStatus setParam(uint16_t id, float value) override;
+
+  const PenJointState& joint(int i) const { return joint_[i]; }
+
+ private:
+  PantographConfig cfg_;
+  hal::Board* board_ = nullptr;
+  PenJointState joint_[kPenJoints];
+  control::LowPass rate_lp_[kPenJoints];
+  bool primed_ = false;
+  uint16_t mismatch_ticks_[kPenJoints] = {};
+};
+
+}  // namespace phalanx::apps

@@ -1,0 +1,29 @@
+#pragma once
+/// The simulated Twin-Pantograph pen: the firmware's PantographApp together with the pen + hand plant.
+#include "phalanx/apps/pantograph.h"
+#include "phalanx/fw_sim/sim_device.h"
+#include "phalanx/pen/board.h"
+#include "phalanx/sim/pen_plant.h"
+
+namespace phalanx::fw_sim {
+
+class PantographSimDevice : public SimDevice {
+ public:
+  /// Throws std::invalid_argument for a bad plant configuration (PenPlant's contract).
+  explicit PantographSimDevice(const sim::PenPlantConfig& plant_config,
+                               const apps::PantographConfig& config = apps::pantographDefaultConfig())
+      : app_(config), plant_(plant_config) {}
+  fw::DeviceApp& app() override { return app_; }
+  sim::Plant& plant() override { return plant_; }
+  uint8_t pwmCount() const override { return pen::board::kPwmChannelCount; }
+  uint8_t adcCount() const override { return pen::board::kAdcChannelCount; }
+  uint8_t encoderCount() const override { return pen::board::kEncoderChannelCount; }
+  sim::PenPlant& penPlant() { return plant_; }
+  apps::PantographApp& penApp() { return app_; }
+
+ private:
+  apps::PantographApp app_;
+  sim::PenPlant plant_;
+};
+
+}  // namespace phalanx::fw_sim

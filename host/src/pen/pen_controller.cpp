@@ -1,0 +1,76 @@
+#include "phalanx/host/pen/pen_controller.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "phalanx/protocol/devices.h"
+
+namespace phalanx::host::pen {
+
+namespace pp = phalanx::pen;
+
+PenController::PenController(const PenControllerConfig& config)
+    : config_(config), model_(pp::defaultModel<double>()), scene_(config.scene), splitter_(config.split) {}
+
+void PenController::update(const TelemetryFrame& tel, double, double dt_s, protocol::Command& cmd) {
+  ++stats_.cycles;
+  // dt on the device clock (the encoder samples' own spacing); the host period if it is not available.
+  double dt = dt_s;
+  if (primed_ && tel.device_time_us > last_device_time_us_) {
+    dt = static_cast<double>(tel.device_time_us - last_device_time_us_) * 1e-6;
+  }
+  last_device_time_us_ = tel.device_time_us;
+  primed_ = true;
+
+  pp::JointVec<double> q{};
+  for (std::size_t i = 0; i < pp::kNumJoints; ++i) q[i] = model_.q_home_rad[i] + static_cast<double>(tel.value[i]);
+  const pp::Status ks = pp::computeForward(model_, q, kin_);
+  cmd.mode = config_.transparent ? protocol::Mode::kTransparent : protocol::Mode::kSetpoint;
+  for (auto& s : cmd.setpoint) s = 0.0f;
+  if (!pp::isUsable(ks)) {
+    // No trustworthy pose: no force (the firmware's own checks decide whether this is a fault).
+    ++stats_.kinematics_unusable;
+    scene_.reset();
+    return;
+  }
+  scene_.render(kin_, dt, render_);
+  if (config_.transparent) return;
+  const SplitStatus ss = splitter_.split(kin_, render_.wrench, split_result_);
+  if (ss == SplitStatus::kInternalForceRedistributed) ++stats_.split_redistributed;
+  if (ss == SplitStatus::kScaled) ++stats_.split_scaled;
+  stats_.limit_active_mask_seen |= split_result_.limit_active_mask;
+  const float limit = protocol::kPantographLayout.setpoint_limit;
+  for (std::size_t i = 0; i < pp::kNumJoints; ++i) {
+    float t = static_cast<float>(split_result_.tau_Nm[i]);
+    t = t > limit ? limit : (t < -limit ? -limit : t);  // float rounding of a torque at its limit
+    cmd.setpoint[i] = t;
+    stats_.peak_torque_Nm = std::fmax(stats_.peak_torque_Nm, std::fabs(split_result_.tau_Nm[i]));
+  }
+  const EndContact& tip = render_.end[pp::kBottom];
+  stats_.peak_tip_force_N = std::fmax(stats_.peak_tip_force_N, std::sqrt(pp::dot(tip.force_N, tip.force_N)));
+  stats_.peak_tip_penetration_m = std::fmax(stats_.peak_tip_penetration_m, tip.penetration_m);
+  stats_.clicks = render_.clicks;
+}
+
+void PenController::summarize(nlohmann::json& out) const {
+  out["pen"] = {{"cycles", stats_.cycles},
+                {"kinematics_unusable", stats_.kinematics_unusable},
+                {"split_redistributed", stats_.split_redistributed},
+                {"split_scaled", stats_.split_scaled},
+                {"limit_active_mask_seen", stats_.limit_active_mask_seen},
+                {"peak_tip_force_N", stats_.peak_tip_force_N},
+                {"peak_tip_penetration_mm", stats_.peak_tip_penetration_m * 1e3},
+                {"peak_torque_Nm", stats_.peak_torque_Nm},
+                {"button_clicks", stats_.clicks}};
+}
+
+std::string PenController::liveLine(const TelemetryFrame&) const {
+  char buf[160];
+  const auto& c = kin_.B_p_centre;
+  std::snprintf(buf, sizeof buf, "pen c=(%+.1f %+.1f %.1f) cm tip F=%.2f N pen=%.1f mm clicks=%u", c[0] * 100,
+                c[1] * 100, c[2] * 100, std::sqrt(pp::dot(render_.end[0].force_N, render_.end[0].force_N)),
+                render_.end[0].penetration_m * 1e3, render_.clicks);
+  return buf;
+}
+
+}  // namespace phalanx::host::pen
