@@ -5,9 +5,11 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 
 #include "phalanx/host/design/glove_design.h"
+#include "phalanx/host/design/pen_gii.h"
 
 namespace phalanx::host {
 
@@ -70,7 +72,18 @@ struct DesignCommands::Impl {
   double w1 = 1, w2 = 1;
   double corner_deg = 45;
 
+  // pen-gii
+  CLI::App* pg = nullptr;
+  std::string r_l1, r_l2, r_l3, r_l6, r_q1, r_wi, r_wj, r_wk, mode = "force";
+  double distance_cm = 25, tilt_deg = 45;
+  std::size_t rings = 0;
+  unsigned threads = 2;
+  bool exhaustive = false, compare = false;
+  double progress_s = 0;
+  std::vector<double> eval_design;
+
   int runGloveWorkspace();
+  int runPenGii();
   int runGloveOptimize();
 };
 
@@ -109,6 +122,29 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.go->add_flag("--no-collision", m.no_collision, "drop the 3.6 collision constraint");
   m.go->add_option("--svg", m.svg_path, "write the workspace plot of the optimum here");
   m.go->add_option("--yaml", m.yaml_path, "write the optimum device geometry YAML here");
+
+  m.pg = m.design->add_subcommand("pen-gii", "Twin-Pantograph GII optimum by culling (004 eq 10-19, Tables VI-IX)");
+  const char* range_help = "range min:max:step (cm; Q1 unitless)";
+  m.pg->add_option("--l1", m.r_l1, range_help);
+  m.pg->add_option("--l2", m.r_l2, range_help);
+  m.pg->add_option("--l3", m.r_l3, range_help);
+  m.pg->add_option("--l6", m.r_l6, range_help);
+  m.pg->add_option("--q1", m.r_q1, range_help);
+  m.pg->add_option("--wi", m.r_wi, "workspace i range (cm, default Table VI 0:8:0.5)");
+  m.pg->add_option("--wj", m.r_wj, "workspace j range (cm, default 0:5:0.5)");
+  m.pg->add_option("--wk", m.r_wk, "workspace k range around the centre (cm, default -5:5:0.5)");
+  m.pg->add_option("--distance-cm", m.distance_cm, "workspace centre distance along k (Table VII: 25)")
+      ->check(CLI::Range(5.0, 100.0));
+  m.pg->add_option("--tilt-deg", m.tilt_deg, "orientation workspace half-angle")->check(CLI::Range(0.0, 80.0));
+  m.pg->add_option("--rings", m.rings, "eq 16 rings N (0: eq 15)")->check(CLI::Range(0, 200));
+  m.pg->add_option("--mode", m.mode, "force (eq 19) | velocity (eq 26-27, Table IX)")
+      ->check(CLI::IsMember({"force", "velocity"}));
+  m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
+  m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
+  m.pg->add_flag("--compare", m.compare, "run both and check they agree");
+  m.pg->add_option("--progress-s", m.progress_s, "progress to stderr every N s");
+  m.pg->add_option("--eval", m.eval_design, "also report the exact GII of this design: l1 l2 l3 l6 Q1")
+      ->expected(5);
 }
 
 DesignCommands::~DesignCommands() = default;
@@ -119,6 +155,7 @@ int DesignCommands::run() {
   Impl& m = *impl_;
   if (m.gw->parsed()) return m.runGloveWorkspace();
   if (m.go->parsed()) return m.runGloveOptimize();
+  if (m.pg->parsed()) return m.runPenGii();
   return 2;
 }
 
@@ -217,6 +254,78 @@ int DesignCommands::Impl::runGloveOptimize() {
   }
   std::cout << out.dump(2) << std::endl;
   return r.feasible ? 0 : 3;
+}
+
+namespace {
+bool parseRange(const std::string& s, d::GridRange& r) {
+  if (s.empty()) return true;
+  double a = 0, b = 0, c = 0;
+  char x = 0, y = 0;
+  std::istringstream in(s);
+  if (!(in >> a >> x >> b >> y >> c) || x != ':' || y != ':' || !(c > 0) || b < a) {
+    std::fprintf(stderr, "phalanx design: error: range '%s' is not min:max:step with step > 0 and max >= min\n",
+                 s.c_str());
+    return false;
+  }
+  r = {a, b, c};
+  return true;
+}
+
+nlohmann::json designJson(const d::PenDesign& p) {
+  return {{"l1_cm", p.l1}, {"l2_cm", p.l2}, {"l3_cm", p.l3}, {"l6_cm", p.l6}, {"Q1", p.q1}};
+}
+
+nlohmann::json searchJson(const d::SearchResult& r, const d::TwinPantographGii& pb) {
+  return {{"optimum", designJson(pb.design(r.best))}, {"candidate", r.best},      {"gii", r.gii},
+          {"jacobian_evals", r.jacobian_evals},      {"sigma_evals", r.sigma_evals}, {"rounds", r.rounds},
+          {"critical_samples", r.critical_samples},  {"seconds", r.seconds}};
+}
+}  // namespace
+
+int DesignCommands::Impl::runPenGii() {
+  d::PenGiiSpec spec;
+  if (!parseRange(r_l1, spec.l1) || !parseRange(r_l2, spec.l2) || !parseRange(r_l3, spec.l3) ||
+      !parseRange(r_l6, spec.l6) || !parseRange(r_q1, spec.q1) || !parseRange(r_wi, spec.wi) ||
+      !parseRange(r_wj, spec.wj) || !parseRange(r_wk, spec.wk))
+    return 2;
+  spec.distance_cm = distance_cm;
+  spec.tilt_max_deg = tilt_deg;
+  spec.rings = rings;
+  spec.mode = mode == "velocity" ? d::PenGiiMode::kVelocity : d::PenGiiMode::kForce;
+  std::unique_ptr<d::TwinPantographGii> pb;
+  try {
+    pb = std::make_unique<d::TwinPantographGii>(spec);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "phalanx design: error: %s\n", e.what());
+    return 2;
+  }
+  nlohmann::json out = {{"mode", mode},
+                        {"distance_cm", distance_cm},
+                        {"candidates", pb->numCandidates()},
+                        {"geometries", pb->numGroups()},
+                        {"positions", pb->numPositions()},
+                        {"orientations", pb->numOrientations()},
+                        {"rings", pb->rings()},
+                        {"workspace_samples", pb->numSamples()},
+                        {"threads", threads}};
+  d::SearchOptions so;
+  so.threads = threads;
+  so.progress_s = progress_s;
+  int rc = 0;
+  if (exhaustive || compare) out["exhaustive"] = searchJson(d::exhaustiveSearch(*pb, so), *pb);
+  if (!exhaustive || compare) out["culling"] = searchJson(d::cullingSearch(*pb, so), *pb);
+  if (compare) {
+    const bool same = out["exhaustive"]["candidate"] == out["culling"]["candidate"] &&
+                      out["exhaustive"]["gii"] == out["culling"]["gii"];
+    out["identical_optimum"] = same;
+    if (!same) rc = 1;
+  }
+  if (eval_design.size() == 5) {
+    const d::PenDesign e{eval_design[0], eval_design[1], eval_design[2], eval_design[3], eval_design[4]};
+    out["evaluated"] = {{"design", designJson(e)}, {"gii", d::penGii(*pb, e)}};
+  }
+  std::cout << out.dump(2) << std::endl;
+  return rc;
 }
 
 }  // namespace phalanx::host
