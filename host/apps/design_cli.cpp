@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -10,6 +11,7 @@
 
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_gii.h"
+#include "phalanx/host/design/svg.h"
 
 namespace phalanx::host {
 
@@ -63,6 +65,7 @@ struct DesignCommands::Impl {
   std::string geometry_yaml;  // optional input geometry
   std::string svg_path, yaml_path;
   std::size_t grid = 41;
+  std::size_t plot_grid = 15;
   // glove-optimize
   CLI::App* go = nullptr;
   double p1 = 0, p2 = 0, p3 = 0;
@@ -78,11 +81,16 @@ struct DesignCommands::Impl {
   double distance_cm = 25, tilt_deg = 45;
   std::size_t rings = 0;
   unsigned threads = 2;
-  bool exhaustive = false, compare = false;
+  bool exhaustive = false, compare = false, velocity_literal_inverse = false, l6_half = false;
   double progress_s = 0;
   std::vector<double> eval_design;
 
+  // pen-gii-plot
+  CLI::App* pp = nullptr;
+  std::vector<std::string> plot_inputs;
+
   int runGloveWorkspace();
+  int runPenGiiPlot();
   int runPenGii();
   int runGloveOptimize();
 };
@@ -102,6 +110,7 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.gw->add_option("--grid", m.grid, "theta samples per finger joint")->check(CLI::Range(2, 201));
   m.gw->add_option("--svg", m.svg_path, "write the Fig. 6 workspace plot here");
   m.gw->add_option("--yaml", m.yaml_path, "write the device geometry YAML here");
+  m.gw->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(CLI::Range(3, 61));
 
   m.go = m.design->add_subcommand("glove-optimize", "link-length optimisation, eq 17-23 (000 §3.7), NLopt");
   m.go->add_option("--p1", m.p1, "proximal phalanx (mm; default Table 2: 48.3)")->check(CLI::Range(10.0, 120.0));
@@ -122,6 +131,7 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.go->add_flag("--no-collision", m.no_collision, "drop the 3.6 collision constraint");
   m.go->add_option("--svg", m.svg_path, "write the workspace plot of the optimum here");
   m.go->add_option("--yaml", m.yaml_path, "write the optimum device geometry YAML here");
+  m.go->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(CLI::Range(3, 61));
 
   m.pg = m.design->add_subcommand("pen-gii", "Twin-Pantograph GII optimum by culling (004 eq 10-19, Tables VI-IX)");
   const char* range_help = "range min:max:step (cm; Q1 unitless)";
@@ -139,12 +149,22 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.pg->add_option("--rings", m.rings, "eq 16 rings N (0: eq 15)")->check(CLI::Range(0, 200));
   m.pg->add_option("--mode", m.mode, "force (eq 19) | velocity (eq 26-27, Table IX)")
       ->check(CLI::IsMember({"force", "velocity"}));
+  m.pg->add_flag("--velocity-literal-inverse", m.velocity_literal_inverse,
+                 "velocity mode: S_J J S_T^-1 with eq 27's S_T literally (default S_J J S_T)");
+  m.pg->add_flag("--l6-half-length", m.l6_half,
+                 "read l6 as the pen centre to universal-joint distance (pen length 2 l6; reproduces Table VII's GII)");
   m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
   m.pg->add_option("--progress-s", m.progress_s, "progress to stderr every N s");
   m.pg->add_option("--eval", m.eval_design, "also report the exact GII of this design: l1 l2 l3 l6 Q1")
       ->expected(5);
+
+  m.pp = m.design->add_subcommand("pen-gii-plot", "plot GII vs workspace distance (004 Fig. 15) from pen-gii JSON outputs");
+  m.pp->add_option("inputs", m.plot_inputs, "pen-gii JSON files (any distances, force or velocity mode)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  m.pp->add_option("--svg", m.svg_path, "output SVG")->required();
 }
 
 DesignCommands::~DesignCommands() = default;
@@ -156,6 +176,7 @@ int DesignCommands::run() {
   if (m.gw->parsed()) return m.runGloveWorkspace();
   if (m.go->parsed()) return m.runGloveOptimize();
   if (m.pg->parsed()) return m.runPenGii();
+  if (m.pp->parsed()) return m.runPenGiiPlot();
   return 2;
 }
 
@@ -180,7 +201,7 @@ int DesignCommands::Impl::runGloveWorkspace() {
                       glove::radToDeg(model.mech.alpha_min_rad[2])};
     const d::Vec3d hi{glove::radToDeg(model.mech.alpha_max_rad[0]), glove::radToDeg(model.mech.alpha_max_rad[1]),
                       glove::radToDeg(model.mech.alpha_max_rad[2])};
-    const d::WorkspaceClouds c = d::sweepWorkspaces(model, d::SweepGrid{{25, 25, 17}}, lo, hi, 25);
+    const d::WorkspaceClouds c = d::sweepWorkspaces(model, d::SweepGrid{{plot_grid, plot_grid, plot_grid * 2 / 3 + 1}}, lo, hi, plot_grid);
     if (const std::string err = d::writeWorkspaceSvg(c, "Finger and glove workspaces (000 Fig. 6): " + source, svg_path);
         !err.empty()) {
       std::fprintf(stderr, "phalanx design: error: %s\n", err.c_str());
@@ -239,7 +260,8 @@ int DesignCommands::Impl::runGloveOptimize() {
   d::GloveModel best = d::makeGloveModel(opt.fingers.front(), r.l_mm, opt);
   if (!svg_path.empty()) {
     const d::WorkspaceClouds c =
-        d::sweepWorkspaces(best, d::SweepGrid{{25, 25, 17}}, r.analysis.alpha_min_deg, r.analysis.alpha_max_deg, 25);
+        d::sweepWorkspaces(best, d::SweepGrid{{plot_grid, plot_grid, plot_grid * 2 / 3 + 1}}, r.analysis.alpha_min_deg,
+                            r.analysis.alpha_max_deg, plot_grid);
     if (const std::string err = d::writeWorkspaceSvg(c, "Optimised glove (000 eq 23) vs finger", svg_path); !err.empty()) {
       std::fprintf(stderr, "phalanx design: error: %s\n", err.c_str());
       return 1;
@@ -292,6 +314,8 @@ int DesignCommands::Impl::runPenGii() {
   spec.tilt_max_deg = tilt_deg;
   spec.rings = rings;
   spec.mode = mode == "velocity" ? d::PenGiiMode::kVelocity : d::PenGiiMode::kForce;
+  spec.velocity_literal_inverse = velocity_literal_inverse;
+  spec.l6_is_half_length = l6_half;
   std::unique_ptr<d::TwinPantographGii> pb;
   try {
     pb = std::make_unique<d::TwinPantographGii>(spec);
@@ -300,6 +324,7 @@ int DesignCommands::Impl::runPenGii() {
     return 2;
   }
   nlohmann::json out = {{"mode", mode},
+                        {"l6_reading", l6_half ? "centre to universal joint (pen length 2 l6)" : "pen length"},
                         {"distance_cm", distance_cm},
                         {"candidates", pb->numCandidates()},
                         {"geometries", pb->numGroups()},
@@ -326,6 +351,41 @@ int DesignCommands::Impl::runPenGii() {
   }
   std::cout << out.dump(2) << std::endl;
   return rc;
+}
+
+int DesignCommands::Impl::runPenGiiPlot() {
+  std::vector<std::array<double, 2>> force, velocity;
+  for (const std::string& path : plot_inputs) {
+    std::ifstream f(path);
+    nlohmann::json j;
+    try {
+      f >> j;
+      const double dist = j.at("distance_cm").get<double>();
+      const nlohmann::json& r = j.contains("culling") ? j.at("culling") : j.at("exhaustive");
+      (j.at("mode") == "velocity" ? velocity : force).push_back({dist, r.at("gii").get<double>()});
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "phalanx design: error: %s is not a pen-gii output: %s\n", path.c_str(), e.what());
+      return 2;
+    }
+  }
+  auto byX = [](const std::array<double, 2>& a, const std::array<double, 2>& b) { return a[0] < b[0]; };
+  std::sort(force.begin(), force.end(), byX);
+  std::sort(velocity.begin(), velocity.end(), byX);
+  d::SvgPlot plot("GII vs workspace distance (004 Table VIII/IX, Fig. 15)", "workspace distance (cm)", "GII");
+  // Paper: Table VIII (force/torque) and Table IX (position sensing).
+  plot.addLine({{15, 0.089}, {20, 0.182}, {25, 0.234}, {30, 0.262}, {35, 0.280}, {40, 0.292}}, "#999999",
+               "paper Table VIII (force)");
+  plot.addLine({{15, 0.105}, {20, 0.186}, {25, 0.232}, {30, 0.269}, {35, 0.285}, {40, 0.303}}, "#cccccc",
+               "paper Table IX (velocity)");
+  if (!force.empty()) plot.addLine(force, "#1f5fbf", "this model, force (eq 19)");
+  if (!velocity.empty()) plot.addLine(velocity, "#d9541e", "this model, velocity (eq 26-27)");
+  if (const std::string err = plot.write(svg_path); !err.empty()) {
+    std::fprintf(stderr, "phalanx design: error: %s\n", err.c_str());
+    return 1;
+  }
+  std::cout << nlohmann::json{{"svg", svg_path}, {"force_points", force.size()}, {"velocity_points", velocity.size()}}.dump(2)
+            << std::endl;
+  return 0;
 }
 
 }  // namespace phalanx::host

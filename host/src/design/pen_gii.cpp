@@ -56,7 +56,10 @@ TwinPantographGii::TwinPantographGii(const PenGiiSpec& spec) : spec_(spec) {
   if (spec.mode == PenGiiMode::kForce) {
     st_inv_ << 1.0, 1.0, 1.0 / 1.5, 1.0 / 3.6, 1.0 / 3.9;
   } else {
-    st_inv_ << 1.0, 1.0, 1.0, 1.0 / 0.06, 1.0 / 0.06;
+    // Velocity (eq 23, 27): q̇ = J ẋ maps task → joint, so the task scaling enters as ẋ = v_i·S_T·x̃, i.e. the
+    // matrix is S_J J S_T (docs/design-tools.md §"Table IX": the literal S_J J S_T⁻¹ gives GII ≈ 0.008).
+    st_inv_ << 1.0, 1.0, 1.0, 0.06, 0.06;
+    if (spec.velocity_literal_inverse) st_inv_ << 1.0, 1.0, 1.0, 1.0 / 0.06, 1.0 / 0.06;
   }
 }
 
@@ -78,7 +81,7 @@ bool TwinPantographGii::jacobian(double l1, double l2, double l3, double l6, std
   const std::array<double, 3>& c = positions_[sample / K];
   const Eigen::Matrix3d& R = tilts_[sample % K];
   const Eigen::Vector3d a = R.col(1);  // pen axis (j of the end-effector frame)
-  const double h6 = 0.5 * l6;
+  const double h6 = spec_.l6_is_half_length ? l6 : 0.5 * l6;
   std::array<Eigen::Matrix3d, 2> Jinv;
   for (std::size_t p = 0; p < 2; ++p) {
     pen::PantographGeometry<double> g{};

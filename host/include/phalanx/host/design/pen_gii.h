@@ -24,7 +24,8 @@ struct GridRange {
 
 enum class PenGiiMode {
   kForce,     ///< eq 17–19, 22: S_J = diag(Q, 1, 1, Q, 1, 1), S_T = diag(1, 1, 1.5, 3.6, 3.9) (Table I, no M_j)
-  kVelocity,  ///< eq 23–27: S_J = diag(Q, 1, 1, Q, 1, 1) with Q = R_w/R_s, S_T = diag(1, 1, 1, 0.06, 0.06)
+  kVelocity,  ///< eq 23–27: S_J = diag(Q, 1, 1, Q, 1, 1) with Q = R_w/R_s, S_T = diag(1, 1, 1, 0.06, 0.06),
+              ///< matrix S_J J S_T (q̇ = J ẋ maps task → joint; see docs/design-tools.md)
 };
 
 /// Table VII parameter space and Table VI workspace (defaults are the paper's).
@@ -44,6 +45,12 @@ struct PenGiiSpec {
   /// 617 orientations (N = 14).
   std::size_t rings = 0;
   PenGiiMode mode = PenGiiMode::kForce;
+  /// Reading of l6 (docs/design-tools.md §"l6"): false = the pen length between the two universal joints (the
+  /// text's "minimum length of 7.0 cm so that the end-effector can be held"); true = the distance from the pen
+  /// centre to each universal joint (pen length 2·l6), the reading that reproduces Table VII's GII.
+  bool l6_is_half_length = false;
+  /// Velocity mode only: use eq 11's S_T⁻¹ literally (S_J J S_T⁻¹ with eq 27's S_T) instead of S_J J S_T.
+  bool velocity_literal_inverse = false;
 };
 
 /// One design: lengths (cm) and Q1.
