@@ -261,3 +261,38 @@ TEST(DesignGii, CullingReturnsTheExhaustiveOptimumOnASmallPenProblemWithFewerEva
   // And the optimum's GII equals the independent SVD-based evaluation.
   EXPECT_NEAR(d::penGii(pb, pb.design(ex.best)), ex.gii, 1e-6 * ex.gii);
 }
+
+TEST(DesignGii, VelocityModeScalesTheSameJacobianByEq27AndForceModeByEq19) {
+  d::PenGiiSpec f = smallPenSpec();
+  d::PenGiiSpec v = f;
+  v.mode = d::PenGiiMode::kVelocity;
+  const d::TwinPantographGii pf(f), pv(v);
+  const d::PenDesign des{2.4, 17.0, 23.0, 7.0, 1.6};
+  Eigen::Matrix<double, 5, 1> ratio;  // (S_T,vel) / (S_T,force)⁻¹ column by column
+  ratio << 1.0, 1.0, 1.5, 3.6 * 0.06, 3.9 * 0.06;
+  std::size_t checked = 0;
+  for (std::size_t s = 0; s < pf.numSamples(); ++s) {
+    Eigen::Matrix<double, 6, 5> Af, Av;
+    if (!pf.scaledJacobian(des, s, Af)) continue;
+    ASSERT_TRUE(pv.scaledJacobian(des, s, Av));
+    EXPECT_LE((Af * ratio.asDiagonal() - Av).norm(), 1e-12 * Af.norm());
+    ++checked;
+  }
+  EXPECT_GT(checked, 10u);
+}
+
+TEST(DesignGii, HalfLengthReadingOfL6EqualsThePenLengthReadingWithL6Doubled) {
+  d::PenGiiSpec a = smallPenSpec();
+  d::PenGiiSpec b = a;
+  b.l6_is_half_length = true;
+  const d::TwinPantographGii pa(a), pb(b);
+  for (std::size_t s = 0; s < pa.numSamples(); s += 3) {
+    Eigen::Matrix<double, 6, 5> Aa, Ab;
+    const bool oka = pa.scaledJacobian({2.4, 17.0, 23.0, 14.0, 1.6}, s, Aa);
+    const bool okb = pb.scaledJacobian({2.4, 17.0, 23.0, 7.0, 1.6}, s, Ab);
+    ASSERT_EQ(oka, okb);
+    if (oka) {
+      EXPECT_LE((Aa - Ab).norm(), 1e-12 * Aa.norm());
+    }
+  }
+}
