@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "common_options.h"
+#include "design_cli.h"
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/config.h"
@@ -136,11 +137,14 @@ int main(int argc, char** argv) {
   plan_run->add_option("plan", plan_path, "plan file (docs/bench-runner.md)")->required()->check(CLI::ExistingFile);
   plan_run->add_option("--report", plan_report, "HTML report path (default: the plan's report key, or PLAN.html)");
 
+  DesignCommands design_cmds(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (design_cmds.parsed()) return design_cmds.run();
   if (plan_run->parsed()) return phalanx::host::benchrun::benchRunMain(plan_path, plan_report);
   if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
     sea_opt.noise = !bench_no_noise;

@@ -1,0 +1,39 @@
+#pragma once
+/// Minimal SVG writer for the design reports: scatter plots and line plots in data coordinates, with axes,
+/// ticks and a legend. No dependencies; the output opens in any browser.
+#include <array>
+#include <string>
+#include <vector>
+
+namespace phalanx::host::design {
+
+class SvgPlot {
+ public:
+  SvgPlot(std::string title, std::string x_label, std::string y_label, int width_px = 640, int height_px = 480);
+
+  /// Points (x, y) in data units drawn as small dots.
+  void addScatter(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label,
+                  double radius_px = 1.2, double opacity = 0.6);
+  /// A polyline in data units.
+  void addLine(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label);
+  /// Equal scaling of x and y (workspace plots).
+  void setEqualAspect(bool on) { equal_aspect_ = on; }
+
+  std::string render() const;
+  /// Writes render() to `path`; returns an error message or "".
+  std::string write(const std::string& path) const;
+
+ private:
+  struct Series {
+    std::vector<std::array<double, 2>> pts;
+    std::string colour, label;
+    double radius_px = 1.2, opacity = 0.6;
+    bool line = false;
+  };
+  std::string title_, x_label_, y_label_;
+  int width_px_, height_px_;
+  bool equal_aspect_ = false;
+  std::vector<Series> series_;
+};
+
+}  // namespace phalanx::host::design
