@@ -217,7 +217,7 @@ std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options&
 
 std::string validate(const RunOptions& opt) {
   if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0) {
-    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:pantograph, serial:/dev/ttyACM0[@baud] or can:can0[:node][@fd|@classic])";
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud] or can:can0[:node][@fd|@classic])";
   }
   if (opt.device.rfind("can:", 0) == 0) {
     linux_hal::CanLink::Options o;
