@@ -13,26 +13,7 @@
 #include "phalanx/host/sea/sea_finger_controller.h"
 
 // Count allocations during the timed loops (reported as a counter; must be 0).
-namespace {
-std::atomic<long> g_allocations{0};
-[[gnu::noinline]] void* countedAlloc(std::size_t n) {
-  ++g_allocations;
-  return std::malloc(n == 0 ? 1 : n);
-}
-[[gnu::noinline]] void countedFree(void* p) { std::free(p); }
-}  // namespace
-void* operator new(std::size_t n) {
-  if (void* p = countedAlloc(n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (void* p = countedAlloc(n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { countedFree(p); }
-void operator delete[](void* p) noexcept { countedFree(p); }
-void operator delete(void* p, std::size_t) noexcept { countedFree(p); }
-void operator delete[](void* p, std::size_t) noexcept { countedFree(p); }
+#include "../support/counting_allocator.h"  // g_allocations
 
 namespace {
 

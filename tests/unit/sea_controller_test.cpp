@@ -10,31 +10,7 @@
 #include <limits>
 #include <new>
 
-// ---- Allocation counting: every global operator new in this test binary goes through these. ----------
-namespace {
-std::atomic<long> g_allocations{0};
-// noinline: keeps GCC's -Wmismatched-new-delete from pairing the inlined malloc/free with new/delete.
-[[gnu::noinline]] void* countedAlloc(std::size_t n) {
-  ++g_allocations;
-  return std::malloc(n == 0 ? 1 : n);
-}
-[[gnu::noinline]] void countedFree(void* p) { std::free(p); }
-}  // namespace
-
-void* operator new(std::size_t n) {
-  if (void* p = countedAlloc(n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) {
-  if (void* p = countedAlloc(n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept { return countedAlloc(n); }
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept { return countedAlloc(n); }
-void operator delete(void* p) noexcept { countedFree(p); }
-void operator delete[](void* p) noexcept { countedFree(p); }
-void operator delete(void* p, std::size_t) noexcept { countedFree(p); }
-void operator delete[](void* p, std::size_t) noexcept { countedFree(p); }
+#include "../support/counting_allocator.h"  // g_allocations
 
 namespace {
 
