@@ -82,8 +82,13 @@ nlohmann::json commonHeader(const SeaBenchOptions& o, const char* scenario, doub
   out["seconds"] = seconds;
   out["seed"] = o.seed;
   out["noise"] = o.noise;
-  out["sea"] = "MCP (k = 2816 N/m), joint clamped to the load cell (001 §7.1)";
   out["plant_backlash_scale"] = o.plant_backlash_scale;
+  return out;
+}
+
+nlohmann::json rigHeader(const SeaBenchOptions& o, const char* scenario, double seconds) {
+  nlohmann::json out = commonHeader(o, scenario, seconds);
+  out["sea"] = "MCP (k = 2816 N/m), joint clamped to the load cell (001 §7.1)";
   return out;
 }
 
@@ -227,7 +232,7 @@ double amplitudeAt(const std::vector<double>& x, double fs_hz, double f_hz) {
 nlohmann::json benchRigSine(const SeaBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 12.0;
   const double settle_s = 2.0;  // one full period at 0.5 Hz after the start transient
-  nlohmann::json out = commonHeader(o, "sea-rig-sine", seconds);
+  nlohmann::json out = rigHeader(o, "sea-rig-sine", seconds);
   out["peak_Nm"] = o.peak_Nm;
   out["hz"] = o.hz;
   out["window_s"] = {settle_s, seconds};
@@ -268,7 +273,7 @@ nlohmann::json benchRigChirp(const SeaBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 25.0;
   // eq 16: instantaneous frequency f0 + 2 f1 t reaches fmax at the end.
   const double f1 = (o.chirp_fmax_hz - o.chirp_f0_hz) / (2.0 * seconds);
-  nlohmann::json out = commonHeader(o, "sea-rig-chirp", seconds);
+  nlohmann::json out = rigHeader(o, "sea-rig-chirp", seconds);
   out["amplitude_Nm"] = o.chirp_amplitude_Nm;
   out["f0_hz"] = o.chirp_f0_hz;
   out["fmax_hz"] = o.chirp_fmax_hz;
@@ -346,13 +351,8 @@ nlohmann::json benchRigChirp(const SeaBenchOptions& o) {
 nlohmann::json benchFingerTorque(const SeaBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 12.0;
   const double settle_s = 2.0;
-  nlohmann::json out;
-  out["scenario"] = "sea-finger-torque";
-  out["seconds"] = seconds;
+  nlohmann::json out = commonHeader(o, "sea-finger-torque", seconds);
   out["window_s"] = {settle_s, seconds};
-  out["seed"] = o.seed;
-  out["noise"] = o.noise;
-  out["plant_backlash_scale"] = o.plant_backlash_scale;
   out["user"] = o.finger_user_holds ? "user holds the rest posture (muscle impedance), eq 13-14, Table 4 subject"
                                     : "relaxed finger (eq 13-14), Table 4 subject, host model = plant model";
   const sea::FingerTorqueProfile profile{};
@@ -394,13 +394,8 @@ nlohmann::json benchFingerTorque(const SeaBenchOptions& o) {
 nlohmann::json benchTransparency(const SeaBenchOptions& o) {
   const double seconds = o.seconds > 0.0 ? o.seconds : 20.0;
   const double settle_s = 2.0;
-  nlohmann::json out;
-  out["scenario"] = "sea-transparency";
-  out["seconds"] = seconds;
+  nlohmann::json out = commonHeader(o, "sea-transparency", seconds);
   out["window_s"] = {settle_s, seconds};
-  out["seed"] = o.seed;
-  out["noise"] = o.noise;
-  out["plant_backlash_scale"] = o.plant_backlash_scale;
   out["user"] = "random finger motion, 0.2-1.5 Hz (SeaUserMotion::kRandom)";
   static const char* kJoint[] = {"mcp", "pip"};
   for (const std::string& name : controllersOf(o)) {
