@@ -81,7 +81,7 @@ struct DesignCommands::Impl {
   double distance_cm = 25, tilt_deg = 45;
   std::size_t rings = 0;
   unsigned threads = 2;
-  bool exhaustive = false, compare = false, velocity_literal_inverse = false, l6_half = false;
+  bool exhaustive = false, compare = false, velocity_literal_inverse = false;
   double progress_s = 0;
   std::vector<double> eval_design;
 
@@ -151,8 +151,7 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
       ->check(CLI::IsMember({"force", "velocity"}));
   m.pg->add_flag("--velocity-literal-inverse", m.velocity_literal_inverse,
                  "velocity mode: S_J J S_T^-1 with eq 27's S_T literally (default S_J J S_T)");
-  m.pg->add_flag("--l6-half-length", m.l6_half,
-                 "read l6 as the pen centre to universal-joint distance (pen length 2 l6; reproduces Table VII's GII)");
+reproduces Table VII's GII)");
   m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
@@ -315,7 +314,6 @@ int DesignCommands::Impl::runPenGii() {
   spec.rings = rings;
   spec.mode = mode == "velocity" ? d::PenGiiMode::kVelocity : d::PenGiiMode::kForce;
   spec.velocity_literal_inverse = velocity_literal_inverse;
-  spec.l6_is_half_length = l6_half;
   std::unique_ptr<d::TwinPantographGii> pb;
   try {
     pb = std::make_unique<d::TwinPantographGii>(spec);
@@ -324,7 +322,7 @@ int DesignCommands::Impl::runPenGii() {
     return 2;
   }
   nlohmann::json out = {{"mode", mode},
-                        {"l6_reading", l6_half ? "centre to universal joint (pen length 2 l6)" : "pen length"},
+                        {"l6_reading", "centre to universal joint (pen length 2 l6), pen::endOffset"},
                         {"distance_cm", distance_cm},
                         {"candidates", pb->numCandidates()},
                         {"geometries", pb->numGroups()},

@@ -6,8 +6,10 @@
 
 #include "phalanx/host/design/gii.h"
 #include "phalanx/host/design/pen_gii.h"
+#include "phalanx/pen/kinematics.h"
 
 namespace d = phalanx::host::design;
+namespace pen = phalanx::pen;
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
@@ -281,18 +283,48 @@ TEST(DesignGii, VelocityModeScalesTheSameJacobianByEq27AndForceModeByEq19) {
   EXPECT_GT(checked, 10u);
 }
 
-TEST(DesignGii, HalfLengthReadingOfL6EqualsThePenLengthReadingWithL6Doubled) {
-  d::PenGiiSpec a = smallPenSpec();
-  d::PenGiiSpec b = a;
-  b.l6_is_half_length = true;
-  const d::TwinPantographGii pa(a), pb(b);
-  for (std::size_t s = 0; s < pa.numSamples(); s += 3) {
-    Eigen::Matrix<double, 6, 5> Aa, Ab;
-    const bool oka = pa.scaledJacobian({2.4, 17.0, 23.0, 14.0, 1.6}, s, Aa);
-    const bool okb = pb.scaledJacobian({2.4, 17.0, 23.0, 7.0, 1.6}, s, Ab);
-    ASSERT_EQ(oka, okb);
-    if (oka) {
-      EXPECT_LE((Aa - Ab).norm(), 1e-12 * Aa.norm());
+TEST(DesignGii, PenProblemUsesTheControllersPenModel) {
+  // One definition of the geometry: the GII's Jacobian of Table VII's design at the workspace centre (home
+  // orientation) equals the one built from pen::makeModel + computeForward, the controller's model (l6 = pen
+  // centre → universal joint, pen length 2·l6). Lengths in cm on both sides (the kinematics are scale-free).
+  d::PenGiiSpec s;
+  s.l1 = {2.4, 2.4, 1}, s.l2 = {17, 17, 1}, s.l3 = {23, 23, 1}, s.l6 = {7, 7, 1}, s.q1 = {1, 1, 1};
+  s.wi = {0, 0, 1}, s.wj = {0, 0, 1}, s.wk = {0, 0, 1};
+  s.rings = 1;
+  s.distance_cm = 25.0;
+  const d::TwinPantographGii pb(s);
+  ASSERT_EQ(pb.numPositions(), 1u);
+  Eigen::Matrix<double, 6, 5> A;
+  ASSERT_TRUE(pb.scaledJacobian({2.4, 17.0, 23.0, 7.0, 1.0}, pb.seedSample(), A));
+  pen::Model<double> m;
+  ASSERT_EQ(pen::makeModel<double>({2.4, 17.0, 23.0, 8.0, 7.0, 25.0}, m), pen::Status::kOk);
+  pen::Data<double> kin;
+  ASSERT_TRUE(pen::isUsable(pen::computeForward(m, m.q_home_rad, kin)));
+  EXPECT_NEAR(kin.length_m, 14.0, 1e-9);
+  const double st_inv[5] = {1.0, 1.0, 1.0 / 1.5, 1.0 / 3.6, 1.0 / 3.9};  // force S_T⁻¹ (eq 19)
+  for (int k = 0; k < 5; ++k) {
+    // Unit twist k at the centre: translation e_k (k < 3) or rotation about i (k = 3) / k (k = 4), applied to
+    // each end through its measured position p_end − c.
+    for (std::size_t e = 0; e < 2; ++e) {
+      const auto& pd = kin.pantograph[e];
+      pen::Vec3<double> v{0, 0, 0};
+      if (k < 3) {
+        v[static_cast<std::size_t>(k)] = 1.0;
+      } else {
+        pen::Vec3<double> w{0, 0, 0};
+        w[k == 3 ? 0 : 2] = 1.0;
+        const pen::Vec3<double> r{pd.B_p_tip[0] - kin.B_p_centre[0], pd.B_p_tip[1] - kin.B_p_centre[1],
+                                  pd.B_p_tip[2] - kin.B_p_centre[2]};
+        v = pen::cross(w, r);
+      }
+      Eigen::Matrix3d J;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) J(r, c) = pd.J[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)];
+      const Eigen::Vector3d qd = J.inverse() * Eigen::Vector3d(v[0], v[1], v[2]);
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_NEAR(A(3 * static_cast<int>(e) + r, k), qd(r) * st_inv[k], 1e-9 * (1.0 + std::fabs(qd(r))))
+            << "column " << k << " end " << e;
+      }
     }
   }
 }

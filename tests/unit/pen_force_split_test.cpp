@@ -246,7 +246,7 @@ TEST(PenForceSplit, InternalForceAloneRescuesAnActuatorWhenItCan) {
   const PenForceSplitter splitter(cfg);
   PenWrench w;
   w.force_N = {0.0, 0.0, 30.0};  // 15 N per end at μ = 0: 1.46 N·m per shoulder, fine
-  w.torque_Nm = {0.9, 0.0, 0.0};  // adds ±(0.9/0.07) = ±12.9 N along z: 27.9 N on the top end → 2.7 N·m
+  w.torque_Nm = {1.8, 0.0, 0.0};  // adds ±(1.8/0.14) = ±12.9 N along z (ends 14 cm apart): 27.9 N on the top end → 2.7 N·m
   SplitResult r;
   const SplitStatus s = splitter.split(d, w, r);
   // z forces load the shoulders; μ acts along y (the pen axis) which only the waists feel at home, so here μ
@@ -261,7 +261,7 @@ TEST(PenForceSplit, InternalForceAloneRescuesAnActuatorWhenItCan) {
   ASSERT_EQ(pp::computeInverse(m, tilted, q), pp::Status::kOk);
   ASSERT_EQ(pp::computeForward(m, q, d), pp::Status::kOk);
   w.force_N = {0.0, 0.0, 36.0};
-  w.torque_Nm = {0.3, 0.0, 0.0};
+  w.torque_Nm = {0.6, 0.0, 0.0};
   const SplitStatus s2 = splitter.split(d, w, r);
   EXPECT_EQ(s2, SplitStatus::kInternalForceRedistributed);
   EXPECT_NE(r.internal_force_N, r.optimal_internal_force_N);

@@ -61,7 +61,11 @@ TEST(PenKinematics, DefaultModelIsTableVIIIAtTwentyCentimetres) {
     EXPECT_DOUBLE_EQ(p.l3_m, 0.200);
   }
   EXPECT_DOUBLE_EQ(m.pantograph[kTop].y_waist_m - m.pantograph[kBottom].y_waist_m, 0.08);  // l4
+  // l6 = 7 cm is the distance from the pen centre to each universal joint: the joints are 14 cm apart.
   EXPECT_DOUBLE_EQ(m.l6_m, 0.07);
+  EXPECT_DOUBLE_EQ(penLength(m), 0.14);
+  EXPECT_DOUBLE_EQ(endOffset(kBottom, m.l6_m), -0.07);
+  EXPECT_DOUBLE_EQ(endOffset(kTop, m.l6_m), 0.07);
   // §V: "physically impossible" five-bar singularities need l3 > l1 + l2 (holds) and l2 > l1 (read as such).
   EXPECT_GT(m.pantograph[0].l3_m, m.pantograph[0].l1_m + m.pantograph[0].l2_m);
 }
@@ -76,7 +80,36 @@ TEST(PenKinematics, HomeJointAnglesPutThePenAtHome) {
   EXPECT_NEAR(d.B_axis[1], 1.0, 1e-12);
   EXPECT_NEAR(d.pose.theta_x_rad, 0.0, 1e-12);
   EXPECT_NEAR(d.pose.theta_z_rad, 0.0, 1e-12);
-  EXPECT_NEAR(d.length_m, 0.07, 1e-12);
+  EXPECT_NEAR(d.length_m, 0.14, 1e-12);
+  // Tip 7 cm below the centre, 3 cm below its waist axis (y = −4 cm): the waists sit at ∓atan(3/20) at home.
+  EXPECT_NEAR(d.pantograph[kBottom].B_p_tip[1], -0.07, 1e-12);
+  EXPECT_NEAR(d.pantograph[kTop].B_p_tip[1], 0.07, 1e-12);
+  EXPECT_NEAR(m.q_home_rad[0], -std::atan2(0.03, 0.20), 1e-12);
+  EXPECT_NEAR(m.q_home_rad[3], std::atan2(0.03, 0.20), 1e-12);
+}
+
+TEST(PenKinematics, MakeModelRefusesGeometriesThatAreNotAPen) {
+  Model<double> m = defaultModel<double>();
+  const Model<double> before = m;
+  Geometry<double> g = defaultGeometry<double>();
+  g.l2_m = -0.1;
+  EXPECT_EQ(makeModel(g, m), Status::kNonFiniteInput);
+  g = defaultGeometry<double>();
+  g.l6_m = std::nan("");
+  EXPECT_EQ(makeModel(g, m), Status::kNonFiniteInput);
+  g = defaultGeometry<double>();
+  g.home_z_m = 0.40;  // beyond l2 + l3 = 34.5 cm
+  EXPECT_EQ(makeModel(g, m), Status::kUnreachable);
+  EXPECT_EQ(m.l6_m, before.l6_m);  // untouched on failure
+  EXPECT_EQ(m.q_home_rad, before.q_home_rad);
+  g = defaultGeometry<double>();
+  g.l2_m = 0.17;
+  g.l3_m = 0.23;
+  g.home_z_m = 0.25;  // Table VII's 25 cm design
+  ASSERT_EQ(makeModel(g, m), Status::kOk);
+  Data<double> d;
+  ASSERT_EQ(computeForward(m, m.q_home_rad, d), Status::kOk);
+  EXPECT_NEAR(d.B_p_centre[2], 0.25, 1e-12);
 }
 
 TEST(PenKinematics, WaistCountMovesThePenByTableXResolutionAlongY) {
@@ -104,7 +137,7 @@ TEST(PenKinematics, InverseThenForwardIsIdentityAcrossTheWorkspace) {
     for (int i = 0; i < 3; ++i) EXPECT_NEAR(d.pose.centre_m[i], pose.centre_m[i], 1e-12);
     EXPECT_NEAR(d.pose.theta_x_rad, pose.theta_x_rad, 1e-11);
     EXPECT_NEAR(d.pose.theta_z_rad, pose.theta_z_rad, 1e-11);
-    EXPECT_NEAR(d.length_m, m.l6_m, 1e-12);
+    EXPECT_NEAR(d.length_m, penLength(m), 1e-12);
   }
 }
 
@@ -166,7 +199,7 @@ TEST(PenKinematics, EncoderCountsRoundTripToWithinHalfACount) {
     // Quantised encoders still give a consistent pen (ends one pen length apart within the tolerance).
     Data<double> d;
     EXPECT_TRUE(isUsable(computeForward(m, qq, d)));
-    EXPECT_LT(std::fabs(d.length_m - m.l6_m), 0.5e-3);
+    EXPECT_LT(std::fabs(d.length_m - penLength(m)), 0.5e-3);
   }
   const auto zero = countsFromAngles(m, m.q_home_rad);
   for (auto c : zero) EXPECT_EQ(c, 0);
@@ -256,7 +289,8 @@ TEST(PenKinematics, PenAlongAForearmIsFlagged) {
   ASSERT_EQ(computeForward(m, m.q_home_rad, d), Status::kOk);
   const auto& pb = d.pantograph[kBottom];
   const V3 dir = pb.B_forearm_dir[0];
-  const V3 top{pb.B_p_tip[0] + m.l6_m * dir[0], pb.B_p_tip[1] + m.l6_m * dir[1], pb.B_p_tip[2] + m.l6_m * dir[2]};
+  const double L = penLength(m);
+  const V3 top{pb.B_p_tip[0] + L * dir[0], pb.B_p_tip[1] + L * dir[1], pb.B_p_tip[2] + L * dir[2]};
   V3 qt;
   ASSERT_EQ(pantographInverse(m.pantograph[kTop], top, qt), Status::kOk);
   JointVec<double> q = m.q_home_rad;
@@ -273,9 +307,11 @@ TEST(PenKinematics, BadInputsAreRejected) {
   q[4] = std::nan("");
   EXPECT_EQ(computeForward(m, q, d), Status::kNonFiniteInput);
   EXPECT_FALSE(isUsable(d.status));
-  // Inconsistent encoders (one shoulder 20° off): the ends are no longer one pen length apart.
+  // Inconsistent encoders (one waist 10° off: its tip moves along the pen): the ends are no longer one pen
+  // length apart. (An error that moves a tip across the 14 cm pen changes the length only to second order —
+  // the one redundant measurement cannot see it; the firmware's jump check and joint windows are the guard.)
   q = m.q_home_rad;
-  q[1] += 20 * kDeg;
+  q[0] += 10 * kDeg;
   EXPECT_EQ(computeForward(m, q, d), Status::kEndsInconsistent);
   PenPose<double> far;
   far.centre_m = {0.0, 0.0, 0.60};

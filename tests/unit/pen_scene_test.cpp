@@ -38,7 +38,7 @@ TEST(PenScene, TheTipFeelsTheFloorWhileTheEraserStaysFree) {
   PenRenderOutput out;
   // Pen tilted 30° about x: the tip 2 mm into the floor, the eraser far above it.
   pp::PenPose<double> pose{{0.0, 0.0, 0.20}, 30 * kDeg, 0.0};
-  const double tip_y = -0.5 * m.l6_m * std::cos(30 * kDeg);
+  const double tip_y = pp::endOffset(pp::kBottom, m.l6_m) * std::cos(30 * kDeg);
   pose.centre_m[1] = scene.config().box_min[1] - tip_y - 0.002;
   const pp::Data<double> d = kinAt(m, pose);
   scene.render(d, 1e-3, out);  // first call: no velocity yet, no braking
@@ -91,7 +91,7 @@ TEST(PenScene, BrakingPulseFiresOnceAtContactOnsetAndNeverReversesTheEnd) {
     PenRenderOutput out;
     const double v = 0.1;  // m/s towards the floor, tilted pen: only the tip hits
     pp::PenPose<double> pose{{0.0, 0.0, 0.20}, 30 * kDeg, 0.0};
-    const double tip_y = -0.5 * m.l6_m * std::cos(30 * kDeg);
+    const double tip_y = pp::endOffset(pp::kBottom, m.l6_m) * std::cos(30 * kDeg);
     const double y_contact = cfg.box_min[1] - tip_y;
     pose.centre_m[1] = y_contact + 0.0005;
     scene.render(kinAt(m, pose), 1e-3, out);
@@ -135,7 +135,7 @@ TEST(PenScene, ButtonClicksOnceAndErasesTheMarks) {
   cfg.gravity_compensation = false;
   PenScene scene(cfg);
   PenRenderOutput out;
-  const double tip_y = -0.5 * m.l6_m;
+  const double tip_y = pp::endOffset(pp::kBottom, m.l6_m);
   // Write on the floor first (tip moving along it).
   for (int k = 0; k < 20; ++k) {
     scene.render(kinAt(m, {{0.02 + 0.0001 * k, cfg.box_min[1] - tip_y - 0.001, 0.20}, 0.0, 0.0}), 1e-3, out);

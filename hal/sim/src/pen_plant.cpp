@@ -120,7 +120,7 @@ void PenPlant::evaluate(const PenVec5& x, const PenVec5& xd, const std::array<do
   pp::JointVec<double> q;
   if (pp::computeInverse(model_, pose, q) != pp::Status::kOk) return;
   if (!pp::isUsable(pp::computeForward(model_, q, e.kin))) return;
-  // End positions p = c ± (l6/2)·a(θx, θz): ṗ = G·ẋ, Q = Gᵀf (virtual work).
+  // End positions p = c ± l6·a(θx, θz) (pen::endOffset): ṗ = G·ẋ, Q = Gᵀf (virtual work).
   std::array<pp::Mat35<double>, 2> G{pp::endJacobian(model_, pp::kBottom, x[3], x[4]),
                                      pp::endJacobian(model_, pp::kTop, x[3], x[4])};
   for (std::size_t k = 0; k < 2; ++k) {

@@ -81,7 +81,6 @@ bool TwinPantographGii::jacobian(double l1, double l2, double l3, double l6, std
   const std::array<double, 3>& c = positions_[sample / K];
   const Eigen::Matrix3d& R = tilts_[sample % K];
   const Eigen::Vector3d a = R.col(1);  // pen axis (j of the end-effector frame)
-  const double h6 = spec_.l6_is_half_length ? l6 : 0.5 * l6;
   std::array<Eigen::Matrix3d, 2> Jinv;
   for (std::size_t p = 0; p < 2; ++p) {
     pen::PantographGeometry<double> g{};
@@ -89,8 +88,8 @@ bool TwinPantographGii::jacobian(double l1, double l2, double l3, double l6, std
     g.l2_m = l2;
     g.l3_m = l3;
     g.y_waist_m = (p == pen::kBottom ? -0.5 : 0.5) * spec_.l4_cm;
-    const double sgn = p == pen::kBottom ? -1.0 : 1.0;
-    const pen::Vec3<double> tip{c[0] + sgn * h6 * a[0], c[1] + sgn * h6 * a[1], c[2] + sgn * h6 * a[2]};
+    // The controller's reading of l6 (centre → universal joint): one definition, pen::penEnd/endOffset.
+    const pen::Vec3<double> tip = pen::penEnd(p, l6, {c[0], c[1], c[2]}, {a[0], a[1], a[2]});
     pen::Vec3<double> q{};
     if (pen::pantographInverse(g, tip, q) != pen::Status::kOk) return false;
     pen::PantographData<double> d;
@@ -104,13 +103,13 @@ bool TwinPantographGii::jacobian(double l1, double l2, double l3, double l6, std
     Jinv[p] = Jp.inverse();
   }
   // Columns: unit twists in the end-effector frame (v_i, v_j, v_k, ω_i, ω_k), mapped to both tips and
-  // through the inverse tip Jacobians: ṗ_end = v + ω × (±l6/2 · a).
+  // through the inverse tip Jacobians: ṗ_end = v + ω × (endOffset(end, l6) · a).
   for (int k = 0; k < 5; ++k) {
     Eigen::Vector3d v = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
     if (k < 3) v = R.col(k);
     else w = R.col(k == 3 ? 0 : 2);
-    const Eigen::Vector3d lever = h6 * a;
-    const Eigen::Vector3d pb = v - w.cross(lever), pt = v + w.cross(lever);
+    const Eigen::Vector3d pb = v + w.cross(pen::endOffset(pen::kBottom, l6) * a);
+    const Eigen::Vector3d pt = v + w.cross(pen::endOffset(pen::kTop, l6) * a);
     J.block<3, 1>(0, k) = Jinv[0] * pb;
     J.block<3, 1>(3, k) = Jinv[1] * pt;
   }

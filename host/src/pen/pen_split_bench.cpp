@@ -26,6 +26,40 @@ struct ClassStats {
 
 }  // namespace
 
+nlohmann::json homeCapabilities(const pp::Model<double>& model, const PenForceSplitter& splitter) {
+  // Table X's rows that depend only on the geometry, the torque limits and the encoders, at home.
+  pp::Data<double> kin;
+  pp::computeForward(model, model.q_home_rad, kin);
+  // Peak force/torque per axis: the largest multiple of a unit wrench along the axis the limits allow (the
+  // split scales a huge request down to it, its effort-optimal internal force helping).
+  std::array<double, 5> peak{};
+  for (std::size_t k = 0; k < 5; ++k) {
+    PenWrench w;
+    const double big = 1e4;
+    if (k < 3) w.force_N[k] = big;
+    else w.torque_Nm[k == 3 ? 0 : 2] = big;
+    SplitResult r;
+    splitter.split(kin, w, r);
+    peak[k] = r.scale * big;
+  }
+  // Spatial resolution: one count on each joint of both pantographs moving the two ends alike (translation) or
+  // oppositely (rotation about the centre: 2·d / pen length), the coarsest joint along each axis.
+  const double rad = 2.0 * 3.14159265358979323846 / model.counts_per_rev;
+  const auto& J = kin.pantograph[pp::kBottom].J;
+  const double res_x = std::fmax(std::fabs(J[0][1]), std::fabs(J[0][2])) * rad;
+  const double res_y = std::fabs(J[1][0]) * rad;
+  const double res_z = std::fmax(std::fabs(J[2][1]), std::fabs(J[2][2])) * rad;
+  const double L = kin.length_m;
+  const double deg = 180.0 / 3.14159265358979323846;
+  return {{"pen_length_cm", L * 100.0},
+          {"peak_force_N", {{"x", peak[0]}, {"y", peak[1]}, {"z", peak[2]}}},
+          {"peak_torque_Ncm", {{"x", peak[3] * 100.0}, {"z", peak[4] * 100.0}}},
+          {"table_x_peak", {{"x_N", 48}, {"y_N", 21}, {"z_N", 40}, {"rot_x_Ncm", 324}, {"rot_z_Ncm", 396}}},
+          {"resolution_um", {{"x", res_x * 1e6}, {"y", res_y * 1e6}, {"z", res_z * 1e6}}},
+          {"resolution_deg", {{"x", 2.0 * res_z / L * deg}, {"z", 2.0 * res_x / L * deg}}},
+          {"table_x_resolution", {{"x_um", 142}, {"y_um", 314}, {"z_um", 175}, {"rot_x_deg", 0.122}, {"rot_z_deg", 0.099}}}};
+}
+
 nlohmann::json benchSplit(const PenSplitBenchOptions& o) {
   const pp::Model<double> model = pp::defaultModel<double>();
   const PenForceSplitter splitter;
@@ -125,6 +159,7 @@ nlohmann::json benchSplit(const PenSplitBenchOptions& o) {
   out["workspace"] = {{"x_cm", {-6, 6}}, {"y_cm", {-3.75, 3.75}}, {"z_cm", {16.25, 23.75}}, {"theta_x_deg", {-45, 45}},
                       {"theta_z_deg", {-45, 45}}, {"grid_per_axis", n}, {"poses", poses}, {"unreachable", unreachable}};
   out["torque_limit_Nm"] = lim;
+  out["home_vs_table_x"] = homeCapabilities(model, splitter);
   out["min_singularity_margin_sin"] = min_margin;
   out["mean_cycle_ns_fk_plus_split"] = cycles ? cycle_ns_sum / double(cycles) : 0.0;
   out["cycle_cost_note"] = "wall clock incl. timer overhead; the Google Benchmark pen_split_bench is the reference";

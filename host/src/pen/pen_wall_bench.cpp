@@ -34,7 +34,8 @@ double smooth(double s) { return s <= 0 ? 0 : (s >= 1 ? 1 : 0.5 - 0.5 * std::cos
 constexpr double kPush = 0.015;
 
 std::vector<Phase> schedule(const PenSceneConfig& s) {
-  const double half = 0.035;  // l6/2: tip is 3.5 cm below the centre of the upright pen
+  // The tip of the upright pen is l6 (7 cm) below its centre (pen::endOffset).
+  const double half = -pp::endOffset(pp::kBottom, pp::defaultModel<double>().l6_m);
   const double xw = s.box_max[0] + kPush, yf = s.box_min[1] + half - kPush, zf = s.box_max[2] + kPush;
   const double x_in = s.box_max[0] - 0.02;
   return {

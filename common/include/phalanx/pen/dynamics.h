@@ -61,14 +61,14 @@ inline bool invertSpd5(Mat5<T> a, Mat5<T>& inv) {
   return true;
 }
 
-/// ∂p_end/∂x for end p (kBottom: p = c − (l6/2)·a, kTop: p = c + (l6/2)·a) at angles (θx, θz).
+/// ∂p_end/∂x for end p = c + endOffset(p, l6)·a (kBottom: c − l6·a, kTop: c + l6·a) at angles (θx, θz).
 template <class T>
 inline Mat35<T> endJacobian(const Model<T>& model, std::size_t end, T theta_x_rad, T theta_z_rad) {
   const T sx = std::sin(theta_x_rad), cx = std::cos(theta_x_rad);
   const T sz = std::sin(theta_z_rad), cz = std::cos(theta_z_rad);
   const Vec3<T> da_dx{sz * sx, -cz * sx, cx};
   const Vec3<T> da_dz{-cz * cx, -sz * cx, T(0)};
-  const T h = (end == kBottom ? T(-0.5) : T(0.5)) * model.l6_m;
+  const T h = endOffset(end, model.l6_m);
   Mat35<T> G{};
   for (std::size_t i = 0; i < 3; ++i) {
     G[i][i] = T(1);

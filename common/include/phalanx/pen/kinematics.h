@@ -18,6 +18,9 @@
 ///  - Shoulder angles θa (shoulder at u = −l1/2) and θb (u = +l1/2) are measured in the plane from +u towards +v;
 ///    the elbows point outwards (θa > the tip direction, θb < it), the tip is the far (+v) circle intersection.
 ///  - Joint vector q = (q_w,B, θa,B, θb,B, q_w,T, θa,T, θb,T) = the paper's (q1, q2, q3, q4, q5, q6) (§V).
+///  - Pen ends: the universal-joint centres c ∓ l6·a. Table VIII's l6 is read as the distance from the pen centre
+///    to EACH universal joint, so the joints are 2·l6 = 14 cm apart (docs/pen-model.md §"Reading the lengths";
+///    endOffset()/penLength() are the one definition every user calls).
 ///  - Pen pose: centre c (m) and axis a (unit, bottom → top end). a = Rz(θz)·Rx(θx)·y_B =
 ///    (−sin θz cos θx, cos θz cos θx, sin θx); θx, θz are the two actuated rotations of Table X, roll about a
 ///    is passive.
@@ -26,6 +29,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
 
 namespace phalanx::pen {
@@ -83,7 +87,9 @@ struct PantographGeometry {
 template <class T>
 struct Model {
   std::array<PantographGeometry<T>, kNumPantographs> pantograph{};
-  T l6_m{};  ///< pen length between the two universal-joint centres, Table VIII l6
+  /// Table VIII l6: distance from the pen centre to each universal-joint centre (the joints are 2·l6 apart).
+  /// Use endOffset()/penLength(), never l6 directly, to place the ends.
+  T l6_m{};
   /// Encoder: 4000 counts per turn (§VI) on all six joints; angle = q_home + sign·counts·2π/4000.
   T counts_per_rev = T(4000);
   JointVec<T> q_home_rad{};       ///< joint angles at the home pose (x = y = 0, z = 20 cm, no rotation)
@@ -94,7 +100,7 @@ struct Model {
   T near_singular_sin = T(0.1);
   /// Tip closer than this to its waist axis raises kTipOnWaistAxis (10 % of the 20 cm reach).
   T near_waist_axis_m = T(0.02);
-  /// | |p_top − p_bottom| − l6 | beyond this is a sensor fault (kEndsInconsistent). 2 mm ≈ 10 encoder counts
+  /// | |p_top − p_bottom| − 2·l6 | beyond this is a sensor fault (kEndsInconsistent). 2 mm ≈ 10 encoder counts
   /// of tip motion (Table X: 142–314 µm per count).
   T ends_tolerance_m = T(0.002);
 };
@@ -183,15 +189,33 @@ inline Vec3<T> penAxis(T theta_x_rad, T theta_z_rad) {
   return {-std::sin(theta_z_rad) * cx, std::cos(theta_z_rad) * cx, std::sin(theta_x_rad)};
 }
 
-/// The two pen ends (universal-joint centres) of a pose: bottom = c − (l6/2)·a, top = c + (l6/2)·a.
+/// Signed position of pen end `end` along the axis from the centre: −l6 (kBottom, pencil tip), +l6 (kTop,
+/// eraser). THE reading of Table VIII's l6 (centre → universal joint, docs/pen-model.md); the kinematics, the
+/// plant, the scene and the design tools (host/src/design/pen_gii.cpp) all place the ends through this.
+template <class T>
+constexpr T endOffset(std::size_t end, T l6) {
+  return end == kBottom ? -l6 : l6;
+}
+
+/// Distance between the two universal-joint centres: 2·l6.
+template <class T>
+constexpr T penLength(const Model<T>& model) {
+  return T(2) * model.l6_m;
+}
+
+/// Pen end `end` of a pen with centre c and unit axis a: c + endOffset(end, l6)·a.
+template <class T>
+inline Vec3<T> penEnd(std::size_t end, T l6, const Vec3<T>& centre, const Vec3<T>& axis) {
+  const T h = endOffset(end, l6);
+  return {centre[0] + h * axis[0], centre[1] + h * axis[1], centre[2] + h * axis[2]};
+}
+
+/// The two pen ends (universal-joint centres) of a pose: bottom = c − l6·a, top = c + l6·a.
 template <class T>
 inline void penEnds(const Model<T>& model, const PenPose<T>& pose, Vec3<T>& B_p_bottom, Vec3<T>& B_p_top) {
   const Vec3<T> a = penAxis(pose.theta_x_rad, pose.theta_z_rad);
-  const T h = T(0.5) * model.l6_m;
-  for (std::size_t i = 0; i < 3; ++i) {
-    B_p_bottom[i] = pose.centre_m[i] - h * a[i];
-    B_p_top[i] = pose.centre_m[i] + h * a[i];
-  }
+  B_p_bottom = penEnd(kBottom, model.l6_m, pose.centre_m, a);
+  B_p_top = penEnd(kTop, model.l6_m, pose.centre_m, a);
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -310,7 +334,7 @@ inline std::array<std::int32_t, kNumJoints> countsFromAngles(const Model<T>& mod
 
 /// Forward kinematics of the whole device from the six joint angles: both tips, both Jacobians, the pen pose
 /// (centre, axis, θx, θz), and §V's singularity margins. Status kEndsInconsistent when the tips are not one
-/// pen length apart (Model::ends_tolerance_m): the outputs are then still filled but must not be used to
+/// pen length (2·l6) apart (Model::ends_tolerance_m): the outputs are then still filled but must not be used to
 /// command force.
 template <class T>
 inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Data<T>& d) {
@@ -355,7 +379,7 @@ inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Da
     min_sin = m < min_sin ? m : min_sin;
   }
   d.min_margin_sin = min_sin;
-  if (!(std::fabs(d.length_m - model.l6_m) <= model.ends_tolerance_m)) {
+  if (!(std::fabs(d.length_m - penLength(model)) <= model.ends_tolerance_m)) {
     d.status = Status::kEndsInconsistent;
   } else {
     d.status = d.near_singular != 0 ? Status::kNearSingular : Status::kOk;
@@ -387,24 +411,55 @@ inline Status computeInverse(const Model<T>& model, const PenPose<T>& pose, Join
 // Default geometry
 // ---------------------------------------------------------------------------------------------------------
 
+/// Lengths of a Twin-Pantograph (Table VII/VIII symbols, metres) and the home pose's centre depth.
+template <class T>
+struct Geometry {
+  T l1_m{}, l2_m{}, l3_m{};  ///< shoulder spacing, upper arm, forearm (both pantographs alike)
+  T l4_m{};                  ///< distance between the two waist axes
+  T l6_m{};                  ///< pen centre → each universal joint (pen length 2·l6)
+  T home_z_m{};              ///< home = workspace centre: (0, 0, home_z), no rotation (§VI: 20 cm)
+};
+
+/// The model of a geometry; q_home by inverse kinematics of the home pose. Status kOk, or why the geometry
+/// cannot be a pen (kNonFiniteInput: a length not finite or ≤ 0; kUnreachable: home not reachable; kSingular /
+/// kEndsInconsistent: home pose singular). `out` is written only on kOk.
+template <class T>
+inline Status makeModel(const Geometry<T>& g, Model<T>& out) {
+  for (T v : {g.l1_m, g.l2_m, g.l3_m, g.l4_m, g.l6_m, g.home_z_m}) {
+    if (!std::isfinite(v) || !(v > T(0))) return Status::kNonFiniteInput;
+  }
+  Model<T> m{};
+  for (std::size_t p = 0; p < kNumPantographs; ++p) {
+    m.pantograph[p].l1_m = g.l1_m;
+    m.pantograph[p].l2_m = g.l2_m;
+    m.pantograph[p].l3_m = g.l3_m;
+    m.pantograph[p].y_waist_m = (p == kBottom ? T(-0.5) : T(0.5)) * g.l4_m;
+  }
+  m.l6_m = g.l6_m;
+  m.home_centre_m = {T(0), T(0), g.home_z_m};
+  PenPose<T> home{};
+  home.centre_m = m.home_centre_m;
+  const Status si = computeInverse(m, home, m.q_home_rad);
+  if (si != Status::kOk) return si;
+  Data<T> d{};
+  const Status sf = computeForward(m, m.q_home_rad, d);
+  if (!isUsable(sf)) return sf;
+  out = m;
+  return Status::kOk;
+}
+
 /// The 20 cm prototype (§VI, Fig. 16): Table VIII row "20 cm": l1 = 2.4, l2 = 14.5, l3 = 20.0, l6 = 7.0 cm,
 /// l4 = 8.0 cm (fixed, §VI). docs/pen-model.md §"Reading the lengths" explains each assignment.
 template <class T>
+inline Geometry<T> defaultGeometry() {
+  const T cm = T(0.01);
+  return {T(2.4) * cm, T(14.5) * cm, T(20.0) * cm, T(8.0) * cm, T(7.0) * cm, T(20.0) * cm};
+}
+
+template <class T>
 inline Model<T> defaultModel() {
   Model<T> m{};
-  const T cm = T(0.01);
-  const T l4 = T(8.0) * cm;
-  for (std::size_t p = 0; p < kNumPantographs; ++p) {
-    m.pantograph[p].l1_m = T(2.4) * cm;
-    m.pantograph[p].l2_m = T(14.5) * cm;
-    m.pantograph[p].l3_m = T(20.0) * cm;
-    m.pantograph[p].y_waist_m = (p == kBottom ? T(-0.5) : T(0.5)) * l4;
-  }
-  m.l6_m = T(7.0) * cm;
-  m.home_centre_m = {T(0), T(0), T(20.0) * cm};
-  PenPose<T> home{};
-  home.centre_m = m.home_centre_m;
-  computeInverse(m, home, m.q_home_rad);  // the default geometry reaches home by construction (tested)
+  makeModel(defaultGeometry<T>(), m);  // the default geometry reaches home by construction (tested)
   return m;
 }
 

@@ -25,10 +25,12 @@ constexpr int kPenJoints = pen::board::kJointCount;
 
 struct PantographConfig {
   float torque_limit_Nm[kPenJoints] = {2.1f, 2.1f, 2.1f, 2.1f, 2.1f, 2.1f};
-  /// Joint windows relative to home (rad). The soft-stop workspace spans waist −19…+31°, shoulders ±56°
-  /// (docs/pen-plant.md); the windows add ≥ 14° margin.
-  float joint_min_rad[kPenJoints] = {-0.785f, -1.309f, -1.309f, -0.785f, -1.309f, -1.309f};
-  float joint_max_rad[kPenJoints] = {0.785f, 1.309f, 1.309f, 0.785f, 1.309f, 1.309f};
+  /// Joint windows relative to home (rad), for the compile-time geometry pen::defaultGeometry (l6 = centre to
+  /// universal joint, pen 14 cm). The plant's soft-stop workspace spans bottom waist −24…+46°, top waist
+  /// −46…+24°, shoulders ±76° (docs/pen-plant.md); the windows add ≥ 14° margin (checked against the model by
+  /// tests/unit/pen_firmware_test.cpp JointWindowsContainTheSoftStopWorkspace).
+  float joint_min_rad[kPenJoints] = {-0.698f, -1.571f, -1.571f, -1.047f, -1.571f, -1.571f};
+  float joint_max_rad[kPenJoints] = {1.047f, 1.571f, 1.571f, 0.698f, 1.571f, 1.571f};
   /// An encoder moving more than this in one tick is a glitch (500 counts/ms = 785 rad/s, far beyond a hand).
   int32_t max_counts_per_tick = 500;
   float velocity_filter_hz = 100.0f;

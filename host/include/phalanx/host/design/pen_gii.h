@@ -33,7 +33,7 @@ struct PenGiiSpec {
   GridRange l1{2.4, 7.0, 0.2};   ///< shoulder spacing (cm)
   GridRange l2{10.0, 30.0, 0.5}; ///< upper arm (cm)
   GridRange l3{15.0, 35.0, 0.5}; ///< forearm (cm)
-  GridRange l6{7.0, 11.0, 0.2};  ///< pen length between the universal joints (cm)
+  GridRange l6{7.0, 11.0, 0.2};  ///< pen centre → each universal joint (cm; pen length 2·l6, pen::endOffset)
   GridRange q1{0.5, 3.0, 0.1};   ///< waist/shoulder scale factor Q1
   double l4_cm = 8.0;            ///< waist-axis spacing, fixed (§VI)
   double distance_cm = 25.0;     ///< workspace centre along k from the base origin (Table VII: 25)
@@ -45,10 +45,6 @@ struct PenGiiSpec {
   /// 617 orientations (N = 14).
   std::size_t rings = 0;
   PenGiiMode mode = PenGiiMode::kForce;
-  /// Reading of l6 (docs/design-tools.md §"l6"): false = the pen length between the two universal joints (the
-  /// text's "minimum length of 7.0 cm so that the end-effector can be held"); true = the distance from the pen
-  /// centre to each universal joint (pen length 2·l6), the reading that reproduces Table VII's GII.
-  bool l6_is_half_length = false;
   /// Velocity mode only: use eq 11's S_T⁻¹ literally (S_J J S_T⁻¹ with eq 27's S_T) instead of S_J J S_T.
   bool velocity_literal_inverse = false;
 };

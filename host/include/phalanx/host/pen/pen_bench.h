@@ -4,6 +4,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "phalanx/host/pen/force_split.h"
+
 namespace phalanx::host::pen {
 
 struct PenSplitBenchOptions {
@@ -16,6 +18,9 @@ struct PenSplitBenchOptions {
 /// of the six torques (J⁻ᵀτ + statics vs the desired wrench), normalised effort (effort-optimal μ vs the paper's
 /// μ = 0), how often the saturation redistribution is active, and the mean wall-clock cost of FK + split.
 nlohmann::json benchSplit(const PenSplitBenchOptions& options);
+/// Table X's geometry-dependent rows at home for a model and a splitter's torque limits: peak force/torque per
+/// axis, spatial resolution (translations and rotations); with the paper's values alongside.
+nlohmann::json homeCapabilities(const phalanx::pen::Model<double>& model, const PenForceSplitter& splitter);
 
 struct PenWallBenchOptions {
   double stiffness_N_per_cm = 3.0;  ///< horizontal walls; the floor gets 0.7× (the paper's 2.1 / 3 N/cm)

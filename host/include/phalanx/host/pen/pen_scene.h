@@ -27,8 +27,9 @@ struct WallGains {
 
 struct PenSceneConfig {
   bool box = true;
-  /// Free space inside the box (m, {B}); the floor is y = box_min[1]; the box is open at the top.
-  Vec3d box_min{-0.05, -0.055, 0.16};
+  /// Free space inside the box (m, {B}); the floor is y = box_min[1]; the box is open at the top. The floor is
+  /// 2 cm below the tip of the pen at home (tip at y = −l6 = −7 cm).
+  Vec3d box_min{-0.05, -0.09, 0.16};
   Vec3d box_max{0.05, 1.0, 0.24};
   /// §VI stiff box: 3 N/cm, 0.05 N·s/cm, 6 N·s/cm horizontal (x, z walls); 2.1 N/cm, 0.02 N·s/cm, 3 N·s/cm vertical.
   WallGains horizontal{300.0, 5.0, 600.0};
