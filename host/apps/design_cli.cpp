@@ -151,7 +151,6 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
       ->check(CLI::IsMember({"force", "velocity"}));
   m.pg->add_flag("--velocity-literal-inverse", m.velocity_literal_inverse,
                  "velocity mode: S_J J S_T^-1 with eq 27's S_T literally (default S_J J S_T)");
-reproduces Table VII's GII)");
   m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
