@@ -27,6 +27,19 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
       ->check(CLI::IsMember({"render", "transparent"}));
   app.add_option("--sea-subject", opt.sea_subject, "sea_finger: subject YAML written by phalanx sea-calibrate")
       ->check(CLI::ExistingFile);
+  app.add_option("--pen-geometry", opt.pen_geometry,
+                 "pantograph: pen geometry YAML written by phalanx design pen-gii --yaml (must match the firmware)");
+  app.add_option_function<std::vector<std::string>>(
+         "--glove-geometry",
+         [&opt](const std::vector<std::string>& v) {
+           for (const std::string& s : v) {
+             const auto eq = s.find('=');
+             if (eq == std::string::npos) throw CLI::ValidationError("--glove-geometry", "expected FINGER=PATH, got '" + s + "'");
+             opt.glove_geometry[s.substr(0, eq)] = s.substr(eq + 1);
+           }
+         },
+         "glove5: FINGER=PATH geometry YAML written by phalanx design glove-optimize --yaml (repeatable; must match the firmware)")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--seed", opt.seed, "simulation seed");
   app.add_option("--firmware-sim", opt.firmware_sim, "path of the firmware-sim executable");
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");

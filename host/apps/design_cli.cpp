@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <map>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -11,6 +12,7 @@
 
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_gii.h"
+#include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/design/svg.h"
 
 namespace phalanx::host {
@@ -84,6 +86,7 @@ struct DesignCommands::Impl {
   bool exhaustive = false, compare = false, velocity_literal_inverse = false;
   double progress_s = 0;
   std::vector<double> eval_design;
+  std::string pen_yaml_path;
 
   // pen-gii-plot
   CLI::App* pp = nullptr;
@@ -152,6 +155,8 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.pg->add_flag("--velocity-literal-inverse", m.velocity_literal_inverse,
                  "velocity mode: S_J J S_T^-1 with eq 27's S_T literally (default S_J J S_T)");
   m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
+  m.pg->add_option("--yaml", m.pen_yaml_path,
+                   "write the optimum as a pen geometry YAML (phalanx run --pen-geometry / config pen.geometry)");
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
   m.pg->add_option("--progress-s", m.progress_s, "progress to stderr every N s");
@@ -341,6 +346,28 @@ int DesignCommands::Impl::runPenGii() {
                       out["exhaustive"]["gii"] == out["culling"]["gii"];
     out["identical_optimum"] = same;
     if (!same) rc = 1;
+  }
+  if (!pen_yaml_path.empty()) {
+    const nlohmann::json& best = out.contains("culling") ? out["culling"] : out["exhaustive"];
+    const d::PenDesign o = pb->design(best["candidate"].get<std::size_t>());
+    const double cm = 0.01;
+    const phalanx::pen::Geometry<double> g{o.l1 * cm, o.l2 * cm, o.l3 * cm, spec.l4_cm * cm, o.l6 * cm,
+                                           distance_cm * cm};
+    const std::map<std::string, double> analysis{{"gii", best["gii"].get<double>()},
+                                                 {"Q1_waist_to_shoulder", o.q1},
+                                                 {"workspace_distance_cm", distance_cm},
+                                                 {"workspace_samples", static_cast<double>(pb->numSamples())}};
+    char comment[160];
+    std::snprintf(comment, sizeof comment, "pen geometry, phalanx design pen-gii (%s GII optimum at %.1f cm)",
+                  mode.c_str(), distance_cm);
+    if (!writeText(pen_yaml_path, d::penGeometryYaml(g, comment, analysis))) return 1;
+    // Read it back through the controller's loader: a file the controller would refuse is an error here.
+    phalanx::pen::Geometry<double> back{};
+    if (const std::string err = d::loadPenGeometryYaml(pen_yaml_path, back); !err.empty()) {
+      std::fprintf(stderr, "phalanx design: error: the optimum is not a usable pen: %s\n", err.c_str());
+      return 3;
+    }
+    out["yaml"] = pen_yaml_path;
   }
   if (eval_design.size() == 5) {
     const d::PenDesign e{eval_design[0], eval_design[1], eval_design[2], eval_design[3], eval_design[4]};

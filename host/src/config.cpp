@@ -38,7 +38,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove", "modbus"});
+                         "seed", "clear_faults", "glove", "pen", "modbus"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -56,11 +56,23 @@ void apply(const YAML::Node& root, RunOptions& opt) {
     if (rt["enabled"]) opt.realtime = scalar<bool>(rt["enabled"], "realtime.enabled", "boolean");
     if (rt["priority"]) opt.rt_priority = scalar<int>(rt["priority"], "realtime.priority", "integer");
   }
+  if (const YAML::Node pn = root["pen"]) {
+    requireKeys(pn, "pen", {"geometry"});
+    if (pn["geometry"]) opt.pen_geometry = scalar<std::string>(pn["geometry"], "pen.geometry", "path");
+  }
   if (const YAML::Node mb = root["modbus"]) {
     if (std::string err = modbus::loadServerOptions(mb, opt.modbus); !err.empty()) throw ConfigError{err};
   }
   if (const YAML::Node g = root["glove"]) {
-    requireKeys(g, "glove", {"scene", "scenario", "mode"});
+    requireKeys(g, "glove", {"scene", "scenario", "mode", "geometry"});
+    if (const YAML::Node geo = g["geometry"]) {
+      // finger → geometry file written by `phalanx design glove-* --yaml` (validated with the options).
+      requireKeys(geo, "glove.geometry", {"thumb", "index", "middle", "ring", "little"});
+      for (const auto& kv : geo) {
+        const std::string finger = kv.first.as<std::string>();
+        opt.glove_geometry[finger] = scalar<std::string>(kv.second, "glove.geometry." + finger, "path");
+      }
+    }
     if (g["scene"]) opt.scene = scalar<std::string>(g["scene"], "glove.scene", "string");
     if (g["scenario"]) opt.scenario = scalar<std::string>(g["scenario"], "glove.scenario", "string");
     if (g["mode"]) opt.mode = scalar<std::string>(g["mode"], "glove.mode", "string");

@@ -2,6 +2,8 @@
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/daemon.h"
+#include "phalanx/host/design/glove_design.h"
+#include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/glove/glove_controller.h"
 #include "phalanx/host/pen/pen_controller.h"
 #include "phalanx/host/sea/sea_calibrate.h"
@@ -18,9 +20,32 @@ void TransparentController::update(const TelemetryFrame&, double, double, protoc
 
 std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, const RunOptions& opt,
                                            std::string& error) {
+  // A geometry file for another device type is an error, never ignored.
+  if (!opt.pen_geometry.empty() && layout.type != protocol::DeviceType::kPantograph) {
+    error = "pen.geometry: given, but the device is a " + std::string(layout.name) + ", not a pantograph";
+    return nullptr;
+  }
+  if (!opt.glove_geometry.empty() && layout.type != protocol::DeviceType::kGlove5) {
+    error = "glove.geometry: given, but the device is a " + std::string(layout.name) + ", not a glove5";
+    return nullptr;
+  }
   if (layout.type == protocol::DeviceType::kGlove5) {
     glove::GloveControllerConfig cfg;
     cfg.transparent = opt.mode == "transparent";
+    static const char* const kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};  // FingerId order
+    for (const auto& [finger, path] : opt.glove_geometry) {
+      std::size_t f = 0;
+      while (f < 5 && finger != kFingerNames[f]) ++f;
+      if (f == 5) {
+        error = "glove.geometry: '" + finger + "' is not a finger (thumb, index, middle, ring, little)";
+        return nullptr;
+      }
+      if (std::string err = design::loadGloveGeometryYaml(path, cfg.hand.fingers[f]); !err.empty()) {
+        error = "glove.geometry." + finger + ": " + err;
+        return nullptr;
+      }
+      cfg.geometry_file[f] = path;
+    }
     if (opt.scene == "none") cfg.scene = glove::DemoScene::kNone;
     else if (opt.scene == "rigid-ball") cfg.scene = glove::DemoScene::kRigidBall;
     else if (opt.scene == "soft-ball") cfg.scene = glove::DemoScene::kSoftBall;
@@ -36,6 +61,13 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
     // box, rigid-ball/soft-ball (the default) = the box with the click button (docs/pen-plant.md).
     pen::PenControllerConfig cfg;
     cfg.transparent = opt.mode == "transparent";
+    if (!opt.pen_geometry.empty()) {
+      if (std::string err = design::loadPenGeometryYaml(opt.pen_geometry, cfg.geometry); !err.empty()) {
+        error = "pen.geometry: " + err;
+        return nullptr;
+      }
+      cfg.geometry_file = opt.pen_geometry;
+    }
     if (opt.scene == "none") {
       cfg.scene.box = false;
       cfg.scene.button = false;

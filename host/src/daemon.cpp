@@ -16,6 +16,8 @@
 #include <random>
 
 #include "phalanx/host/controller.h"
+#include "phalanx/host/design/glove_design.h"
+#include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
@@ -244,6 +246,20 @@ std::string validate(const RunOptions& opt) {
     return "scene: '" + opt.scene + "' is not one of none, rigid-ball, soft-ball, wall";
   }
   if (opt.mode != "render" && opt.mode != "transparent") return "mode: '" + opt.mode + "' is not one of render, transparent";
+  // Geometry files are read and validated here, so a bad file is refused before any device is opened.
+  for (const auto& [finger, path] : opt.glove_geometry) {
+    if (finger != "thumb" && finger != "index" && finger != "middle" && finger != "ring" && finger != "little") {
+      return "glove.geometry: '" + finger + "' is not a finger (thumb, index, middle, ring, little)";
+    }
+    phalanx::glove::Model<double> m;
+    if (std::string err = design::loadGloveGeometryYaml(path, m); !err.empty()) {
+      return "glove.geometry." + finger + ": " + err;
+    }
+  }
+  if (!opt.pen_geometry.empty()) {
+    phalanx::pen::Geometry<double> g;
+    if (std::string err = design::loadPenGeometryYaml(opt.pen_geometry, g); !err.empty()) return "pen.geometry: " + err;
+  }
   return modbus::validateServerOptions(opt.modbus);
 }
 
@@ -355,6 +371,31 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     flushLink();
   }
 
+  // A model from a geometry file must match the geometry the firmware was built with (fingerprint parameter):
+  // the host never silently runs one geometry against firmware made for another (docs/design-tools.md).
+  for (const Controller::RequiredParam& rp : controller->requiredParams()) {
+    session.sendParamGet(rp.id);
+    flushLink();
+    const uint64_t t0 = linux_hal::monotonicNs();
+    while (!(session.lastParamValid() && session.lastParam().param_id == rp.id) &&
+           static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
+      usleep(500);
+      session.poll(linux_hal::monotonicNs());
+    }
+    if (!(session.lastParamValid() && session.lastParam().param_id == rp.id)) {
+      return fail(rp.what + ": the device did not answer the geometry fingerprint query: refused", 2);
+    }
+    if (session.lastParam().status != protocol::ParamStatus::kOk) {
+      return fail(rp.what + ": the firmware does not report its geometry fingerprint: refused", 2);
+    }
+    if (session.lastParam().value != rp.value) {
+      char fw[32];
+      std::snprintf(fw, sizeof fw, "%.0f", static_cast<double>(session.lastParam().value));
+      return fail(rp.what + " differs from the firmware's compile-time geometry (fingerprint " + fw +
+                      "): build the firmware with this geometry, or run without the file; refused",
+                  2);
+    }
+  }
   for (const auto& [id, value] : controller->startupParams()) {
     session.sendParamSet(id, value);
     flushLink();

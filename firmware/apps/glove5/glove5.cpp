@@ -1,5 +1,7 @@
 #include "phalanx/apps/glove5.h"
 
+#include "phalanx/geometry_fingerprint.h"
+
 #include "phalanx/glove/tendon.h"
 
 #include <cmath>
@@ -156,6 +158,10 @@ void Glove5App::fillSamples(int16_t* samples) const {
 }
 
 protocol::ParamStatus Glove5App::getParam(uint16_t id, float& value) const {
+  if (id >= glove5_param::kGeometryFingerprintBase && id < glove5_param::kGeometryFingerprintBase + kGloveFingers) {
+    value = static_cast<float>(geometryFingerprint(cal_.mech[id - glove5_param::kGeometryFingerprintBase]));
+    return protocol::ParamStatus::kOk;
+  }
   switch (id) {
     case glove5_param::kForceKp: value = cfg_.force_pid.kp; return protocol::ParamStatus::kOk;
     case glove5_param::kForceKi: value = cfg_.force_pid.ki; return protocol::ParamStatus::kOk;
@@ -167,6 +173,9 @@ protocol::ParamStatus Glove5App::getParam(uint16_t id, float& value) const {
 }
 
 protocol::ParamStatus Glove5App::setParam(uint16_t id, float value) {
+  if (id >= glove5_param::kGeometryFingerprintBase && id < glove5_param::kGeometryFingerprintBase + kGloveFingers) {
+    return protocol::ParamStatus::kReadOnly;
+  }
   auto bounded = [&](float& field, float lo, float hi) {
     if (value < lo || value > hi) return protocol::ParamStatus::kOutOfRange;
     field = value;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "phalanx/geometry_fingerprint.h"
+
 namespace phalanx::apps {
 namespace {
 
@@ -87,6 +89,10 @@ void PantographApp::fillSamples(int16_t* samples) const {
 }
 
 protocol::ParamStatus PantographApp::getParam(uint16_t id, float& value) const {
+  if (id == pantograph_param::kGeometryFingerprint) {
+    value = static_cast<float>(geometryFingerprint(pen::defaultGeometry<float>()));
+    return protocol::ParamStatus::kOk;
+  }
   if (id >= pantograph_param::kTorqueLimitBase && id < pantograph_param::kTorqueLimitBase + kPenJoints) {
     value = cfg_.torque_limit_Nm[id - pantograph_param::kTorqueLimitBase];
     return protocol::ParamStatus::kOk;
@@ -95,6 +101,7 @@ protocol::ParamStatus PantographApp::getParam(uint16_t id, float& value) const {
 }
 
 protocol::ParamStatus PantographApp::setParam(uint16_t id, float value) {
+  if (id == pantograph_param::kGeometryFingerprint) return protocol::ParamStatus::kReadOnly;
   if (id >= pantograph_param::kTorqueLimitBase && id < pantograph_param::kTorqueLimitBase + kPenJoints) {
     if (!(value > 0.0f && value <= board::kPeakTorque_Nm)) return protocol::ParamStatus::kOutOfRange;
     cfg_.torque_limit_Nm[id - pantograph_param::kTorqueLimitBase] = value;

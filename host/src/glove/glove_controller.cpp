@@ -1,5 +1,7 @@
 #include "phalanx/host/glove/glove_controller.h"
 
+#include "phalanx/geometry_fingerprint.h"
+
 #include <cmath>
 #include <cstdio>
 
@@ -12,8 +14,20 @@ constexpr size_t kForceSample0 = 15;  // kGlove5Layout: samples 15..19 are pad f
 constexpr const char* kFingerLetters = "TIMRL";
 }  // namespace
 
-GloveController::GloveController(const GloveControllerConfig& config) : config_(config) {
+GloveController::GloveController(const GloveControllerConfig& config) : config_(config), scene_(config.hand) {
   loadDemoScene(scene_, config.scene);
+}
+
+std::vector<Controller::RequiredParam> GloveController::requiredParams() const {
+  std::vector<RequiredParam> r;
+  for (std::size_t f = 0; f < kNumFingers; ++f) {
+    if (config_.geometry_file[f].empty()) continue;
+    const std::uint32_t fp = geometryFingerprint(config_.hand.fingers[f].mech);
+    r.push_back({static_cast<uint16_t>(0x0200 + f), static_cast<float>(fp),
+                 "glove geometry file '" + config_.geometry_file[f] + "' (finger " + std::to_string(f) +
+                     ", mechanism fingerprint " + std::to_string(fp) + ")"});
+  }
+  return r;
 }
 
 void GloveController::update(const TelemetryFrame& tel, double, double dt_s, protocol::Command& cmd) {

@@ -2,6 +2,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+
+#include "phalanx/geometry_fingerprint.h"
 
 #include "phalanx/protocol/devices.h"
 
@@ -9,8 +12,23 @@ namespace phalanx::host::pen {
 
 namespace pp = phalanx::pen;
 
+namespace {
+pp::Model<double> modelOf(const pp::Geometry<double>& g) {
+  pp::Model<double> m;
+  if (pp::makeModel(g, m) != pp::Status::kOk) throw std::invalid_argument("pen controller: geometry is not a pen");
+  return m;
+}
+}  // namespace
+
 PenController::PenController(const PenControllerConfig& config)
-    : config_(config), model_(pp::defaultModel<double>()), scene_(config.scene), splitter_(config.split) {}
+    : config_(config), model_(modelOf(config.geometry)), scene_(config.scene, model_), splitter_(config.split) {}
+
+std::vector<Controller::RequiredParam> PenController::requiredParams() const {
+  if (config_.geometry_file.empty()) return {};
+  const std::uint32_t fp = geometryFingerprint(config_.geometry);
+  return {{0x0200, static_cast<float>(fp),
+           "pen geometry file '" + config_.geometry_file + "' (fingerprint " + std::to_string(fp) + ")"}};
+}
 
 void PenController::update(const TelemetryFrame& tel, double, double dt_s, protocol::Command& cmd) {
   ++stats_.cycles;

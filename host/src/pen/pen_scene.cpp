@@ -6,7 +6,7 @@ namespace phalanx::host::pen {
 
 namespace pp = phalanx::pen;
 
-PenScene::PenScene(const PenSceneConfig& config) : config_(config), model_(pp::defaultModel<double>()) {
+PenScene::PenScene(const PenSceneConfig& config, const pp::Model<double>& model) : config_(config), model_(model) {
   pp::invertSpd5(pp::massMatrixSI<double>(), D_inv_);  // eq 29 is positive definite (tests/unit/pen_plant_test)
 }
 

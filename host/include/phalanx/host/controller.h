@@ -27,6 +27,16 @@ class Controller {
   /// tare with the hand relaxed), and how long the device needs after them.
   virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }
   virtual double startupSettleS() const { return 0.0; }
+  /// Device parameters whose value must equal `value` before the session may start (read with ParamGet after
+  /// the handshake); a mismatch or a device that does not know the parameter refuses the session with `what`
+  /// in the error. Used for the geometry fingerprint when the model comes from a geometry file
+  /// (docs/design-tools.md §"Geometry files").
+  struct RequiredParam {
+    uint16_t id = 0;
+    float value = 0.0f;
+    std::string what;
+  };
+  virtual std::vector<RequiredParam> requiredParams() const { return {}; }
 };
 
 /// Zero force/torque on every channel: the device follows the user.

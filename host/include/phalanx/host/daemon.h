@@ -3,6 +3,7 @@
 /// simulated firmware for sim:* devices), handshake, run the 1 kHz loop, record, and summarise.
 #include <cstdint>
 #include <memory>
+#include <map>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -55,6 +56,11 @@ struct RunOptions {
   std::string scene = "rigid-ball";   ///< glove virtual scene: none|rigid-ball|soft-ball|wall
   std::string mode = "render";        ///< glove: render|transparent; sea_finger: transparent, else finger torque
   std::string sea_subject;            ///< sea_finger: subject YAML from `phalanx sea-calibrate` (empty: Table 4 P̂)
+  /// glove5: per-finger geometry files written by `phalanx design glove-optimize|glove-workspace --yaml`
+  /// (finger name thumb|index|middle|ring|little → path); fingers not listed keep glove::defaultModel.
+  std::map<std::string, std::string> glove_geometry;
+  /// pantograph: pen geometry file written by `phalanx design pen-gii --yaml` (empty: pen::defaultGeometry).
+  std::string pen_geometry;
   uint32_t seed = 1;
   bool live_view = false;             ///< per-finger terminal view at 10 Hz on stderr
   bool clear_faults = true;           ///< clear faults latched before this session (logged)

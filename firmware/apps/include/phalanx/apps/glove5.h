@@ -80,6 +80,9 @@ constexpr uint16_t kForceKi = 0x0101;
 constexpr uint16_t kForceKd = 0x0102;
 constexpr uint16_t kFeedForwardScale = 0x0103;
 constexpr uint16_t kTare = 0x0110;  ///< write 1: re-zero every strain gauge over the next 64 ticks (finger relaxed)
+/// Read-only, 0x0200 + finger (FingerId order): fingerprint (geometry_fingerprint.h) of the mechanism geometry in
+/// the calibration (tendon moment arms, joint windows). The host refuses a geometry file that does not match it.
+constexpr uint16_t kGeometryFingerprintBase = 0x0200;
 }  // namespace glove5_param
 
 Glove5Calibration glove5DefaultCalibration();

@@ -45,6 +45,9 @@ PantographConfig pantographDefaultConfig();
 /// Device parameters (ParamGet/ParamSet).
 namespace pantograph_param {
 constexpr uint16_t kTorqueLimitBase = 0x0100;  ///< 0x0100 + joint: torque limit (N·m), 0 < value ≤ 2.1
+/// Read-only: fingerprint (geometry_fingerprint.h) of the compile-time geometry pen::defaultGeometry that the
+/// joint windows were made for. The host refuses a geometry file that does not match it.
+constexpr uint16_t kGeometryFingerprint = 0x0200;
 }  // namespace pantograph_param
 
 struct PenJointState {

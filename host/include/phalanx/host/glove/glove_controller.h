@@ -2,6 +2,7 @@
 /// The glove's host controller: telemetry (mechanism angles α, pad forces) → α̇ → virtual scene rendering
 /// (F = b·ẋ + k·x, 000 eq 1) → per-finger pad-force setpoints, every cycle, without allocation.
 #include <array>
+#include <string>
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/glove/scene.h"
@@ -10,6 +11,11 @@ namespace phalanx::host::glove {
 
 struct GloveControllerConfig {
   DemoScene scene = DemoScene::kRigidBall;
+  /// The hand and glove geometry the scene renders with (defaults: glove::defaultModel per finger).
+  HandModel hand = defaultHandModel();
+  /// Fingers whose geometry came from a geometry file (path, for messages); empty = compile-time default.
+  /// Each loaded finger's mechanism fingerprint must match the firmware's (requiredParams).
+  std::array<std::string, kNumFingers> geometry_file{};
   bool transparent = false;        ///< true: zero force in every finger (mode transparent), scene ignored
   double rate_cutoff_hz = 40.0;    ///< low-pass on the α differences that give α̇
   /// Force-loop gain in contact, sent as the command's gain scale: min(1, k_ref / k_object); 0 disables.
@@ -41,6 +47,8 @@ class GloveController : public Controller {
   /// Tare every strain gauge (glove5 parameter 0x0110) with the hand relaxed before force control starts.
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{0x0110, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }
+  std::vector<RequiredParam> requiredParams() const override;
+  const HandModel& hand() const { return scene_.hand(); }
 
   const RenderOutput& lastRender() const { return out_; }
   const FingerStats& stats(int finger) const { return stats_[static_cast<size_t>(finger)]; }

@@ -3,6 +3,7 @@
 /// end + gravity compensation → pen wrench → force split (Fig. 18, effort-optimal internal force, saturation
 /// redistribution) → six joint-torque setpoints, every cycle, without allocation.
 #include <array>
+#include <string>
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/pen/force_split.h"
@@ -12,6 +13,11 @@
 namespace phalanx::host::pen {
 
 struct PenControllerConfig {
+  /// Geometry of the device (default pen::defaultGeometry, the firmware's compile-time geometry).
+  phalanx::pen::Geometry<double> geometry = phalanx::pen::defaultGeometry<double>();
+  /// Where `geometry` came from (a geometry file; empty = compile-time default). With a file, the firmware's
+  /// geometry fingerprint must match (requiredParams).
+  std::string geometry_file;
   PenSceneConfig scene{};
   SplitConfig split{};
   bool transparent = false;  ///< true: zero torque on every joint (mode transparent)
@@ -31,11 +37,16 @@ struct PenControllerStats {
 
 class PenController : public Controller {
  public:
+  /// Throws std::invalid_argument if config.geometry is not a pen (pen::makeModel fails); loadPenGeometryYaml
+  /// has already refused such files by name.
   explicit PenController(const PenControllerConfig& config = {});
   const char* name() const override { return config_.transparent ? "pen-transparent" : "pen-render"; }
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
+  std::vector<RequiredParam> requiredParams() const override;
+
+  const phalanx::pen::Model<double>& model() const { return model_; }
 
   const phalanx::pen::Data<double>& kinematics() const { return kin_; }
   const PenRenderOutput& lastRender() const { return render_; }

@@ -79,7 +79,9 @@ struct PenRenderOutput {
 
 class PenScene {
  public:
-  explicit PenScene(const PenSceneConfig& config = {});
+  /// `model`: the device's kinematic model (its end placement is used by the braking-pulse cap).
+  explicit PenScene(const PenSceneConfig& config = {},
+                    const phalanx::pen::Model<double>& model = phalanx::pen::defaultModel<double>());
   const PenSceneConfig& config() const { return config_; }
   void setConfig(const PenSceneConfig& config) { config_ = config; }
   /// Forget the velocity filters and contact history (a new session).
