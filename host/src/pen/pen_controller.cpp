@@ -79,7 +79,11 @@ void PenController::summarize(nlohmann::json& out) const {
                 {"peak_tip_force_N", stats_.peak_tip_force_N},
                 {"peak_tip_penetration_mm", stats_.peak_tip_penetration_m * 1e3},
                 {"peak_torque_Nm", stats_.peak_torque_Nm},
-                {"button_clicks", stats_.clicks}};
+                {"button_clicks", stats_.clicks},
+                {"geometry_file", config_.geometry_file.empty() ? "(compile-time default)" : config_.geometry_file},
+                {"geometry_m", {{"l1", config_.geometry.l1_m}, {"l2", config_.geometry.l2_m}, {"l3", config_.geometry.l3_m},
+                                {"l4", config_.geometry.l4_m}, {"l6", config_.geometry.l6_m},
+                                {"home_z", config_.geometry.home_z_m}}}};
 }
 
 std::string PenController::liveLine(const TelemetryFrame&) const {
