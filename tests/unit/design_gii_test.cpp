@@ -243,8 +243,8 @@ TEST(DesignGii, TwinPantographJacobianHasTheSymmetriesOfTheHomePose) {
   // Lateral motion (i) does not turn the waists (rows 0 and 3: q1, q4).
   EXPECT_NEAR(A(0, 0), 0.0, 1e-12);
   EXPECT_NEAR(A(3, 0), 0.0, 1e-12);
-  // Motion along the pen (j) turns both waists alike; depth (k) turns them oppositely (ends at y = ∓3.5 cm,
-  // waist axes at ∓4 cm: the pen ends sit on opposite sides of their waist axes' planes).
+  // Motion along the pen (j) turns both waists alike; depth (k) turns them oppositely (ends at y = ∓7 cm,
+  // waist axes at ∓4 cm: each end sits 3 cm outside its waist axis, mirrored about the centre).
   EXPECT_GT(std::fabs(A(0, 1)), 0.0);
   EXPECT_NEAR(A(0, 1), A(3, 1), 1e-12);
   EXPECT_NEAR(A(0, 2), -A(3, 2), 1e-12);
