@@ -11,9 +11,9 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
   qemu_board.py run       -- start the board and print the pty path (for manual use with phalanxd).
 
 The protocol link is the CMSDK UART0 exposed with `-serial pty`; the debug console (UART1) is QEMU's stdout.
-QEMU's UART model carries about 12 kB/s host → device while 1 kHz telemetry flows back (docs/firmware-mcu.md),
-so the host loop runs at 100 Hz (the daemon's minimum) here while the firmware ticks and sends
-telemetry at 1 kHz.
+QEMU's CMSDK UART model takes one received byte per guest read (docs/firmware-mcu.md: about 25-30 kB/s), so the
+host loop runs at 100 Hz (the daemon's minimum) here while the firmware ticks and sends telemetry at 1 kHz. QEMU
+runs under SCHED_FIFO when permitted (realtime_prefix below).
 """
 import argparse
 import json
@@ -27,11 +27,42 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 APPS = ("glove5", "sea_finger", "pantograph")
+# Default plant period of session/run (ms between plant steps, docs/firmware-mcu.md "The simulated plant on the
+# emulated board"): the glove and pen plants capped near the rate they reach, the SEA plant every millisecond.
+SESSION_PLANT_PERIOD_MS = {"glove5": 16, "sea_finger": 1, "pantograph": 8}
 
 
 def app_elf(app):
     return os.path.join(ROOT, "build", "mcu-mps2-an386", f"phalanx-mps2_an386-{app}.elf")
 BIN = os.path.join(ROOT, "build", "host", "bin")
+
+
+# QEMU emulates a 1 kHz real-time device: its main-loop thread (timers, UART bytes) and its vCPU thread wake each
+# other thousands of times a second, and each wake-up must come within a fraction of a millisecond. Under the
+# default scheduler on a loaded 2-core machine (load 10-12 from other builds and VMs) a wake-up waits milliseconds
+# for a time slice: SysTick expiries coalesce (the firmware's clock ran at 0.5x wall time) and received bytes queue
+# in the pty (command round trip 0.5-2 s). So QEMU runs under SCHED_FIFO (docs/firmware-mcu.md, "Real-time
+# scheduling of the emulator"; nice -15 did not help). PHALANX_QEMU_RT_PRIORITY=0 turns it off.
+RT_PRIORITY = int(os.environ.get("PHALANX_QEMU_RT_PRIORITY", "10"))
+_rt_prefix = None
+
+
+def realtime_prefix():
+    """`chrt -f N` if this process may use SCHED_FIFO (root or CAP_SYS_NICE), else nothing (with a warning)."""
+    global _rt_prefix
+    if _rt_prefix is None:
+        _rt_prefix = []
+        if RT_PRIORITY > 0:
+            try:
+                ok = subprocess.run(["chrt", "-f", str(RT_PRIORITY), "true"], capture_output=True).returncode == 0
+            except FileNotFoundError:
+                ok = False
+            if ok:
+                _rt_prefix = ["chrt", "-f", str(RT_PRIORITY)]
+            else:
+                print(f"WARNING: cannot run QEMU under SCHED_FIFO {RT_PRIORITY} (needs CAP_SYS_NICE): the emulated "
+                      "board keeps real time only on a lightly loaded machine", file=sys.stderr)
+    return _rt_prefix
 
 
 class Board:
@@ -48,6 +79,7 @@ class Board:
             sh.append(f"arg=icount_shift={icount}")
         args += ["-semihosting-config", ",".join(sh)]
         args += ["-kernel", elf]
+        args = realtime_prefix() + args
         self.cmd = args
         self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      text=True, bufsize=1)
@@ -290,8 +322,8 @@ def main():
     ap.add_argument("--seconds", type=int, default=4)
     ap.add_argument("--rate-hz", type=int, default=100, help="host loop rate (the firmware always ticks at 1 kHz)")
     ap.add_argument("--plant-period-ms", type=int, default=None,
-                    help="at most one plant step (1 ms of physics) per this many ms (default: session/run 1000, "
-                         "bench 1)")
+                    help="at most one plant step (1 ms of physics) per this many ms (default: session/run "
+                         "glove5 16, sea_finger 1, pantograph 8; bench 1)")
     ap.add_argument("--shift", type=int, default=None,
                     help="-icount shift (2^shift ns per instruction); bench default 2, run default real time")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
@@ -302,7 +334,7 @@ def main():
         args.elf = app_elf(args.app)
     args.plant_period_ms_given = args.plant_period_ms is not None
     if args.plant_period_ms is None:
-        args.plant_period_ms = 1000
+        args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
     return {"session": session, "bench": bench, "run": run}[args.mode](args)
