@@ -32,8 +32,14 @@ APPS = ("glove5", "sea_finger", "pantograph")
 SESSION_PLANT_PERIOD_MS = {"glove5": 16, "sea_finger": 1, "pantograph": 8}
 
 
-def app_elf(app):
-    return os.path.join(ROOT, "build", "mcu-mps2-an386", f"phalanx-mps2_an386-{app}.elf")
+# Emulated boards: QEMU machine -> (build directory, image name prefix). Both take the link UART as the first
+# -serial and the debug console as the second (docs/firmware-mcu.md "Emulated boards").
+BOARDS = {"mps2-an386": ("mcu-mps2-an386", "phalanx-mps2_an386"), "ast1030-evb": ("mcu-ast1030", "phalanx-ast1030")}
+
+
+def app_elf(app, board="mps2-an386"):
+    build, prefix = BOARDS[board]
+    return os.path.join(ROOT, "build", build, f"{prefix}-{app}.elf")
 BIN = os.path.join(ROOT, "build", "host", "bin")
 
 
@@ -68,10 +74,10 @@ def realtime_prefix():
 class Board:
     """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
 
-    def __init__(self, elf, seconds=0, icount=None, extra=()):
+    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386"):
         # UART0 (the protocol link) on a pty, UART1 (debug console) on stdout; semihosting only for the
         # command line and the exit status.
-        args = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none",
+        args = ["qemu-system-arm", "-M", machine, "-nographic", "-monitor", "none",
                 "-serial", "pty", "-serial", "stdio"]
         sh = ["enable=on", "target=native", "arg=fw", f"arg=seconds={seconds}"] + [f"arg={e}" for e in extra]
         if icount is not None:
@@ -170,7 +176,8 @@ def parse_kv(line):
 
 def session(args):
     c = Checks()
-    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra)
+    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra,
+                  machine=args.board)
     try:
         print(f"board up: pty={board.pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
         c.check(board.pty is not None, "QEMU exposed the protocol link as a pty")
@@ -240,7 +247,7 @@ def session(args):
 def bench(args):
     plant_period_ms = args.plant_period_ms if args.plant_period_ms_given else 1
     board = Board(args.elf, seconds=args.seconds + 3, icount=args.shift,
-                  extra=[f"plant_period_ms={plant_period_ms}"] + args.extra)
+                  extra=[f"plant_period_ms={plant_period_ms}"] + args.extra, machine=args.board)
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
@@ -301,7 +308,8 @@ def bench(args):
 def run(args):
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     board = Board(args.elf, seconds=0, icount=args.shift,
-                  extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra)
+                  extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra,
+                  machine=args.board)
     print(f"PTY {board.pty}", flush=True)
     try:
         while board.proc.poll() is None:
@@ -318,7 +326,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", choices=["session", "bench", "run"])
     ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
-    ap.add_argument("--elf", default=None, help="image (default: build/mcu-mps2-an386/phalanx-mps2_an386-<app>.elf)")
+    ap.add_argument("--board", default="mps2-an386", choices=sorted(BOARDS),
+                    help="emulated board (QEMU machine): mps2-an386 (CMSDK UART, host 100 Hz) or ast1030-evb "
+                         "(16550 UART with FIFO: carries a 1 kHz host loop)")
+    ap.add_argument("--elf", default=None, help="image (default: the board's build directory, <app> image)")
     ap.add_argument("--seconds", type=int, default=4)
     ap.add_argument("--rate-hz", type=int, default=100, help="host loop rate (the firmware always ticks at 1 kHz)")
     ap.add_argument("--plant-period-ms", type=int, default=None,
@@ -331,7 +342,7 @@ def main():
     ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
     args = ap.parse_args()
     if args.elf is None:
-        args.elf = app_elf(args.app)
+        args.elf = app_elf(args.app, args.board)
     args.plant_period_ms_given = args.plant_period_ms is not None
     if args.plant_period_ms is None:
         args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
