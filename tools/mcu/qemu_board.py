@@ -144,9 +144,16 @@ class Board:
 COMMAND_TIMEOUT_MS = 200
 
 
+HOST_REALTIME = False  # --host-realtime: the host tools in their own real-time mode (SCHED_FIFO 80, mlockall)
+
+
+def host_rt_args():
+    return [] if HOST_REALTIME else ["--no-realtime"]
+
+
 def run_phalanx(pty, seconds, rate_hz, timeout_s, command_timeout_ms=COMMAND_TIMEOUT_MS):
     cmd = [os.path.join(BIN, "phalanx"), "run", "--device", f"serial:{pty}", "--seconds", str(seconds),
-           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json", "--no-realtime"]
+           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json"] + host_rt_args()
     r = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout_s)
     try:
         summary = json.loads(r.stdout) if r.stdout.strip() else {}
@@ -207,8 +214,8 @@ def session(args):
         if args.kill_test:
             start_mark = board.line_count()
             daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
-                                       "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS),
-                                       "--no-realtime"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS)]
+                                      + host_rt_args(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True)
             # Kill only once the device reports its power stage driven by this daemon's commands, and after a
             # while of steady commanding.
@@ -339,11 +346,16 @@ def main():
                     help="-icount shift (2^shift ns per instruction); bench default 2, run default real time")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
     ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")
+    ap.add_argument("--host-realtime", action="store_true",
+                    help="run phalanx/phalanxd in their real-time mode (SCHED_FIFO 80 + mlockall) instead of "
+                         "--no-realtime; needed for a 1 kHz host loop on a loaded machine")
     ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
     args = ap.parse_args()
     if args.elf is None:
         args.elf = app_elf(args.app, args.board)
     args.plant_period_ms_given = args.plant_period_ms is not None
+    global HOST_REALTIME
+    HOST_REALTIME = args.host_realtime
     if args.plant_period_ms is None:
         args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
