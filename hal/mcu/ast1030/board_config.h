@@ -13,6 +13,7 @@ using DebugConsole = ast1030::Uart16550Console;
 /// QEMU 7.2 with a 3 s run: 1.00 firmware ms per wall ms (docs/firmware-mcu.md).
 constexpr uint32_t kSysclkHz = 200000000u;
 constexpr const char* kBoardName = "ast1030-evb";
+constexpr const char* kLinkName = "uart5";
 constexpr uint32_t kLinkBase = ast1030::kUart5Base;
 constexpr uint32_t kConsoleBase = ast1030::kUart1Base;
 /// UART5 = IRQ 8 (QEMU aspeed_soc_ast1030_irqmap); handler LinkUart_Handler (startup.cpp).

@@ -13,6 +13,7 @@ using LinkUart = mps2::CmsdkUartLink;
 using mps2::DebugConsole;
 using mps2::kSysclkHz;
 constexpr const char* kBoardName = "mps2-an386";
+constexpr const char* kLinkName = "uart0";
 constexpr uint32_t kLinkBase = mps2::kUart0Base;
 constexpr uint32_t kConsoleBase = mps2::kUart1Base;
 /// UART0 RX = IRQ 0, TX = IRQ 1 (QEMU hw/arm/mps2.c); handlers Uart0Rx_Handler / Uart0Tx_Handler (startup.cpp).

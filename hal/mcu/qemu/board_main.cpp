@@ -6,11 +6,12 @@
 // Interrupt priorities: SysTick (the control tick, measured) > link UART > PendSV (the simulated plant).
 // The tick reads the sensor image the plant last wrote; the plant integrates in PendSV, one millisecond of
 // physics per step, as fast as the CPU allows up to real time (plant_time ≤ firmware_time). The plant is double
-// precision, which the M4F computes in software (about 120k–250k instructions per simulated millisecond,
-// measured below), so under QEMU's real-time emulation it typically runs slower than real time: the hand moves
-// in slow motion while the firmware and its link keep a true 1 kHz. STATS reports the plant's real-time factor.
+// precision, which the M4F computes in software (0.1 M (SEA) to 3.7 M (glove) instructions per simulated
+// millisecond, docs/firmware-mcu.md), so the glove and pen plants run slower than real time: the hand moves in slow
+// motion while the firmware and its link keep a true 1 kHz. STATS reports plant_ms and plant_steps.
 // The tick's duration is measured with SysTick deltas: under `qemu -icount shift=N` each instruction takes 2^N ns
-// of virtual time and SysTick counts 25 MHz, so a delta of c counts is c·40/2^N instructions, deterministically.
+// of virtual time and SysTick counts kSysclkHz, so a delta of c counts is c·kNsPerCount/2^N instructions,
+// deterministically (mps2-an386: 25 MHz, 40 ns per count; the cycle benches run there).
 // Results go to the debug console (UART1) and are readable with ParamGet 0x0080.. (phalanx/fw_mcu/board_diag.h).
 //
 // Options, from the semihosting command line (qemu -semihosting-config enable=on,arg=fw,arg=seconds=5,...):
@@ -38,7 +39,7 @@ namespace {
 
 using namespace phalanx;
 using namespace phalanx::mcu;
-using namespace phalanx::mcu::mps2;   // the simulated plant (sim_devices.h) and semihosting (cmsdk.h)
+using namespace phalanx::mcu::mps2;   // the simulated plant (sim_devices.h) and semihosting (semihosting.h)
 using namespace phalanx::mcu::board;  // this board's link UART, console and clock (board_config.h)
 
 constexpr uint32_t kTickHz = 1000;
@@ -362,7 +363,7 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   g_core.emplace(board.board(), diag_app, cfg);
 
   g_console.str("BOOT phalanx-mcu board=").str(kBoardName).str(" app=").str(fw_mcu::kAppName)
-      .str(" link=uart0")
+      .str(" link=").str(kLinkName)
       .str(" tick_hz=").u32(kTickHz)
       .str(" ns_per_insn=").u32(g_ns_per_insn)
       .str(" calibration_counts=").u32(g_calibration_counts)

@@ -65,12 +65,15 @@ void conU32(uint32_t v) {
 }
 }  // namespace
 
+#ifndef TXLOAD
+#define TXLOAD 0
+#endif
+constexpr int kTxLoad = TXLOAD;  // bytes sent per 1 ms tick (the firmware's telemetry frame: 70)
+
 extern "C" uint32_t __stack_top__;
 extern "C" void SysTick_Handler() {
   g_ms = g_ms + 1u;
-#ifdef TXLOAD
-  for (int i = 0; i < TXLOAD && txReady(); ++i) { tx(0x55); g_tx = g_tx + 1u; }
-#endif
+  for (int i = 0; i < kTxLoad && txReady(); ++i) { tx(0x55); g_tx = g_tx + 1u; }
   if (g_ms % 500u == 0) {
     conStr("T "); conU32(g_ms); conStr(" "); conU32(g_rx); conStr(" "); conU32(g_tx); conStr("\n");
   }

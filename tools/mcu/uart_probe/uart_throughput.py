@@ -43,7 +43,7 @@ def build(board, txload, trig=None):
                 "LENGTH = 64K }\nSECTIONS {\n  .text : { KEEP(*(.vectors)) *(.text*) *(.rodata*) } > CODE\n"
                 "  .bss (NOLOAD) : { *(.bss*) *(COMMON) . = ALIGN(8); . += 4096; __stack_top__ = .; } > DATA\n}\n")
     elf = os.path.join(OUT, name + ".elf")
-    defs = [f"-D{board}=1"] + ([f"-DTXLOAD={txload}"] if txload else []) + \
+    defs = [f"-D{board}=1", f"-DTXLOAD={txload}"] + \
            ([f"-DFCRTRIG={trig}u"] if trig is not None else [])
     subprocess.run(["arm-none-eabi-g++"] + CFLAGS + defs + ["-T", ld, os.path.join(HERE, "probe.cpp"), "-o", elf],
                    check=True)
@@ -120,8 +120,8 @@ def main():
         if a.only and machine != a.only:
             continue
         r = measure(machine, elf, backend, a.seconds, extra)
-        setting = {"BOARD_MPS2": "CMSDK, 1-byte RX", "BOARD_STM32": "STM32 USART, 1-byte DR"}.get(
-            board, f"16550 FIFO trigger {(1, 4, 8, 14)[trig]}") + (" icount2" if extra else "")
+        setting = ({"BOARD_MPS2": "CMSDK, 1-byte RX", "BOARD_STM32": "STM32 USART, 1-byte DR"}[board]
+                   if trig is None else f"16550 FIFO trigger {(1, 4, 8, 14)[trig]}") + (" icount2" if extra else "")
         if r is None:
             print(f"{machine:14s} {backend:7s} {setting:22s} no result")
             continue
