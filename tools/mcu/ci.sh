@@ -8,18 +8,26 @@ start=$(date +%s)
 tools/mcu/install-toolchain.sh
 tools/mcu/build.sh
 
-# Session test per app: handshake, 4 s session, phalanxd killed → safe within two ticks, latched fault read back.
-# The glove and pen plants run in slow motion here (one simulated ms per wall second, plant_period_ms=1000: they
-# cannot keep real time in emulation). The SEA plant can, and must: against a frozen plant its torque loop stalls
-# the motors until current-limit trips (a correct fault, seen in CI with the slow-motion plant).
-# KNOWN ISSUE (docs/firmware-mcu.md, "Session tests"): with the slow-motion glove and pen plants the emulated
-# UART has built a ~1 s command backlog on this machine even when it was idle (glove5: 4 of 4 runs at 00:00,
-# after passing 18/18 at 23:38), so the second daemon's handshake times out. Until that is understood these two
-# session tests are reported but do not gate; the SEA session and every cycle gate below still do.
+# Session test per app (mps2-an386, host 100 Hz): handshake, 4 s session, phalanxd killed -> safe within two ticks,
+# latched fault read back.
+# Gating for every app. QEMU runs under SCHED_FIFO (qemu_board.py; docs/firmware-mcu.md "Real-time scheduling of
+# the emulator"): without it, on this shared 2-core machine, the emulated board lost ticks and queued received bytes
+# (the flaky glove5/pantograph sessions). The plant steps at most every --plant-period-ms, as in the cycle benches:
+# the glove (3.7 M instructions per simulated ms) and pen (1.9 M) plants cannot keep real time and are capped near
+# the rate they reach; the SEA plant (0.1 M) runs every ms. Their sensor image is held between steps, so the period
+# must stay far below the firmware's fault-persistence windows (glove current limit: 200 ticks over 2.5 A): with the
+# earlier 1000 ms hold, one transient current sample stays on the ADC for 1000 ticks (current-limit latched in an
+# earlier CI run; not reproduced in this session's runs).
+tools/mcu/session-test.sh --app glove5 --seconds 4 --plant-period-ms 16
 tools/mcu/session-test.sh --app sea_finger --seconds 4 --plant-period-ms 1
-for app in glove5 pantograph; do
-  tools/mcu/session-test.sh --app "$app" --seconds 4 ||
-    echo "WARNING: QEMU session test for $app failed (known issue, not gating: see docs/firmware-mcu.md)"
+tools/mcu/session-test.sh --app pantograph --seconds 4 --plant-period-ms 8
+# The 1 kHz host session (issue 6): the same firmware on QEMU's ast1030-evb (Cortex-M4F), whose 16550 UART model
+# fills its receive FIFO without a guest round trip per byte (mps2-an386's CMSDK UART carries ~15 kB/s, a 1 kHz
+# command stream needs 61 kB/s; docs/firmware-mcu.md "The emulated UART's throughput"). The host tools run in
+# their own real-time mode here: a best-effort 1 kHz loop on this loaded machine stalled past its 200 ms command
+# deadline.
+for app in glove5 sea_finger pantograph; do
+  tools/mcu/session-test.sh --board ast1030-evb --app "$app" --seconds 4 --rate-hz 1000 --host-realtime
 done
 
 # Cycle gates: worst-case control tick in instructions (qemu -icount shift=2, host 100 Hz, 3 s session). A gate is

@@ -11,9 +11,9 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
   qemu_board.py run       -- start the board and print the pty path (for manual use with phalanxd).
 
 The protocol link is the CMSDK UART0 exposed with `-serial pty`; the debug console (UART1) is QEMU's stdout.
-QEMU's UART model carries about 12 kB/s host → device while 1 kHz telemetry flows back (docs/firmware-mcu.md),
-so the host loop runs at 100 Hz (the daemon's minimum) here while the firmware ticks and sends
-telemetry at 1 kHz.
+QEMU's CMSDK UART model takes one received byte per guest read (docs/firmware-mcu.md: about 25-30 kB/s), so the
+host loop runs at 100 Hz (the daemon's minimum) here while the firmware ticks and sends telemetry at 1 kHz. QEMU
+runs under SCHED_FIFO when permitted (realtime_prefix below).
 """
 import argparse
 import json
@@ -27,20 +27,57 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 APPS = ("glove5", "sea_finger", "pantograph")
+# Default plant period of session/run (ms between plant steps, docs/firmware-mcu.md "The simulated plant on the
+# emulated board"): the glove and pen plants capped near the rate they reach, the SEA plant every millisecond.
+SESSION_PLANT_PERIOD_MS = {"glove5": 16, "sea_finger": 1, "pantograph": 8}
 
 
-def app_elf(app):
-    return os.path.join(ROOT, "build", "mcu-mps2-an386", f"phalanx-mps2_an386-{app}.elf")
+# Emulated boards: QEMU machine -> (build directory, image name prefix). Both take the link UART as the first
+# -serial and the debug console as the second (docs/firmware-mcu.md "Emulated boards").
+BOARDS = {"mps2-an386": ("mcu-mps2-an386", "phalanx-mps2_an386"), "ast1030-evb": ("mcu-ast1030", "phalanx-ast1030")}
+
+
+def app_elf(app, board="mps2-an386"):
+    build, prefix = BOARDS[board]
+    return os.path.join(ROOT, "build", build, f"{prefix}-{app}.elf")
 BIN = os.path.join(ROOT, "build", "host", "bin")
+
+
+# QEMU emulates a 1 kHz real-time device: its main-loop thread (timers, UART bytes) and its vCPU thread wake each
+# other thousands of times a second, and each wake-up must come within a fraction of a millisecond. Under the
+# default scheduler on a loaded 2-core machine (load 10-12 from other builds and VMs) a wake-up waits milliseconds
+# for a time slice: SysTick expiries coalesce (the firmware's clock ran at 0.5x wall time) and received bytes queue
+# in the pty (command round trip 0.5-2 s). So QEMU runs under SCHED_FIFO (docs/firmware-mcu.md, "Real-time
+# scheduling of the emulator"; nice -15 did not help). PHALANX_QEMU_RT_PRIORITY=0 turns it off.
+RT_PRIORITY = int(os.environ.get("PHALANX_QEMU_RT_PRIORITY", "10"))
+_rt_prefix = None
+
+
+def realtime_prefix():
+    """`chrt -f N` if this process may use SCHED_FIFO (root or CAP_SYS_NICE), else nothing (with a warning)."""
+    global _rt_prefix
+    if _rt_prefix is None:
+        _rt_prefix = []
+        if RT_PRIORITY > 0:
+            try:
+                ok = subprocess.run(["chrt", "-f", str(RT_PRIORITY), "true"], capture_output=True).returncode == 0
+            except FileNotFoundError:
+                ok = False
+            if ok:
+                _rt_prefix = ["chrt", "-f", str(RT_PRIORITY)]
+            else:
+                print(f"WARNING: cannot run QEMU under SCHED_FIFO {RT_PRIORITY} (needs CAP_SYS_NICE): the emulated "
+                      "board keeps real time only on a lightly loaded machine", file=sys.stderr)
+    return _rt_prefix
 
 
 class Board:
     """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
 
-    def __init__(self, elf, seconds=0, icount=None, extra=()):
+    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386"):
         # UART0 (the protocol link) on a pty, UART1 (debug console) on stdout; semihosting only for the
         # command line and the exit status.
-        args = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none",
+        args = ["qemu-system-arm", "-M", machine, "-nographic", "-monitor", "none",
                 "-serial", "pty", "-serial", "stdio"]
         sh = ["enable=on", "target=native", "arg=fw", f"arg=seconds={seconds}"] + [f"arg={e}" for e in extra]
         if icount is not None:
@@ -48,6 +85,7 @@ class Board:
             sh.append(f"arg=icount_shift={icount}")
         args += ["-semihosting-config", ",".join(sh)]
         args += ["-kernel", elf]
+        args = realtime_prefix() + args
         self.cmd = args
         self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      text=True, bufsize=1)
@@ -106,9 +144,16 @@ class Board:
 COMMAND_TIMEOUT_MS = 200
 
 
+HOST_REALTIME = False  # --host-realtime: the host tools in their own real-time mode (SCHED_FIFO 80, mlockall)
+
+
+def host_rt_args():
+    return [] if HOST_REALTIME else ["--no-realtime"]
+
+
 def run_phalanx(pty, seconds, rate_hz, timeout_s, command_timeout_ms=COMMAND_TIMEOUT_MS):
     cmd = [os.path.join(BIN, "phalanx"), "run", "--device", f"serial:{pty}", "--seconds", str(seconds),
-           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json", "--no-realtime"]
+           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json"] + host_rt_args()
     r = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout_s)
     try:
         summary = json.loads(r.stdout) if r.stdout.strip() else {}
@@ -138,7 +183,8 @@ def parse_kv(line):
 
 def session(args):
     c = Checks()
-    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra)
+    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra,
+                  machine=args.board)
     try:
         print(f"board up: pty={board.pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
         c.check(board.pty is not None, "QEMU exposed the protocol link as a pty")
@@ -168,8 +214,8 @@ def session(args):
         if args.kill_test:
             start_mark = board.line_count()
             daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
-                                       "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS),
-                                       "--no-realtime"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS)]
+                                      + host_rt_args(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True)
             # Kill only once the device reports its power stage driven by this daemon's commands, and after a
             # while of steady commanding.
@@ -205,10 +251,17 @@ def session(args):
     return 0 if c.failed == 0 else 1
 
 
+DIAG_MARGIN_S = 6
+
+
 def bench(args):
     plant_period_ms = args.plant_period_ms if args.plant_period_ms_given else 1
-    board = Board(args.elf, seconds=args.seconds + 3, icount=args.shift,
-                  extra=[f"plant_period_ms={plant_period_ms}"] + args.extra)
+    # The firmware stops (STATS line) DIAG_MARGIN_S after the host session's length: the protocol read below must
+    # get its own handshake in before that. 3 s was not always enough (CI, load 12: the session ran 3.8 s of device
+    # time for 3 s, and QEMU 7.2's pty backend, as we read char-pty.c, re-checks for a client about once a second
+    # after the previous one closed).
+    board = Board(args.elf, seconds=args.seconds + DIAG_MARGIN_S, icount=args.shift,
+                  extra=[f"plant_period_ms={plant_period_ms}"] + args.extra, machine=args.board)
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
         rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
@@ -269,7 +322,8 @@ def bench(args):
 def run(args):
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     board = Board(args.elf, seconds=0, icount=args.shift,
-                  extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra)
+                  extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra,
+                  machine=args.board)
     print(f"PTY {board.pty}", flush=True)
     try:
         while board.proc.poll() is None:
@@ -286,23 +340,31 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mode", choices=["session", "bench", "run"])
     ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
-    ap.add_argument("--elf", default=None, help="image (default: build/mcu-mps2-an386/phalanx-mps2_an386-<app>.elf)")
+    ap.add_argument("--board", default="mps2-an386", choices=sorted(BOARDS),
+                    help="emulated board (QEMU machine): mps2-an386 (CMSDK UART, host 100 Hz) or ast1030-evb "
+                         "(16550 UART with FIFO: carries a 1 kHz host loop)")
+    ap.add_argument("--elf", default=None, help="image (default: the board's build directory, <app> image)")
     ap.add_argument("--seconds", type=int, default=4)
     ap.add_argument("--rate-hz", type=int, default=100, help="host loop rate (the firmware always ticks at 1 kHz)")
     ap.add_argument("--plant-period-ms", type=int, default=None,
-                    help="at most one plant step (1 ms of physics) per this many ms (default: session/run 1000, "
-                         "bench 1)")
+                    help="at most one plant step (1 ms of physics) per this many ms (default: session/run "
+                         "glove5 16, sea_finger 1, pantograph 8; bench 1)")
     ap.add_argument("--shift", type=int, default=None,
                     help="-icount shift (2^shift ns per instruction); bench default 2, run default real time")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
     ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")
+    ap.add_argument("--host-realtime", action="store_true",
+                    help="run phalanx/phalanxd in their real-time mode (SCHED_FIFO 80 + mlockall) instead of "
+                         "--no-realtime; needed for a 1 kHz host loop on a loaded machine")
     ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
     args = ap.parse_args()
     if args.elf is None:
-        args.elf = app_elf(args.app)
+        args.elf = app_elf(args.app, args.board)
     args.plant_period_ms_given = args.plant_period_ms is not None
+    global HOST_REALTIME
+    HOST_REALTIME = args.host_realtime
     if args.plant_period_ms is None:
-        args.plant_period_ms = 1000
+        args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
     return {"session": session, "bench": bench, "run": run}[args.mode](args)

@@ -33,19 +33,4 @@ inline volatile uint32_t& uart(uint32_t base, uint32_t offset) {
   return *reinterpret_cast<volatile uint32_t*>(base + offset);
 }
 
-// ARM semihosting (ARM DUI 0471 "Semihosting operations"), trapped by QEMU with -semihosting-config.
-constexpr uint32_t kSysWriteC = 0x03;
-constexpr uint32_t kSysReadC = 0x07;
-constexpr uint32_t kSysGetCmdline = 0x15;
-constexpr uint32_t kSysExit = 0x18;
-constexpr uint32_t kAdpStoppedApplicationExit = 0x20026;  ///< QEMU exits with status 0
-constexpr uint32_t kAdpStoppedRunTimeError = 0x20023;     ///< QEMU exits with status 1
-
-inline int32_t semihost(uint32_t op, const void* arg) {
-  register uint32_t r0 __asm("r0") = op;
-  register const void* r1 __asm("r1") = arg;
-  __asm volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
-  return static_cast<int32_t>(r0);
-}
-
 }  // namespace phalanx::mcu::mps2

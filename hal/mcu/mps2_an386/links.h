@@ -59,7 +59,4 @@ class DebugConsole {
   uint32_t base_ = 0;
 };
 
-/// Milliseconds since the tick started (written by the SysTick handler).
-uint32_t millis();
-
 }  // namespace phalanx::mcu::mps2

@@ -1,15 +1,17 @@
-// Phalanx firmware on the emulated Cortex-M4F board (QEMU mps2-an386): the firmware core and the device app
-// built for the MCU, with the device's simulated plant linked in as the source of sensor values, ticking at
-// 1 kHz from SysTick and talking to the host over CMSDK UART0 (links.h).
+// Phalanx firmware on an emulated Cortex-M4F board (QEMU mps2-an386 or ast1030-evb, chosen by the board directory's
+// board_config.h): the firmware core and the device app built for the MCU, with the device's simulated plant
+// linked in as the source of sensor values, ticking at 1 kHz from SysTick and talking to the host over the board's
+// link UART (mps2-an386: CMSDK UART0; ast1030-evb: 16550 UART5 with its FIFO).
 //
-// Interrupt priorities: SysTick (the control tick, measured) > UART0 RX/TX > PendSV (the simulated plant).
+// Interrupt priorities: SysTick (the control tick, measured) > link UART > PendSV (the simulated plant).
 // The tick reads the sensor image the plant last wrote; the plant integrates in PendSV, one millisecond of
 // physics per step, as fast as the CPU allows up to real time (plant_time ≤ firmware_time). The plant is double
-// precision, which the M4F computes in software (about 120k–250k instructions per simulated millisecond,
-// measured below), so under QEMU's real-time emulation it typically runs slower than real time: the hand moves
-// in slow motion while the firmware and its link keep a true 1 kHz. STATS reports the plant's real-time factor.
+// precision, which the M4F computes in software (0.1 M (SEA) to 3.7 M (glove) instructions per simulated
+// millisecond, docs/firmware-mcu.md), so the glove and pen plants run slower than real time: the hand moves in slow
+// motion while the firmware and its link keep a true 1 kHz. STATS reports plant_ms and plant_steps.
 // The tick's duration is measured with SysTick deltas: under `qemu -icount shift=N` each instruction takes 2^N ns
-// of virtual time and SysTick counts 25 MHz, so a delta of c counts is c·40/2^N instructions, deterministically.
+// of virtual time and SysTick counts kSysclkHz, so a delta of c counts is c·kNsPerCount/2^N instructions,
+// deterministically (mps2-an386: 25 MHz, 40 ns per count; the cycle benches run there).
 // Results go to the debug console (UART1) and are readable with ParamGet 0x0080.. (phalanx/fw_mcu/board_diag.h).
 //
 // Options, from the semihosting command line (qemu -semihosting-config enable=on,arg=fw,arg=seconds=5,...):
@@ -19,8 +21,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "cmsdk.h"
-#include "links.h"
+#include "board_config.h"
+#include "semihosting.h"
 #include "phalanx/fw/core.h"
 #include "phalanx/fw_mcu/app_registry.h"
 #include "phalanx/fw_mcu/board_diag.h"
@@ -37,11 +39,13 @@ namespace {
 
 using namespace phalanx;
 using namespace phalanx::mcu;
-using namespace phalanx::mcu::mps2;
+using namespace phalanx::mcu::mps2;   // the simulated plant (sim_devices.h) and semihosting (semihosting.h)
+using namespace phalanx::mcu::board;  // this board's link UART, console and clock (board_config.h)
 
 constexpr uint32_t kTickHz = 1000;
-constexpr uint32_t kReload = kSysclkHz / kTickHz - 1u;  // 24999
-constexpr uint32_t kNsPerCount = 1000000000u / kSysclkHz;  // 40
+constexpr uint32_t kReload = kSysclkHz / kTickHz - 1u;  // mps2-an386 24 999, ast1030-evb 199 999 (24-bit)
+constexpr uint32_t kNsPerCount = 1000000000u / kSysclkHz;  // mps2-an386 40, ast1030-evb 5
+static_assert(kReload <= 0x00FFFFFFu && 1000000000u % kSysclkHz == 0, "SysTick: 24-bit reload, whole ns per count");
 constexpr size_t kMaxRxBytesPerTick = protocol::kMaxEncodedFrame;
 constexpr uint8_t kPrioTick = 0x80;
 constexpr uint8_t kPrioUart = 0xC0;  // below the tick: never preempts it
@@ -63,8 +67,8 @@ using Stats = TickStats<2048, 16>;       // 16-instruction bins up to 32768 inst
 
 // Objects with a vtable are constructed at init (StaticObject) so that they live in .bss, not in .data (a .data
 // object costs its size twice: RAM and its initial image in flash).
-fw_mcu::StaticObject<CmsdkUartLink> g_uart_obj;
-CmsdkUartLink& uartLink() { return g_uart_obj.get(); }
+fw_mcu::StaticObject<LinkUart> g_uart_obj;
+LinkUart& uartLink() { return g_uart_obj.get(); }
 DebugConsole g_console;
 fw_mcu::StaticObject<sim::SimBoard> g_board;
 fw_mcu::StaticObject<fw_mcu::AppType> g_app;
@@ -306,14 +310,18 @@ extern "C" void SysTick_Handler() {
   static_cast<void>(csr);
   if (g_running) controlTick();
 }
+#if PHALANX_QEMU_LINK_CMSDK
 extern "C" void Uart0Rx_Handler() {
   if (g_uart_obj.constructed()) uartLink().onRxInterrupt();
 }
 extern "C" void Uart0Tx_Handler() {
   if (g_uart_obj.constructed()) uartLink().onTxInterrupt();
 }
-
-uint32_t phalanx::mcu::mps2::millis() { return g_ms; }
+#else
+extern "C" void LinkUart_Handler() {
+  if (g_uart_obj.constructed()) uartLink().onInterrupt();
+}
+#endif
 
 /// Faults: power stage off first, then say why, then stop the emulator with a failure status.
 extern "C" [[noreturn]] void phalanx_fatal(const char* why) {
@@ -322,7 +330,7 @@ extern "C" [[noreturn]] void phalanx_fatal(const char* why) {
     g_board.get().board().pwm->disableAll();
     g_board.get().board().gpio->setDriveEnable(false);
   }
-  g_console.init(kUart1Base);
+  g_console.init(kConsoleBase);
   g_console.str("FATAL ").str(why)
       .str(" cfsr=").u32(cm4::reg(cm4::kScbCfsr))
       .str(" hfsr=").u32(cm4::reg(cm4::kScbHfsr))
@@ -332,13 +340,13 @@ extern "C" [[noreturn]] void phalanx_fatal(const char* why) {
 }
 
 extern "C" [[noreturn]] void phalanx_board_main() {
-  g_console.init(kUart1Base);
+  g_console.init(kConsoleBase);
   g_opt = parseCommandLine();
   g_ns_per_insn = calibrateNsPerInstruction();
 
   g_diag_obj.emplace();
   g_uart_obj.emplace();
-  uartLink().init(kUart0Base, 115200u);
+  uartLink().init(kLinkBase, 115200u);
   fw_mcu::AppType& app = fw_mcu::constructApp(g_app);
   g_plant.emplace(plantConfig(g_opt.plant));
   sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, uartLink());
@@ -354,8 +362,8 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   cfg.max_rx_bytes_per_tick = static_cast<uint16_t>(kMaxRxBytesPerTick);
   g_core.emplace(board.board(), diag_app, cfg);
 
-  g_console.str("BOOT phalanx-mcu board=mps2-an386 app=").str(fw_mcu::kAppName)
-      .str(" link=uart0")
+  g_console.str("BOOT phalanx-mcu board=").str(kBoardName).str(" app=").str(fw_mcu::kAppName)
+      .str(" link=").str(kLinkName)
       .str(" tick_hz=").u32(kTickHz)
       .str(" ns_per_insn=").u32(g_ns_per_insn)
       .str(" calibration_counts=").u32(g_calibration_counts)
@@ -366,10 +374,10 @@ extern "C" [[noreturn]] void phalanx_board_main() {
 
   cm4::setSysTickPriority(kPrioTick);
   cm4::reg(cm4::kScbShpr3) = (cm4::reg(cm4::kScbShpr3) & 0xFF00FFFFu) | (static_cast<uint32_t>(kPrioPlant) << 16);
-  cm4::setIrqPriority(kUart0RxIrq, kPrioUart);
-  cm4::setIrqPriority(kUart0TxIrq, kPrioUart);
-  cm4::enableIrq(kUart0RxIrq);
-  cm4::enableIrq(kUart0TxIrq);
+  for (const uint32_t irq : kLinkIrqs) {
+    cm4::setIrqPriority(irq, kPrioUart);
+    cm4::enableIrq(irq);
+  }
   g_running = true;
   cm4::startSysTick(kReload);
   for (;;) cm4::waitForInterrupt();
@@ -378,7 +386,7 @@ extern "C" [[noreturn]] void phalanx_board_main() {
 /// Called instead of a C++ throw by the simulated plant (plant_no_throw.h); never expected with the image's
 /// fixed, valid plant configuration.
 extern "C" [[noreturn]] void phalanx_plant_throw(const char* file, int line) {
-  g_console.init(kUart1Base);
+  g_console.init(kConsoleBase);
   g_console.str("PLANT-THROW ").str(file).str(":").u32(static_cast<uint32_t>(line)).end();
   phalanx_fatal("simulated plant rejected its configuration");
 }
