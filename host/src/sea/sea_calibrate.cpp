@@ -18,15 +18,36 @@ namespace ps = phalanx::sea;
 
 namespace {
 
-/// y_k − y_m,k(P) (eq 12), wrapped to (−π, π].
+/// A chain that does not close at P (the least-squares fallback, eq 4) is impossible for the device that produced
+/// the recording: its closure error is a residual too, scaled so 0.1 mm weighs like one sensor σ (0.05°).
+constexpr double kClosureWeight = 0.05 * M_PI / 180.0 / 1e-4;  // rad per metre of closure error
+
+/// Sensitivity of the predicted redundant angle to the model's two measured inputs: the residual of a sample has
+/// variance σ²(1 + g1² + g6²) when θ1r, θ6r and θ7r carry the same sensor noise σ ("effective variance").
+double effectiveVarianceFactor(const SubjectParams& p, const FixedGeometry& fixed, const CalibrationSample& s) {
+  constexpr double h = 1e-5;
+  const double g1 = (ps::predictRedundant(p, fixed, s.theta1r_rad + h, s.theta6r_rad) -
+                     ps::predictRedundant(p, fixed, s.theta1r_rad - h, s.theta6r_rad)) / (2 * h);
+  const double g6 = (ps::predictRedundant(p, fixed, s.theta1r_rad, s.theta6r_rad + h) -
+                     ps::predictRedundant(p, fixed, s.theta1r_rad, s.theta6r_rad - h)) / (2 * h);
+  const double v = 1.0 + g1 * g1 + g6 * g6;
+  return std::isfinite(v) ? v : 1.0;
+}
+
+/// y_k − y_m,k(P) (eq 12), wrapped to (−π, π]; with `effective_variance` divided by the sample's effective
+/// standard deviation at P; plus the chain-closure residual.
 struct RedundantResidual {
   CalibrationSample s;
   FixedGeometry fixed;
+  bool effective_variance = false;
   bool operator()(const double* p, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
-    const double y_m = ps::predictRedundant(sp, fixed, s.theta1r_rad, s.theta6r_rad);
-    r[0] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
-    return std::isfinite(r[0]);
+    double closure_m = 0.0;
+    const double y_m = ps::predictRedundant(sp, fixed, s.theta1r_rad, s.theta6r_rad, &closure_m);
+    const double w = effective_variance ? 1.0 / std::sqrt(effectiveVarianceFactor(sp, fixed, s)) : 1.0;
+    r[0] = w * std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[1] = kClosureWeight * closure_m;
+    return std::isfinite(r[0]) && std::isfinite(r[1]);
   }
 };
 
@@ -67,20 +88,27 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
   }
-  // Centred moving average (window shrinks symmetrically at the ends, so no phase shift anywhere).
+  // Centred quadratic Savitzky–Golay smoothing (least-squares parabola over the window, evaluated at its centre):
+  // unlike a moving average it has no curvature bias (a 25-row average of a 38° sine at 0.8 Hz is 0.025° low at
+  // the turning points, which is itself a bias of eq 12's fit). Near the ends the window shrinks symmetrically.
   std::vector<CalibrationSample> smooth = all;
   if (opt.smooth_samples > 1) {
     const std::size_t half = static_cast<std::size_t>(opt.smooth_samples / 2);
     for (std::size_t i = 0; i < all.size(); ++i) {
       const std::size_t h = std::min({half, i, all.size() - 1 - i});
+      if (h < 2) continue;  // a parabola through ≤ 3 points is the data itself
+      // Weights of the quadratic SG filter for offset j ∈ [−h, h]: (3(3h²+3h−1) − 15 j²) / ((2h−1)(2h+1)(2h+3)).
+      const double m = static_cast<double>(h);
+      const double den = (2 * m - 1) * (2 * m + 1) * (2 * m + 3);
       CalibrationSample acc{0.0, 0.0, 0.0};
       for (std::size_t j = i - h; j <= i + h; ++j) {
-        acc.theta1r_rad += all[j].theta1r_rad;
-        acc.theta6r_rad += all[j].theta6r_rad;
-        acc.theta7r_rad += all[j].theta7r_rad;
+        const double d = static_cast<double>(j) - static_cast<double>(i);
+        const double w = (3.0 * (3 * m * m + 3 * m - 1) - 15.0 * d * d) / den;
+        acc.theta1r_rad += w * all[j].theta1r_rad;
+        acc.theta6r_rad += w * all[j].theta6r_rad;
+        acc.theta7r_rad += w * all[j].theta7r_rad;
       }
-      const double n = static_cast<double>(2 * h + 1);
-      smooth[i] = {acc.theta1r_rad / n, acc.theta6r_rad / n, acc.theta7r_rad / n};
+      smooth[i] = acc;
     }
   }
   std::vector<CalibrationSample> samples;
@@ -99,7 +127,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
 
   // Eq 12 from one redundant angle has local minima (docs/sea-model.md §Parameter estimation): a multistart.
   // Phase 1: P0 and `restarts` points of a Halton sequence over the box, each solved on a thinned subset
-  // (≈ 200 samples); phase 2: the best two refined on all samples.
+  // (≈ 200 samples); phase 2 (below): the best four refined on all samples.
   std::vector<std::array<double, ps::kNumSubjectParams>> starts{p0};
   static constexpr unsigned kPrimes[ps::kNumSubjectParams] = {2, 3, 5, 7, 11, 13, 17};
   for (int k = 1; k <= opt.restarts; ++k) {
@@ -119,21 +147,20 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   const std::size_t thin_stride = std::max<std::size_t>(1, samples.size() / 200);
   for (std::size_t i = 0; i < samples.size(); i += thin_stride) thin.push_back(samples[i]);
 
-  // Phase 1 uses forward differences (half the model evaluations; it only has to land in the right basin),
-  // phase 2 central differences.
+  // Phase 1 uses forward differences and no weights (it only has to land in the right basin), phase 2 central
+  // differences and effective-variance weights.
   auto solve = [&](const std::vector<CalibrationSample>& data, std::array<double, ps::kNumSubjectParams>& p,
                    int max_iterations, bool central, ceres::Solver::Summary& summary) {
     ceres::Problem problem;
     for (const CalibrationSample& s : data) {
+      auto* res = new RedundantResidual{s, opt.fixed, central};
       if (central) {
         problem.AddResidualBlock(
-            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::CENTRAL, 1, ps::kNumSubjectParams>(
-                new RedundantResidual{s, opt.fixed}),
+            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::CENTRAL, 2, ps::kNumSubjectParams>(res),
             nullptr, p.data());
       } else {
         problem.AddResidualBlock(
-            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 1, ps::kNumSubjectParams>(
-                new RedundantResidual{s, opt.fixed}),
+            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(res),
             nullptr, p.data());
       }
     }
@@ -161,15 +188,35 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   }
   std::sort(phase1.begin(), phase1.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
-  double best_cost = std::numeric_limits<double>::infinity();
+  // Phase 2: the best four refined on all samples, each residual divided by its effective standard deviation:
+  // the inputs θ1r, θ6r are as noisy as θ7r, and near some configurations the prediction amplifies their noise
+  // tenfold; unweighted, those samples bias the weak direction x_A, y_A, l_BC by millimetres. The weighted cost
+  // leaves out the log-variance term of the likelihood, so candidates are compared by the Gaussian negative
+  // log-likelihood with σ profiled out: n/2·log(Σ r_k²/v_k / n) + ½ Σ log v_k.
+  constexpr std::size_t kRefined = 4;
+  double best_nll = std::numeric_limits<double>::infinity();
   std::array<double, ps::kNumSubjectParams> best = p0;
   ceres::Solver::Summary best_summary;
-  for (std::size_t k = 0; k < std::min<std::size_t>(2, phase1.size()); ++k) {
+  for (std::size_t k = 0; k < std::min<std::size_t>(kRefined, phase1.size()); ++k) {
     std::array<double, ps::kNumSubjectParams> p = phase1[k].second;
     ceres::Solver::Summary summary;
     solve(samples, p, opt.max_iterations, true, summary);
-    if (summary.final_cost < best_cost) {
-      best_cost = summary.final_cost;
+    const SubjectParams sp = ps::fromArray(p);
+    double wss = 0.0;
+    double log_det = 0.0;
+    for (const CalibrationSample& s : samples) {
+      double r[2];
+      if (!RedundantResidual{s, opt.fixed, true}(p.data(), r)) {
+        wss = std::numeric_limits<double>::infinity();
+        break;
+      }
+      wss += r[0] * r[0] + r[1] * r[1];
+      log_det += std::log(effectiveVarianceFactor(sp, opt.fixed, s));
+    }
+    const double n = static_cast<double>(samples.size());
+    const double nll = 0.5 * n * std::log(std::max(wss / n, 1e-300)) + 0.5 * log_det;
+    if (nll < best_nll) {
+      best_nll = nll;
       best = p;
       best_summary = summary;
     }
