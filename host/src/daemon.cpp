@@ -156,6 +156,7 @@ struct StopRecord {
   StopCause cause = StopCause::kNone;
   uint64_t edge_ns = 0;   ///< kernel timestamp of the press edge (0: a lost line, no edge)
   uint64_t seen_ns = 0;   ///< the daemon read the e-stop (the edge reached the daemon)
+  uint64_t sent_ns = 0;   ///< the safe command was written to the link (same cycle)
   uint16_t seq_at_seen = 0;
   bool device_was_active = false;
   bool safe_confirmed = false;
@@ -510,6 +511,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   std::vector<StopRecord> stops;
   stops.reserve(kMaxStopRecords);
   bool awaiting_safe = false;
+  bool log_stop = false;
   bool last_pressed = false;
   if (have_safety_io) {
     safety.start(io.estop_open, linux_hal::monotonicNs());
@@ -568,8 +570,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
         r.device_was_active = (tel.state_flags & protocol::state::kOutputsActive) != 0;
         awaiting_safe = stops.size() < kMaxStopRecords;
         if (awaiting_safe) stops.push_back(r);
-        std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
-                     stopCauseName(safety.cause()), t_s);
+        log_stop = true;  // after the safe command is out: stderr may be a slow file or pipe
       }
       if (safety.estopPressed() != last_pressed) {
         last_pressed = safety.estopPressed();
@@ -609,7 +610,14 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                    linux_hal::canBusStateName(can.state()), t_s);
       can_state = can.state();
     }
-    if (!flushLink()) {
+    const bool flushed = flushLink();
+    if (awaiting_safe && stops.back().sent_ns == 0) stops.back().sent_ns = linux_hal::monotonicNs();
+    if (log_stop) {
+      log_stop = false;
+      std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
+                   stopCauseName(safety.cause()), t_s);
+    }
+    if (!flushed) {
       summary["link_error"] = linkError();
       break;
     }
@@ -701,6 +709,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
         nlohmann::json j = {{"cause", stopCauseName(r.cause)}, {"device_was_active", r.device_was_active},
                             {"safe_confirmed", r.safe_confirmed}};
         if (r.edge_ns != 0) j["edge_to_daemon_us"] = static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0;
+        if (r.sent_ns != 0) j["daemon_reaction_us"] = static_cast<double>(r.sent_ns - r.seen_ns) / 1000.0;
         if (r.safe_confirmed) {
           j["daemon_to_safe_telemetry_us"] = static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0;
           j["ticks_to_safe"] = r.ticks_to_safe;

@@ -17,7 +17,6 @@ SafetyIo::SafetyIo(linux_hal::EstopSource* estop, linux_hal::DigitalOutput* enab
     : estop_(estop), enable_(enable), cfg_(cfg) {}
 
 void SafetyIo::stop(StopCause cause, uint64_t edge_ns) {
-  if (cause == StopCause::kEstopPressed || cause == StopCause::kPressedAtStart) ++counters_.presses;
   if (stopped_) return;  // the first cause stays the reported one
   stopped_ = true;
   stop_began_ = true;
@@ -29,7 +28,7 @@ void SafetyIo::stop(StopCause cause, uint64_t edge_ns) {
 void SafetyIo::markLost() {
   line_ok_ = false;
   pressed_ = true;
-  released_since_ns_ = 0;
+  released_known_ = false;
   ++counters_.line_lost;
 }
 
@@ -68,10 +67,12 @@ void SafetyIo::start(bool estop_open, uint64_t now_ns) {
         markLost();
         stop(StopCause::kEstopLineLost, 0);
       } else if (s.active || s.press_seen) {
+        ++counters_.presses;
         pressed_ = true;
         stop(StopCause::kPressedAtStart, s.press_edge_ns);
       } else {
         pressed_ = false;
+        released_known_ = true;
         released_since_ns_ = now_ns;
       }
     }
@@ -99,14 +100,16 @@ bool SafetyIo::update(uint64_t now_ns) {
         stop(StopCause::kEstopLineLost, 0);
       } else {
         if (s.press_seen || s.active) {
+          if (s.press_seen || !pressed_) ++counters_.presses;  // each press edge, or a level first seen pressed
           pressed_ = true;
-          released_since_ns_ = 0;
+          released_known_ = false;
           stop(StopCause::kEstopPressed, s.press_edge_ns);
         }
         if (!s.active) {
-          if (pressed_ || released_since_ns_ == 0) {
+          if (pressed_ || !released_known_) {
             // Released: since the last release edge when the kernel saw one, else since now.
             released_since_ns_ = s.release_edge_ns != 0 ? s.release_edge_ns : now_ns;
+            released_known_ = true;
           }
           pressed_ = false;
         }
@@ -126,7 +129,7 @@ const char* SafetyIo::requestReset(uint64_t now_ns) {
     why = "the e-stop line is lost (counts as pressed)";
   } else if (estop_ != nullptr && pressed_) {
     why = "the e-stop is still pressed";
-  } else if (estop_ != nullptr && (released_since_ns_ == 0 || now_ns < released_since_ns_ ||
+  } else if (estop_ != nullptr && (!released_known_ || now_ns < released_since_ns_ ||
                                    now_ns - released_since_ns_ < cfg_.release_debounce_ns)) {
     why = "the e-stop was released less than the release debounce time ago";
   } else if (enable_ != nullptr && !enable_ok_) {

@@ -3,7 +3,7 @@
 
 Two gpio-sim chips: "phx-estop" (1 line: the e-stop input) and "phx-io" (line 0 drive enable, line 1 sync pulse
 output, line 2 an input joined to line 1 by gpio-sim's "wire" parameter - a jumper wire, docs/gpio.md).
-firmware-sim (glove5) on a pseudo-terminal, phalanxd on it with --estop/--enable/--sync. Checks:
+firmware-sim (glove5) on CAN-FD over vcan, phalanxd on it with --estop/--enable/--sync. Checks:
   - each e-stop press (gpio-sim pull-up on the e-stop line, a real edge event in the kernel): the daemon reports
     the device safe within two firmware ticks of the edge reaching it (telemetry sequence; every press found the
     device active), the enable line drops (read back from gpio-sim's sysfs value), a reset while pressed is
@@ -24,10 +24,16 @@ import sys
 import time
 
 BIN = "build/host/bin"
+IP = "/usr/sbin/ip"
+BUS = "vcan7"
 OUT = "build/vm/results"
 CFG = "/sys/kernel/config/gpio-sim"
 PRESSES = int(os.environ.get("PHALANX_VM_GPIO_PRESSES", "8"))
-SYNC_HZ = float(os.environ.get("PHALANX_VM_GPIO_SYNC_HZ", "480"))
+SYNC_HZ = float(os.environ.get("PHALANX_VM_GPIO_SYNC_HZ", "100"))
+# Loop and firmware tick rate. 1 kHz is the bench rate; under TCG on this loaded machine the VM keeps neither side at
+# 1 kHz (measured: about 150 Hz of 1000), and a device that falls behind its host queues commands, which the tick
+# count would charge to the e-stop path. The rate kept is printed; the tick criterion is rate-independent.
+RATE = int(os.environ.get("PHALANX_VM_GPIO_HZ", "200"))
 
 
 def fail(msg):
@@ -54,7 +60,7 @@ def wait_for(pred, timeout_s, what):
     deadline = time.monotonic() + timeout_s
     while not pred():
         check(time.monotonic() < deadline, "timed out after %.0f s waiting for %s" % (timeout_s, what))
-        time.sleep(0.01)
+        time.sleep(0.02)
 
 
 class SimChip:
@@ -107,18 +113,29 @@ def main():
     mon_path = "/tmp/gpiomon.txt"
     mon = subprocess.Popen(["stdbuf", "-oL", "gpiomon", "--rising-edge", "--format=%s %n", io.label, "2"],
                            stdout=open(mon_path, "w"), stderr=subprocess.STDOUT)
-    fw_log = open(os.path.join(OUT, "gpio.firmware.log"), "w+")
-    fw = subprocess.Popen(["chrt", "-f", "70", BIN + "/firmware-sim", "--device", "glove5", "--substeps", "2",
+    # Logs on the guest's tmpfs (copied to build/vm/results at the end): this script polls the daemon's log, and
+    # every read or write over 9p costs the emulated VM far more than the loop it is watching.
+    fw_log = open("/tmp/gpio.firmware.log", "w+")
+    # The simulated device above the daemon (SCHED_FIFO 85 > 80), as a separate MCU would be: a device starved by
+    # the emulator falls behind its host and queues commands in the pseudo-terminal (measured: 34 ticks/s of 200,
+    # round trips of seconds), and the tick count would then measure that queue, not the e-stop path.
+    # The link is CAN-FD over vcan (the bench transport): a pseudo-terminal moves data through a kworker
+    # (flush_to_ldisc), which the two SCHED_FIFO processes starve in the emulated VM - telemetry and commands then
+    # arrive milliseconds late (measured: up to 4 ticks), while vcan delivers in the sender's system call.
+    subprocess.run([IP, "link", "del", BUS], stderr=subprocess.DEVNULL)
+    for cmd in (["add", BUS, "type", "vcan"], ["set", BUS, "mtu", "72"], ["set", BUS, "up"]):
+        subprocess.run([IP, "link"] + cmd, check=True)
+    fw = subprocess.Popen(["chrt", "-f", "85", BIN + "/firmware-sim", "--can", BUS, "--node", "1", "--can-mode", "fd",
+                           "--tick-hz", str(RATE), "--device", "glove5", "--substeps", "2",
                            "--scenario", "grasp"], stdout=subprocess.PIPE, stderr=fw_log, text=True)
     line = fw.stdout.readline()
-    check(line.startswith("PTY "), "firmware-sim did not report its pty: %r" % line)
-    pty = line.split()[1]
-    d_log_path = os.path.join(OUT, "gpio.phalanxd.log")
+    check(line.startswith("CAN %s node 1 fd" % BUS), "firmware-sim did not report its CAN link: %r" % line)
+    d_log_path = "/tmp/gpio.phalanxd.log"
     d_log = open(d_log_path, "w")
-    # A 200 ms command timeout: under TCG the loop can stall for tens of ms, which would latch command-timeout in
+    # A 1 s command timeout: under TCG the loop can stall for hundreds of ms, which would latch command-timeout in
     # the device and leave it inactive (this test needs it active before each press).
-    d = subprocess.Popen(["chrt", "-f", "80", BIN + "/phalanxd", "--no-realtime", "--device", "serial:" + pty,
-                          "--mode", "transparent", "--command-timeout-ms", "200", "--json",
+    d = subprocess.Popen(["chrt", "-f", "80", BIN + "/phalanxd", "--rate-hz", str(RATE), "--no-realtime", "--device", "can:%s:1@fd" % BUS,
+                          "--mode", "transparent", "--command-timeout-ms", "1000", "--json",
                           "--estop", "%s:0" % estop.label, "--enable", "%s:0" % io.label,
                           "--sync", "%s:1@%g" % (io.label, SYNC_HZ), "--record", "/tmp/gpio-session.csv"],
                          stdout=subprocess.PIPE, stderr=d_log, text=True)
@@ -192,7 +209,6 @@ def main():
     fw.wait(timeout=10)
     fw_log.seek(0)
     fw_text = fw_log.read()
-    subprocess.run(["cp", mon_path, os.path.join(OUT, "gpio.gpiomon.txt")])
     try:
         s = json.loads(out)
     except ValueError:
@@ -211,8 +227,12 @@ def main():
     ticks = [r["ticks_to_safe"] for r in recs]
     e2d = [r["edge_to_daemon_us"] for r in recs if "edge_to_daemon_us" in r]
     d2s = [r["daemon_to_safe_telemetry_us"] for r in recs]
+    react = [r["daemon_reaction_us"] for r in recs]
+    print("estop: daemon reaction (e-stop read -> safe command written) us %s" % [round(x) for x in react], flush=True)
     print("estop: ticks to safe %s; edge->daemon us %s; daemon->safe telemetry us %s" % (
         ticks, [round(x) for x in e2d], [round(x) for x in d2s]), flush=True)
+    print("loop: %d cycles in %.1f s (%.0f Hz kept of %d), round trip p50 %.0f us" % (
+        s["cycles"], s["seconds"], s["cycles"] / s["seconds"], RATE, s["round_trip"]["p50_us"]), flush=True)
     check(max(ticks) <= 2, "safe state later than two firmware ticks after the edge reached the daemon: %s" % ticks)
     check(e["resets"] == PRESSES + 1 and e["resets_refused"] >= 2 and e["reopened"] >= 1, "reset counters %s" % e)
     n_fw_safe = fw_text.count("firmware-sim: SAFE")
@@ -243,9 +263,9 @@ def main():
     check(stamps[-1] - stamps[0] > 0.8 * sync_window_s, "gpiomon saw pulses for only %.1f s of %.1f s" % (
         stamps[-1] - stamps[0], sync_window_s))
     print("RESULT gpio-estop: %d presses + 1 lost line: device safe in %s firmware ticks after the edge reached the "
-          "daemon (max %d); edge->daemon p50 %.0f us max %.0f us; daemon->safe telemetry p50 %.0f us max %.0f us; "
+          "daemon (max %d); edge->daemon p50 %.0f us max %.0f us; daemon reaction p50 %.0f us max %.0f us; daemon->safe telemetry p50 %.0f us max %.0f us; "
           "enable dropped each time (read back), reset required and refused while pressed/lost" % (
-              PRESSES, "/".join(str(t) for t in ticks), max(ticks), pct(e2d, 0.5), max(e2d), pct(d2s, 0.5), max(d2s)),
+              PRESSES, "/".join(str(t) for t in ticks), max(ticks), pct(e2d, 0.5), max(e2d), pct(react, 0.5), max(react), pct(d2s, 0.5), max(d2s)),
           flush=True)
     print("RESULT gpio-sync: gpiomon %d pulses at %.3f Hz (configured %g Hz, %+.3f %%), interval p50 %.0f us p99 %.0f us, "
           "0 missing; daemon count %d" % (len(stamps), rate, SYNC_HZ, 100.0 * (rate - SYNC_HZ) / SYNC_HZ,
@@ -255,4 +275,9 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    finally:
+        for f in ("/tmp/gpio.phalanxd.log", "/tmp/gpio.firmware.log", "/tmp/gpiomon.txt"):
+            if os.path.exists(f):
+                subprocess.run(["cp", f, OUT])

@@ -33,7 +33,7 @@ struct SafetyIoConfig {
 
 struct SafetyIoCounters {
   uint64_t stops = 0;
-  uint64_t presses = 0;          ///< stops and presses seen while already stopped
+  uint64_t presses = 0;          ///< press edges (and pressed levels not preceded by an edge), stopped or not
   uint64_t line_lost = 0;
   uint64_t enable_failures = 0;  ///< failed writes of the enable line
   uint64_t resets = 0;
@@ -81,7 +81,8 @@ class SafetyIo {
   StopCause cause_ = StopCause::kNone;
   bool line_ok_ = false;
   bool pressed_ = false;
-  uint64_t released_since_ns_ = 0;  ///< 0: not known to be released
+  bool released_known_ = false;     ///< the e-stop is known to be released, since released_since_ns_
+  uint64_t released_since_ns_ = 0;
   uint64_t stop_edge_ns_ = 0;
   uint64_t last_reopen_ns_ = 0;
   bool enable_level_ = false;
