@@ -569,7 +569,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
         r.seq_at_seen = tel.seq;
         r.device_was_active = (tel.state_flags & protocol::state::kOutputsActive) != 0;
         awaiting_safe = stops.size() < kMaxStopRecords;
-        if (awaiting_safe) stops.push_back(r);
+        if (awaiting_safe) {
+          stops.push_back(r);
+          session.watchForSafe(tel.seq);
+        }
         log_stop = true;  // after the safe command is out: stderr may be a slow file or pipe
       }
       if (safety.estopPressed() != last_pressed) {
@@ -578,12 +581,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                         safety.stopped() ? "still stopped: a reset is needed" : "running");
       }
     }
-    if (awaiting_safe && !stops.empty() && tel.seq != stops.back().seq_at_seen && tel.mode == protocol::Mode::kSafe &&
-        (tel.state_flags & protocol::state::kOutputsActive) == 0) {
+    if (awaiting_safe && session.safeSeen()) {
       StopRecord& r = stops.back();
       r.safe_confirmed = true;
-      r.safe_rx_ns = tel.host_rx_ns;
-      r.ticks_to_safe = static_cast<uint16_t>(tel.seq - r.seq_at_seen);
+      r.safe_rx_ns = session.safeRxNs();
+      r.ticks_to_safe = static_cast<uint16_t>(session.safeSeq() - r.seq_at_seen);
       awaiting_safe = false;
       std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
                    "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
