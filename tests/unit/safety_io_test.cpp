@@ -5,6 +5,7 @@
 
 #include <deque>
 
+#include "phalanx/host/config.h"
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/safety_io.h"
 #include "phalanx/linux/gpio.h"
@@ -295,4 +296,22 @@ TEST(GpioEstopInput, AChipThatCannotBeOpenedReadsAsLost) {
   phalanx::linux_hal::GpioOutput out;
   EXPECT_NE(out.open(l, "test"), "");
   EXPECT_FALSE(out.write(true));
+}
+
+TEST(GpioOptions, ConfigFileKeysAreReadAndValidated) {
+  phalanx::host::RunOptions o;
+  EXPECT_EQ(phalanx::host::loadConfigText("gpio:\n  estop: gpiochip0:1:active-low\n  enable: gpiochip0:2\n"
+                                          "  sync: gpiochip0:3@480\n  estop_release_ms: 50\n",
+                                          "test.yaml", o),
+            "");
+  EXPECT_EQ(o.gpio.estop, "gpiochip0:1:active-low");
+  EXPECT_EQ(o.gpio.enable, "gpiochip0:2");
+  EXPECT_EQ(o.gpio.sync, "gpiochip0:3@480");
+  EXPECT_EQ(o.gpio.estop_release_ms, 50.0);
+  phalanx::host::RunOptions p;
+  const std::string err = phalanx::host::loadConfigText("gpio:\n  sync: gpiochip0:3@2000\n", "test.yaml", p);
+  EXPECT_NE(err.find("gpio.sync"), std::string::npos) << err;
+  EXPECT_EQ(p.gpio.sync, "") << "nothing changes unless the whole file is valid";
+  EXPECT_NE(phalanx::host::loadConfigText("gpio:\n  reset: gpiochip0:4\n", "test.yaml", p).find("gpio.reset: unknown key"),
+            std::string::npos);
 }
