@@ -42,6 +42,13 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--seed", opt.seed, "simulation seed");
   app.add_option("--firmware-sim", opt.firmware_sim, "path of the firmware-sim executable");
+  app.add_option("--estop", opt.gpio.estop,
+                 "e-stop input CHIP:LINE[:active-low] (a press, a lost line or a read error stops the daemon until a reset)");
+  app.add_option("--enable", opt.gpio.enable, "drive-enable output CHIP:LINE[:active-low] (dropped on an e-stop)");
+  app.add_option("--sync", opt.gpio.sync, "motion-capture sync pulse output CHIP:LINE@HZ (e.g. gpiochip0:2@480)");
+  app.add_option("--estop-release-ms", opt.gpio.estop_release_ms,
+                 "the e-stop must stay released this long before a reset is accepted")
+      ->check(CLI::Range(1.0, 1000.0));
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");
   app.add_flag("--live", opt.live_view, "live per-finger view on the terminal");
   app.add_flag("--json", json, "print the end-of-session summary as JSON on stdout");

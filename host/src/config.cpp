@@ -38,7 +38,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove", "pen", "modbus"});
+                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -62,6 +62,16 @@ void apply(const YAML::Node& root, RunOptions& opt) {
   }
   if (const YAML::Node mb = root["modbus"]) {
     if (std::string err = modbus::loadServerOptions(mb, opt.modbus); !err.empty()) throw ConfigError{err};
+  }
+  if (const YAML::Node io = root["gpio"]) {
+    requireKeys(io, "gpio", {"estop", "enable", "sync", "estop_release_ms"});
+    if (io["estop"]) opt.gpio.estop = scalar<std::string>(io["estop"], "gpio.estop", "string");
+    if (io["enable"]) opt.gpio.enable = scalar<std::string>(io["enable"], "gpio.enable", "string");
+    if (io["sync"]) opt.gpio.sync = scalar<std::string>(io["sync"], "gpio.sync", "string");
+    if (io["estop_release_ms"]) {
+      opt.gpio.estop_release_ms = scalar<double>(io["estop_release_ms"], "gpio.estop_release_ms", "number");
+    }
+    if (std::string err = validateGpio(opt.gpio); !err.empty()) throw ConfigError{err};
   }
   if (const YAML::Node g = root["glove"]) {
     requireKeys(g, "glove", {"scene", "scenario", "mode", "geometry"});

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -14,13 +15,16 @@
 #include <cstring>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
+#include "phalanx/host/safety_io.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
+#include "phalanx/linux/gpio.h"
 #include "phalanx/linux/realtime.h"
 
 extern char** environ;
@@ -34,6 +38,8 @@ namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
 void onStopSignal(int) { g_stop = 1; }
+volatile std::sig_atomic_t g_reset = 0;
+void onResetSignal(int) { g_reset = 1; }
 
 std::string selfDir() {
   char buf[4096];
@@ -107,24 +113,28 @@ class SimChild {
 class Recorder {
  public:
   ~Recorder() { close(); }
-  std::string open(const std::string& path, const protocol::DeviceLayout& layout) {
+  std::string open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column) {
     f_ = std::fopen(path.c_str(), "w");
     if (f_ == nullptr) return "cannot write recording " + path + ": " + std::strerror(errno);
     std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
     std::fprintf(f_, "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits");
     for (uint8_t i = 0; i < layout.sample_count; ++i) std::fprintf(f_, ",sample%u", i);
     for (uint8_t i = 0; i < layout.setpoint_count; ++i) std::fprintf(f_, ",setpoint%u", i);
+    // Rising edges of the sync pulse emitted so far: the motion-capture frame index (docs/gpio.md).
+    if (sync_column) std::fprintf(f_, ",sync_pulses");
     std::fprintf(f_, "\n");
+    sync_column_ = sync_column;
     samples_ = layout.sample_count;
     setpoints_ = layout.setpoint_count;
     return {};
   }
-  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
+  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses) {
     if (f_ == nullptr) return;
     std::fprintf(f_, "%.6f,%llu,%u,%u,%u,%u", t_s, static_cast<unsigned long long>(tel.device_time_us), tel.seq,
                  tel.cmd_seq_echo, static_cast<unsigned>(tel.mode), tel.fault_bits);
     for (uint8_t i = 0; i < samples_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(tel.value[i]));
     for (uint8_t i = 0; i < setpoints_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(cmd.setpoint[i]));
+    if (sync_column_) std::fprintf(f_, ",%llu", static_cast<unsigned long long>(sync_pulses));
     std::fputc('\n', f_);
     ++rows_;
   }
@@ -138,7 +148,32 @@ class Recorder {
   std::FILE* f_ = nullptr;
   uint8_t samples_ = 0;
   uint8_t setpoints_ = 0;
+  bool sync_column_ = false;
   uint64_t rows_ = 0;
+};
+
+/// One e-stop stop, measured: the kernel's edge timestamp, when the daemon read it, and when the daemon first saw
+/// the device report its safe state (mode safe, outputs off) - in time and in device ticks (telemetry sequence).
+struct StopRecord {
+  StopCause cause = StopCause::kNone;
+  uint64_t edge_ns = 0;   ///< kernel timestamp of the press edge (0: a lost line, no edge)
+  uint64_t seen_ns = 0;   ///< the daemon read the e-stop (the edge reached the daemon)
+  uint64_t sent_ns = 0;   ///< the safe command was written to the link (same cycle)
+  uint16_t seq_at_seen = 0;
+  bool device_was_active = false;
+  bool safe_confirmed = false;
+  uint64_t safe_rx_ns = 0;
+  uint16_t ticks_to_safe = 0;
+};
+
+/// The bench GPIO lines of one session, opened before the handshake and released after the device is left safe.
+struct GpioLines {
+  linux_hal::GpioEstopInput estop;
+  linux_hal::GpioOutput enable;
+  linux_hal::GpioSyncPulse sync;
+  bool have_estop = false, have_enable = false, have_sync = false;
+  bool estop_open = false;
+  std::string estop_error;
 };
 
 nlohmann::json histogramJson(const Histogram& h) {
@@ -183,6 +218,10 @@ void installStopSignals() {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  struct sigaction sr {};
+  sr.sa_handler = onResetSignal;
+  sigemptyset(&sr.sa_mask);
+  sigaction(SIGUSR1, &sr, nullptr);
   signal(SIGPIPE, SIG_IGN);
 }
 
@@ -214,6 +253,30 @@ std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options&
   }
   if (rest.empty() || rest.size() >= 16) return "device: '" + spec + "': bad CAN interface name";
   out.ifname = rest;
+  return {};
+}
+
+std::string validateGpio(const GpioOptions& g) {
+  linux_hal::GpioLineSpec e, n, y;
+  double hz = 0.0;
+  if (!g.estop.empty()) {
+    if (std::string err = linux_hal::parseGpioLine(g.estop, e); !err.empty()) return "gpio.estop: " + err;
+  }
+  if (!g.enable.empty()) {
+    if (std::string err = linux_hal::parseGpioLine(g.enable, n); !err.empty()) return "gpio.enable: " + err;
+  }
+  if (!g.sync.empty()) {
+    if (std::string err = linux_hal::parseGpioSync(g.sync, y, hz); !err.empty()) return "gpio.sync: " + err;
+  }
+  const auto same = [](const linux_hal::GpioLineSpec& a, const linux_hal::GpioLineSpec& b) {
+    return a.chip == b.chip && a.offset == b.offset;
+  };
+  if (!g.estop.empty() && !g.enable.empty() && same(e, n)) return "gpio: the e-stop and enable lines are the same line";
+  if (!g.estop.empty() && !g.sync.empty() && same(e, y)) return "gpio: the e-stop and sync lines are the same line";
+  if (!g.enable.empty() && !g.sync.empty() && same(n, y)) return "gpio: the enable and sync lines are the same line";
+  if (!std::isfinite(g.estop_release_ms) || g.estop_release_ms < 1.0 || g.estop_release_ms > 1000.0) {
+    return "gpio.estop_release_ms: must be in [1, 1000]";
+  }
   return {};
 }
 
@@ -260,6 +323,7 @@ std::string validate(const RunOptions& opt) {
     phalanx::pen::Geometry<double> g;
     if (std::string err = design::loadPenGeometryYaml(opt.pen_geometry, g); !err.empty()) return "pen.geometry: " + err;
   }
+  if (std::string err = validateGpio(opt.gpio); !err.empty()) return err;
   return modbus::validateServerOptions(opt.modbus);
 }
 
@@ -271,6 +335,32 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   };
   if (const std::string problem = validate(opt); !problem.empty()) return fail(problem, 2);
   summary["device"] = opt.device;
+
+  // Bench GPIO first: the enable line is held inactive from here on, before any device is opened.
+  GpioLines io;
+  if (!opt.gpio.enable.empty()) {
+    linux_hal::GpioLineSpec spec;
+    linux_hal::parseGpioLine(opt.gpio.enable, spec);  // validated above
+    if (std::string err = io.enable.open(spec, "phalanxd-enable"); !err.empty()) return fail("gpio.enable: " + err, 3);
+    io.have_enable = true;
+  }
+  if (!opt.gpio.sync.empty()) {
+    linux_hal::GpioLineSpec spec;
+    double hz = 0.0;
+    linux_hal::parseGpioSync(opt.gpio.sync, spec, hz);
+    if (std::string err = io.sync.open(spec, hz, "phalanxd-sync"); !err.empty()) return fail("gpio.sync: " + err, 3);
+    io.have_sync = true;
+  }
+  if (!opt.gpio.estop.empty()) {
+    // An e-stop that cannot be opened is not an error that ends the daemon: it counts as pressed (the daemon
+    // runs stopped, devices safe, and retries the line) - docs/gpio.md.
+    linux_hal::GpioLineSpec spec;
+    linux_hal::parseGpioLine(opt.gpio.estop, spec);
+    io.have_estop = true;
+    io.estop_error = io.estop.open(spec, "phalanxd-estop");
+    io.estop_open = io.estop_error.empty();
+    if (!io.estop_open) std::fprintf(stderr, "phalanxd: e-stop: %s - counts as pressed\n", io.estop_error.c_str());
+  }
 
   SimChild sim;
   const bool is_can = opt.device.rfind("can:", 0) == 0;
@@ -343,7 +433,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
 
   Recorder recorder;
   if (!opt.record_csv.empty()) {
-    if (std::string err = recorder.open(opt.record_csv, layout); !err.empty()) return fail(err, 3);
+    if (std::string err = recorder.open(opt.record_csv, layout, io.have_sync); !err.empty()) return fail(err, 3);
   }
 
   linux_hal::RealtimeStatus rt;
@@ -454,6 +544,32 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   if (opt.hooks != nullptr) {
     if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
   }
+  SafetyIoConfig safety_cfg;
+  safety_cfg.release_debounce_ns = static_cast<uint64_t>(opt.gpio.estop_release_ms * 1e6);
+  SafetyIo safety(io.have_estop ? &io.estop : nullptr, io.have_enable ? &io.enable : nullptr, safety_cfg);
+  const bool have_safety_io = io.have_estop || io.have_enable;
+  constexpr size_t kMaxStopRecords = 256;  // fixed: no allocation in the loop; later stops are counted only
+  std::vector<StopRecord> stops;
+  stops.reserve(kMaxStopRecords);
+  bool awaiting_safe = false;
+  bool log_stop = false;
+  bool last_pressed = false;
+  if (have_safety_io) {
+    safety.start(io.estop_open, linux_hal::monotonicNs());
+    last_pressed = safety.estopPressed();
+    if (safety.stopped()) {
+      std::fprintf(stderr, "phalanxd: e-stop: starting STOPPED (%s): devices held safe until a reset (SIGUSR1 or the API's reset)\n",
+                   stopCauseName(safety.cause()));
+    } else if (io.have_enable) {
+      std::fprintf(stderr, "phalanxd: enable: drives enabled\n");
+    }
+  }
+  if (io.have_sync) {
+    if (std::string w = io.sync.start(opt.realtime ? std::max(1, opt.rt_priority - 1) : 0); !w.empty()) {
+      std::fprintf(stderr, "phalanxd: warning: %s\n", w.c_str());
+    }
+    std::fprintf(stderr, "phalanxd: sync: pulses at %g Hz on %s\n", io.sync.rateHz(), opt.gpio.sync.c_str());
+  }
   while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
          (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
@@ -468,9 +584,64 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     const TelemetryFrame& tel = session.latest();
     faults_seen |= tel.fault_bits;
     const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
-    controller->update(tel, t_s, dt_s, cmd);
+    // An explicit reset (SIGUSR1 or the API's reset): clears the daemon's stop if the e-stop allows it, and sends
+    // one ClearFaults to the device (its own latched faults; it refuses while its own e-stop is pressed).
+    bool reset_request = g_reset != 0;
+    if (reset_request) g_reset = 0;
+    if (opt.hooks != nullptr && opt.hooks->takeClearFaultsRequest()) reset_request = true;
+    if (reset_request) session.sendClearFaults();
+    if (have_safety_io) {
+      const uint64_t now_ns = linux_hal::monotonicNs();
+      if (reset_request && safety.stopped()) {
+        if (const char* why = safety.requestReset(now_ns); why != nullptr) {
+          std::fprintf(stderr, "phalanxd: e-stop: reset refused at t=%.3f s: %s\n", t_s, why);
+        } else {
+          std::fprintf(stderr, "phalanxd: e-stop: reset accepted at t=%.3f s: drives enabled, control resumes\n", t_s);
+        }
+      }
+      // Read the e-stop right after the telemetry poll, so the newest telemetry is the device's state when the
+      // edge reached the daemon; a stop drops the enable line inside update(), before the safe command goes out.
+      if (safety.update(now_ns)) {
+        const uint64_t seen_ns = linux_hal::monotonicNs();
+        StopRecord r;
+        r.cause = safety.cause();
+        r.edge_ns = safety.stopEdgeNs();
+        r.seen_ns = seen_ns;
+        r.seq_at_seen = tel.seq;
+        r.device_was_active = (tel.state_flags & protocol::state::kOutputsActive) != 0;
+        awaiting_safe = stops.size() < kMaxStopRecords;
+        if (awaiting_safe) {
+          stops.push_back(r);
+          session.watchForSafe(tel.seq);
+        }
+        log_stop = true;  // after the safe command is out: stderr may be a slow file or pipe
+      }
+      if (safety.estopPressed() != last_pressed) {
+        last_pressed = safety.estopPressed();
+        if (!last_pressed) std::fprintf(stderr, "phalanxd: e-stop: released at t=%.3f s (%s)\n", t_s,
+                                        safety.stopped() ? "still stopped: a reset is needed" : "running");
+      }
+    }
+    if (awaiting_safe && session.safeSeen()) {
+      StopRecord& r = stops.back();
+      r.safe_confirmed = true;
+      r.safe_rx_ns = session.safeRxNs();
+      r.ticks_to_safe = static_cast<uint16_t>(session.safeSeq() - r.seq_at_seen);
+      awaiting_safe = false;
+      std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
+                   "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
+                   r.edge_ns != 0 ? static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0 : -1.0,
+                   static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0);
+    }
+    if (safety.stopped()) {
+      // Stopped: every cycle commands the safe state; the controller does not run (no integrator wind-up).
+      cmd.mode = protocol::Mode::kSafe;
+      for (auto& sp : cmd.setpoint) sp = 0.0f;
+    } else {
+      controller->update(tel, t_s, dt_s, cmd);
+    }
     cmd.channel_count = layout.setpoint_count;
-    if (mb_port) mb_port->overrideCommand(cmd, wake_ns);
+    if (mb_port && !safety.stopped()) mb_port->overrideCommand(cmd, wake_ns);
     if (!commandIsSafe(cmd, layout)) {
       ++host_refused;
       cmd.mode = protocol::Mode::kSafe;
@@ -482,15 +653,19 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                    linux_hal::canBusStateName(can.state()), t_s);
       can_state = can.state();
     }
-    if (!flushLink()) {
+    const bool flushed = flushLink();
+    if (awaiting_safe && stops.back().sent_ns == 0) stops.back().sent_ns = linux_hal::monotonicNs();
+    if (log_stop) {
+      log_stop = false;
+      std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
+                   stopCauseName(safety.cause()), t_s);
+    }
+    if (!flushed) {
       summary["link_error"] = linkError();
       break;
     }
-    recorder.row(t_s, tel, cmd);
-    if (opt.hooks != nullptr) {
-      opt.hooks->onCycle(wake_ns, t_s, tel, cmd);
-      if (opt.hooks->takeClearFaultsRequest()) session.sendClearFaults();
-    }
+    recorder.row(t_s, tel, cmd, io.have_sync ? io.sync.pulses() : 0);
+    if (opt.hooks != nullptr) opt.hooks->onCycle(wake_ns, t_s, tel, cmd);
     const uint64_t done_ns = linux_hal::monotonicNs();
     cycle_us.add(static_cast<double>(done_ns - wake_ns) / 1000.0);
     if (mb_port) {
@@ -507,7 +682,9 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   }
   if (opt.live_view) std::fputc('\n', stderr);
 
-  // Leave the device safe: an explicit safe command (the device would also time out by itself).
+  // Leave the device safe: drives disabled, then an explicit safe command (the device would also time out).
+  if (have_safety_io) safety.shutdown();
+  if (io.have_sync) io.sync.stop();
   cmd.mode = protocol::Mode::kSafe;
   for (auto& s : cmd.setpoint) s = 0.0f;
   for (int i = 0; i < 3; ++i) {
@@ -566,6 +743,40 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                         {"sequence", m.sequence}}}};
   }
   summary["final_mode"] = modeName(session.latest().mode);
+  if (have_safety_io || io.have_sync) {
+    nlohmann::json g = nlohmann::json::object();
+    if (have_safety_io) {
+      const SafetyIoCounters& c = safety.counters();
+      nlohmann::json list = nlohmann::json::array();
+      for (const StopRecord& r : stops) {
+        nlohmann::json j = {{"cause", stopCauseName(r.cause)}, {"device_was_active", r.device_was_active},
+                            {"safe_confirmed", r.safe_confirmed}};
+        if (r.edge_ns != 0) j["edge_to_daemon_us"] = static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0;
+        if (r.sent_ns != 0) j["daemon_reaction_us"] = static_cast<double>(r.sent_ns - r.seen_ns) / 1000.0;
+        if (r.safe_confirmed) {
+          j["daemon_to_safe_telemetry_us"] = static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0;
+          j["ticks_to_safe"] = r.ticks_to_safe;
+        }
+        list.push_back(j);
+      }
+      g["estop"] = {{"line", opt.gpio.estop}, {"state", safety.stopped() ? "stopped" : "running"},
+                    {"cause", stopCauseName(safety.cause())}, {"line_ok", safety.estopLineOk()},
+                    {"open_error", io.estop_error}, {"stops", c.stops}, {"presses", c.presses},
+                    {"line_lost", c.line_lost}, {"resets", c.resets}, {"resets_refused", c.resets_refused},
+                    {"reopen_attempts", c.reopen_attempts}, {"reopened", c.reopened},
+                    {"enable_failures", c.enable_failures}, {"release_debounce_ms", opt.gpio.estop_release_ms},
+                    {"stop_records", list}};
+      if (io.have_enable) g["enable"] = {{"line", opt.gpio.enable}, {"write_failures", c.enable_failures}};
+    }
+    if (io.have_sync) {
+      const linux_hal::SyncPulseStats y = io.sync.stats();
+      g["sync"] = {{"line", opt.gpio.sync}, {"rate_hz", io.sync.rateHz()}, {"pulses", y.pulses},
+                   {"missed_periods", y.missed}, {"write_errors", y.write_errors},
+                   {"edge_late_mean_us", y.mean_late_us}, {"edge_late_max_us", y.max_late_us},
+                   {"first_rise_ns", y.first_rise_ns}};
+    }
+    summary["gpio"] = g;
+  }
   if (!opt.record_csv.empty()) summary["recording"] = {{"path", opt.record_csv}, {"rows", recorder.rows()}};
   nlohmann::json extra = nlohmann::json::object();
   controller->summarize(extra);

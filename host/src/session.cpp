@@ -137,6 +137,13 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
       last_dev_rx_errors_ = t.rx_errors;
       ++stats_.telemetry_received;
 
+      if (safe_watch_ && t.seq != safe_after_seq_ && t.mode == Mode::kSafe &&
+          (t.state_flags & protocol::state::kOutputsActive) == 0) {
+        safe_watch_ = false;
+        safe_seen_ = true;
+        safe_seq_ = t.seq;
+        safe_rx_ns_ = now_ns;
+      }
       latest_.device_time_us = (time_wraps_ << 32) | t.time_us;
       latest_.host_rx_ns = now_ns;
       latest_.seq = t.seq;

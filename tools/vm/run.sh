@@ -27,6 +27,8 @@ case "$CMD" in *\"*) echo "run.sh: the command must not contain double quotes" >
 [ ${#CMD} -lt 1500 ] || { echo "run.sh: command too long for the kernel command line" >&2; exit 2; }
 
 KV=$("$ROOT/tools/vm/kernel.sh")
+# Out-of-tree gpio-sim for tests/vm/gpio_test.sh (cached; without its packages only that test fails).
+"$ROOT/tools/vm/gpio-sim.sh" "$KV" || echo "run.sh: gpio-sim.ko not built (see above): tests/vm/gpio_test.sh will fail" >&2
 INITRD=$("$ROOT/tools/vm/initramfs.sh" "$KV")
 KERNEL="$ROOT/build/vm/kroot-$KV/boot/vmlinuz-$KV"
 mkdir -p "$ROOT/build/vm/logs"

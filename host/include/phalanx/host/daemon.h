@@ -44,6 +44,14 @@ class SessionHooks {
   virtual void onEnd(const nlohmann::json& summary) { (void)summary; }
 };
 
+/// Bench GPIO lines (docs/gpio.md). Empty: not used.
+struct GpioOptions {
+  std::string estop;   ///< e-stop input "CHIP:LINE[:active-low]": a press stops the daemon until an explicit reset
+  std::string enable;  ///< drive-enable output "CHIP:LINE[:active-low]": active while running, dropped on a stop
+  std::string sync;    ///< motion-capture sync pulse output "CHIP:LINE@HZ" (square wave, rising edge = frame)
+  double estop_release_ms = 20.0;  ///< the e-stop must stay released this long before a reset is accepted
+};
+
 struct RunOptions {
   std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud] or can:<if>[:node][@fd|@classic]
   double seconds = 0.0;               ///< 0: until SIGINT/SIGTERM
@@ -68,7 +76,11 @@ struct RunOptions {
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
+  GpioOptions gpio;                   ///< e-stop, drive enable, sync pulse (docs/gpio.md); none by default
 };
+
+/// Validate the GPIO options (line specs, distinct lines, ranges); empty string or the problem, naming the option.
+std::string validateGpio(const GpioOptions& g);
 
 /// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).
 /// Returns an empty string or what is wrong with it.
@@ -81,7 +93,8 @@ std::string validate(const RunOptions& opt);
 /// summary["error"] set on failure.
 int runSession(const RunOptions& opt, nlohmann::json& summary);
 
-/// Install SIGINT/SIGTERM handlers that ask runSession to stop cleanly.
+/// Install SIGINT/SIGTERM handlers that ask runSession to stop cleanly, and SIGUSR1: an explicit e-stop reset
+/// (the same as the control API's `reset`).
 void installStopSignals();
 
 }  // namespace phalanx::host

@@ -70,6 +70,16 @@ class HostSession {
     event_fn_ = fn;
     event_ctx_ = ctx;
   }
+  /// Watch for the first telemetry after the one numbered after_seq that reports the safe state (mode safe,
+  /// outputs off) - every frame is examined, not only the newest of a poll (the e-stop measurement, docs/gpio.md).
+  void watchForSafe(uint16_t after_seq) {
+    safe_watch_ = true;
+    safe_seen_ = false;
+    safe_after_seq_ = after_seq;
+  }
+  bool safeSeen() const { return safe_seen_; }
+  uint16_t safeSeq() const { return safe_seq_; }
+  uint64_t safeRxNs() const { return safe_rx_ns_; }  ///< the poll time of the frame that reported it
   bool lastParamValid() const { return param_valid_; }
   const protocol::ParamValue& lastParam() const { return last_param_; }
 
@@ -105,6 +115,11 @@ class HostSession {
   void* event_ctx_ = nullptr;
   protocol::ParamValue last_param_{};
   bool param_valid_ = false;
+  bool safe_watch_ = false;
+  bool safe_seen_ = false;
+  uint16_t safe_after_seq_ = 0;
+  uint16_t safe_seq_ = 0;
+  uint64_t safe_rx_ns_ = 0;
 };
 
 const char* faultName(uint16_t single_bit);
