@@ -13,6 +13,7 @@ PACKAGES=(
   nlohmann-json3-dev libceres-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev mbpoll libnlopt-dev
   clang libclang-rt-14-dev valgrind
   qemu-system-x86 busybox-static kmod cpio can-utils bc
+  libcpp-httplib-dev chromium
 )
 fi
 

@@ -11,6 +11,7 @@
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
 #include "phalanx/host/modbus/server_options.h"
+#include "phalanx/host/api/dashboard_options.h"
 
 namespace phalanx::host {
 
@@ -62,6 +63,7 @@ struct RunOptions {
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
+  api::DashboardOptions dashboard;    ///< live web dashboard (docs/dashboard.md; API mode only); off by default
 };
 
 /// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).
