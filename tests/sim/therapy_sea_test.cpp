@@ -18,6 +18,7 @@
 #include "phalanx/host/therapy/exercise.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/report.h"
+#include "phalanx/host/sea/sea_finger_controller.h"
 #include "phalanx/host/therapy/sea_device.h"
 #include "phalanx/host/therapy/therapy_controller.h"
 #include "phalanx/host/therapy/therapy_session.h"
@@ -338,4 +339,49 @@ limits:
   EXPECT_GT(mean_res, 0.005);
   EXPECT_LT(rms(tg, q), 0.8 * rms(tg0, q0));
   EXPECT_GT(r, 0.8);
+}
+
+// The adapter's last stage: exoskeleton torque J_nᵀ·τ_f above 0.5 N·m is scaled down with the finger torques by
+// one factor (direction kept), and what it reports as commanded is exactly what the setpoints apply (eq 9).
+TEST(TherapySea, ExoskeletonTorqueSaturationKeepsTheFingerTorqueDirection) {
+  std::string err;
+  auto device = SeaTherapyDevice::make({}, err);
+  ASSERT_TRUE(device) << err;
+  auto observer = SeaTherapyDevice::make({}, err);
+  fw_sim::SeaFingerSimDevice sim_device(plantConfig(sim::SeaUserMotion::kCloseOpen, 4));
+  host::sea::SeaFingerControllerConfig idle_cfg;
+  idle_cfg.mode = host::sea::SeaFingerMode::kTransparent;
+  host::sea::SeaFingerController idle(idle_cfg);
+  host::LockstepRig rig(sim_device, idle);
+  ASSERT_EQ(rig.handshake(), "");
+  Observation obs{};
+  int saturated = 0, checked = 0;
+  for (int k = 0; k < 40; ++k) {
+    rig.run(0.1);
+    device->observe(rig.session().latest(), obs);
+    const auto& d = device->estimator().data();
+    if (!d.J_valid) continue;
+    for (const auto& y : {std::array<double, 2>{3.0, 3.0}, std::array<double, 2>{-3.0, 1.0}, std::array<double, 2>{0.01, -0.02}}) {
+      std::array<double, kMaxChannels> effort{};
+      effort[0] = y[0];
+      effort[1] = y[1];
+      std::array<float, kMaxChannels> sp{};
+      device->commandFromEffort(effort, sp);
+      ++checked;
+      EXPECT_LE(std::fabs(sp[0]), SeaTherapyDevice::kExoTorqueLimit_Nm + 1e-6);
+      EXPECT_LE(std::fabs(sp[1]), SeaTherapyDevice::kExoTorqueLimit_Nm + 1e-6);
+      const double s0 = effort[0] / y[0], s1 = effort[1] / y[1];
+      EXPECT_NEAR(s0, s1, 1e-12);  // one factor for both: direction kept
+      EXPECT_LE(s0, 1.0 + 1e-12);
+      EXPECT_GE(s0, 0.0);
+      if (s0 < 1.0) ++saturated;
+      host::sea::Vec2 tau_f{};
+      ASSERT_EQ(phalanx::sea::fingerTorqueFromExoTorque(d.J_n, host::sea::Vec2{sp[0], sp[1]}, 1e-6, tau_f),
+                phalanx::sea::Status::kOk);
+      EXPECT_NEAR(tau_f[0], effort[0], 1e-5 * std::max(1.0, std::fabs(effort[0])));
+      EXPECT_NEAR(tau_f[1], effort[1], 1e-5 * std::max(1.0, std::fabs(effort[1])));
+    }
+  }
+  EXPECT_GT(checked, 60);
+  EXPECT_GE(saturated, checked / 3);  // the 3 N·m requests always saturate
 }
