@@ -414,6 +414,12 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
   EXPECT_TRUE(stopped) << after.dump();
   ASSERT_TRUE(after.contains("last_session")) << after.dump();
   EXPECT_EQ(after["last_session"].value("exit_code", -1), 0) << after.dump();
+  const nlohmann::json& ls = after["last_session"];
+  std::printf("session with the page polling: %s cycles in %.2f s, overruns %s, period jitter %s, cycle time %s, "
+              "faults seen %s\n",
+              ls.value("cycles", nlohmann::json()).dump().c_str(), ls.value("seconds", 0.0),
+              ls.value("overruns", nlohmann::json()).dump().c_str(), ls.value("period_jitter", nlohmann::json()).dump().c_str(),
+              ls.value("cycle_time", nlohmann::json()).dump().c_str(), ls.value("faults_seen", nlohmann::json()).dump().c_str());
   nlohmann::json page_after;
   for (int i = 0; i < 50; ++i) {
     page_after = chrome.eval(session, read_fields);
