@@ -61,6 +61,10 @@ void apply(const YAML::Node& root, RunOptions& opt) {
   }
   if (const YAML::Node d = root["dashboard"]) {
     requireKeys(d, "dashboard", {"enabled", "listen", "allow_remote"});
+    // allow_remote first: it decides whether a non-loopback listen address is acceptable.
+    if (d["allow_remote"]) {
+      opt.dashboard.allow_remote = scalar<bool>(d["allow_remote"], "dashboard.allow_remote", "boolean");
+    }
     if (d["listen"]) {
       const std::string spec = scalar<std::string>(d["listen"], "dashboard.listen", "ADDRESS:PORT string");
       if (std::string err = api::parseDashboardSpec(spec, opt.dashboard); !err.empty()) {
@@ -68,9 +72,6 @@ void apply(const YAML::Node& root, RunOptions& opt) {
       }
     }
     opt.dashboard.enabled = d["enabled"] ? scalar<bool>(d["enabled"], "dashboard.enabled", "boolean") : true;
-    if (d["allow_remote"]) {
-      opt.dashboard.allow_remote = scalar<bool>(d["allow_remote"], "dashboard.allow_remote", "boolean");
-    }
     if (std::string err = api::validateDashboardOptions(opt.dashboard); !err.empty()) {
       throw ConfigError{"dashboard: " + err};
     }
