@@ -14,6 +14,7 @@ PACKAGES=(
   clang libclang-rt-14-dev valgrind
   qemu-system-x86 busybox-static kmod cpio can-utils bc
   linux-source-6.1 linux-headers-amd64
+  libcpp-httplib-dev chromium
 )
 fi
 

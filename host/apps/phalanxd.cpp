@@ -31,6 +31,9 @@ int main(int argc, char** argv) {
   app.add_option("--api", api_cfg.socket_path, "serve the control API on this UNIX socket (docs/api.md)");
   app.add_option("--records-dir", api_cfg.records_dir, "API mode: directory for session records and reports");
   app.add_option("--profiles-dir", api_cfg.profiles_dir, "API mode: directory of patient profiles");
+  std::string dashboard_spec;
+  app.add_option("--dashboard", dashboard_spec,
+                 "API mode: serve the live dashboard on ADDRESS:PORT (loopback; docs/dashboard.md; port 0: any free)");
   // Parse twice: first to find --config, then apply the file, then let the command line override it.
   try {
     app.parse(argc, argv);
@@ -48,8 +51,19 @@ int main(int argc, char** argv) {
   }
   if (no_rt) opt.realtime = false;
   installStopSignals();
+  if (!dashboard_spec.empty()) {
+    if (const std::string err = api::parseDashboardSpec(dashboard_spec, opt.dashboard); !err.empty()) {
+      std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
+      return 2;
+    }
+  }
+  if (opt.dashboard.enabled && api_cfg.socket_path.empty()) {
+    std::fprintf(stderr, "phalanxd: error: the dashboard needs --api (its controls are control-API requests)\n");
+    return 2;
+  }
   if (!api_cfg.socket_path.empty()) {
     api_cfg.defaults = opt;
+    api_cfg.dashboard = opt.dashboard;
     return api::serve(api_cfg);
   }
   if (!profile_path.empty()) {

@@ -32,7 +32,7 @@ struct TherapyCli {
   CLI::App* rec_export = nullptr;
   CLI::App* rec_info = nullptr;
   CLI::App* rec_report = nullptr;
-  std::string rec_file, rec_out, rec_previous;
+  std::string rec_file, rec_out, rec_previous, rec_reference;
   bool csv = false;
 };
 
@@ -79,6 +79,9 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_report->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_report->add_option("--previous", t.rec_previous, "previous session's record, for comparison");
   t.rec_report->add_option("--out", t.rec_out, "output file (default: FILE with .html)");
+  t.rec_report->add_option("--reference", t.rec_reference,
+                           "device-free recording of the same motion (CSV t_s,<joint>_deg,...): transparency Pearson r")
+      ->check(CLI::ExistingFile);
 }
 
 inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
@@ -118,7 +121,8 @@ inline int runTherapyCommands(TherapyCli& t) {
     if (t.rec_report->parsed()) {
       const std::string out = t.rec_out.empty() ? t.rec_file.substr(0, t.rec_file.rfind('.')) + ".html" : t.rec_out;
       const std::string err = therapy::writeReport(t.rec_file, t.rec_previous, out,
-                                                   [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); });
+                                                   [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); },
+                                                   t.rec_reference);
       if (!err.empty()) {
         std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
         return 1;

@@ -38,7 +38,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio"});
+                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -72,6 +72,23 @@ void apply(const YAML::Node& root, RunOptions& opt) {
       opt.gpio.estop_release_ms = scalar<double>(io["estop_release_ms"], "gpio.estop_release_ms", "number");
     }
     if (std::string err = validateGpio(opt.gpio); !err.empty()) throw ConfigError{err};
+  }
+  if (const YAML::Node d = root["dashboard"]) {
+    requireKeys(d, "dashboard", {"enabled", "listen", "allow_remote"});
+    // allow_remote first: it decides whether a non-loopback listen address is acceptable.
+    if (d["allow_remote"]) {
+      opt.dashboard.allow_remote = scalar<bool>(d["allow_remote"], "dashboard.allow_remote", "boolean");
+    }
+    if (d["listen"]) {
+      const std::string spec = scalar<std::string>(d["listen"], "dashboard.listen", "ADDRESS:PORT string");
+      if (std::string err = api::parseDashboardSpec(spec, opt.dashboard); !err.empty()) {
+        throw ConfigError{"dashboard.listen: " + err};
+      }
+    }
+    opt.dashboard.enabled = d["enabled"] ? scalar<bool>(d["enabled"], "dashboard.enabled", "boolean") : true;
+    if (std::string err = api::validateDashboardOptions(opt.dashboard); !err.empty()) {
+      throw ConfigError{"dashboard: " + err};
+    }
   }
   if (const YAML::Node g = root["glove"]) {
     requireKeys(g, "glove", {"scene", "scenario", "mode", "geometry"});

@@ -5,9 +5,12 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <vector>
 
 #include "phalanx/host/record/record_writer.h"
 #include "phalanx/host/therapy/glove_device.h"
+#include "phalanx/host/therapy/sea_device.h"
+#include "phalanx/sea/kinematics.h"
 #include "phalanx/host/therapy/therapy_controller.h"
 
 using namespace phalanx;
@@ -53,6 +56,50 @@ void BM_TherapyUpdateGrasp(benchmark::State& s) { controllerUpdate(s, "grasp"); 
 BENCHMARK(BM_TherapyUpdateAssessment);
 BENCHMARK(BM_TherapyUpdateAssistance);
 BENCHMARK(BM_TherapyUpdateGrasp);
+
+// sea_finger: observation through the four-bar estimator (eq 3–5, 10, 20), J_n^{-T} (eq 9), exercise, limits and
+// the J_nᵀ command (eq 6). Telemetry from the sensors of a finger moving around a mid-range pose.
+void seaUpdate(benchmark::State& state, const char* exercise) {
+  std::string err;
+  auto dev = SeaTherapyDevice::make({}, err);
+  Profile profile;
+  profile.limits = PatientLimits::deviceDefaults(*dev);
+  auto pattern = std::make_shared<Pattern>(2);
+  auto ex = makeExercise(exercise, nullptr, *dev, profile, pattern, err);
+  TherapyController c(std::move(dev), profile.limits, std::move(ex), nullptr);
+  const auto model = phalanx::sea::defaultModel<double>();
+  std::vector<host::TelemetryFrame> frames(1000);
+  phalanx::sea::Data<double> d;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const double ph = 2.0 * M_PI * static_cast<double>(i) / static_cast<double>(frames.size());
+    phalanx::sea::FingerAngles<double> f{};
+    f.mcp_rad = -0.5 + 0.2 * std::sin(ph);  // flexion negative (kinematics.h)
+    f.pip_rad = -0.6 + 0.3 * std::sin(ph);
+    f.dip_rad = 2.0 / 3.0 * f.pip_rad;
+    phalanx::sea::computeFromFinger(model, f, d);
+    auto& t = frames[i];
+    t.sample_count = 13;
+    t.mode = protocol::Mode::kSetpoint;
+    t.device_time_us = i * 1000;
+    for (std::size_t k = 0; k < 5; ++k) t.value[k] = static_cast<float>(d.sensors_rad[k]);
+    t.value[7] = 0.01f;
+    t.value[8] = -0.01f;
+  }
+  protocol::Command cmd;
+  double t = 0.0;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    t += 0.001;
+    auto& tel = frames[i++ % frames.size()];
+    tel.device_time_us = static_cast<uint64_t>(t * 1e6);
+    c.update(tel, t, 0.001, cmd);
+    benchmark::DoNotOptimize(cmd);
+  }
+}
+void BM_SeaTherapyUpdateAssessment(benchmark::State& s) { seaUpdate(s, "assessment"); }
+void BM_SeaTherapyUpdateAssistance(benchmark::State& s) { seaUpdate(s, "assistance"); }
+BENCHMARK(BM_SeaTherapyUpdateAssessment);
+BENCHMARK(BM_SeaTherapyUpdateAssistance);
 
 void BM_RecorderPushCycle(benchmark::State& state) {
   char path[] = "/tmp/phalanx-bench-XXXXXX";

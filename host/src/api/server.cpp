@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "phalanx/host/api/dashboard.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
@@ -364,6 +365,35 @@ int serve(const ServerConfig& config) {
   std::fflush(stdout);
 
   Daemon daemon(config);
+  // One request at a time, whichever way it came (UNIX socket or the dashboard): the same validated handler.
+  std::mutex request_mutex;
+  auto handle = [&daemon, &request_mutex](const std::string& line) {
+    std::lock_guard<std::mutex> lock(request_mutex);
+    return daemon.handle(line);
+  };
+  std::unique_ptr<Dashboard> dashboard;
+  const std::string url_file = config.socket_path + ".dashboard";
+  if (config.dashboard.enabled) {
+    dashboard = std::make_unique<Dashboard>(config.dashboard, handle);
+    if (const std::string err = dashboard->start(); !err.empty()) {
+      std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
+      ::close(lfd);
+      ::unlink(config.socket_path.c_str());
+      return 3;
+    }
+    ::unlink(url_file.c_str());
+    const int ufd = ::open(url_file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
+    if (ufd >= 0) {
+      const std::string text = dashboard->url() + "\n";
+      (void)!::write(ufd, text.data(), text.size());
+      ::fchmod(ufd, config.socket_mode);
+      ::close(ufd);
+    }
+    std::fprintf(stderr, "phalanxd: dashboard on http://%s:%u/ (URL with its access token in %s)\n",
+                 config.dashboard.address.c_str(), dashboard->port(), url_file.c_str());
+    std::printf("DASHBOARD %s\n", dashboard->url().c_str());
+    std::fflush(stdout);
+  }
   std::vector<Client> clients;
   while (g_api_stop == 0) {
     std::vector<pollfd> fds;
@@ -398,7 +428,7 @@ int serve(const ServerConfig& config) {
       for (std::size_t nl; c.fd >= 0 && (nl = c.in.find('\n')) != std::string::npos;) {
         const std::string line = c.in.substr(0, nl);
         c.in.erase(0, nl + 1);
-        const std::string out = daemon.handle(line).dump() + "\n";
+        const std::string out = handle(line).dump() + "\n";
         // Replies are small; a client that does not read its answer is dropped rather than blocking the daemon.
         if (::send(c.fd, out.data(), out.size(), MSG_NOSIGNAL | MSG_DONTWAIT) != static_cast<ssize_t>(out.size())) {
           ::close(c.fd);
@@ -416,6 +446,10 @@ int serve(const ServerConfig& config) {
                   clients.end());
   }
   std::fprintf(stderr, "phalanxd: stopping\n");
+  if (dashboard) {
+    dashboard->stop();
+    ::unlink(url_file.c_str());
+  }
   daemon.stopSession();
   for (const auto& c : clients) ::close(c.fd);
   ::close(lfd);

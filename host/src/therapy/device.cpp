@@ -1,6 +1,7 @@
 #include "phalanx/host/therapy/device.h"
 
 #include "phalanx/host/therapy/glove_device.h"
+#include "phalanx/host/therapy/sea_device.h"
 
 namespace phalanx::host::therapy {
 
@@ -27,8 +28,8 @@ int TherapyDevice::jointIndex(const std::string& n) const {
 std::unique_ptr<TherapyDevice> makeTherapyDevice(const std::string& device_name, const KinematicParams& params,
                                                  std::string& error) {
   if (device_name == "glove5") return GloveTherapyDevice::make(params, error);
-  // The SEA finger exoskeleton joins here with its adapter (joints MCP/PIP/DIP, channels MCP/PIP torque).
-  error = "device '" + device_name + "' has no therapy adapter yet (supported: glove5)";
+  if (device_name == "sea_finger") return SeaTherapyDevice::make(params, error);
+  error = "device '" + device_name + "' has no therapy adapter yet (supported: glove5, sea_finger)";
   return nullptr;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -214,7 +215,45 @@ std::string svgRom(const nlohmann::json& rom, const nlohmann::json& prev) {
   return o.str();
 }
 
-nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, Series& s) {
+/// Linear interpolation of (t, y) at time x (t ascending); NaN outside [t.front(), t.back()].
+double interpolate(const std::vector<double>& t, const std::vector<double>& y, double x) {
+  if (t.empty() || x < t.front() || x > t.back()) return std::nan("");
+  const auto it = std::lower_bound(t.begin(), t.end(), x);
+  const std::size_t i = static_cast<std::size_t>(it - t.begin());
+  if (i == 0) return y[0];
+  const double a = (x - t[i - 1]) / (t[i] - t[i - 1]);
+  return y[i - 1] + a * (y[i] - y[i - 1]);
+}
+
+/// 001 Table 2 / 000 Table 4: Pearson r between the joint trajectory with the device (assessment phases of the
+/// record) and the device-free reference at the same times.
+nlohmann::json transparencyR(const TherapyDevice& dev, const Series& s, const TransparencyReference& ref) {
+  nlohmann::json out = nlohmann::json::object();
+  const int kAssess = static_cast<int>(ExerciseId::kAssessment);
+  for (const auto& [name, y] : ref.joints_deg) {
+    const int j = dev.jointIndex(name);
+    if (j < 0) continue;
+    std::vector<double> with, without;
+    for (std::size_t i = 0; i < s.t.size(); ++i) {
+      if (s.exercise[i] != kAssess || !std::isfinite(s.flex[static_cast<std::size_t>(j)][i])) continue;
+      const double r = interpolate(ref.t_s, y, s.t[i]);
+      if (!std::isfinite(r)) continue;
+      with.push_back(s.flex[static_cast<std::size_t>(j)][i] * kDeg);
+      without.push_back(r);
+    }
+    if (with.size() < 2) continue;
+    const double r = pearson(without, with);
+    double sq = 0.0;
+    for (std::size_t i = 0; i < with.size(); ++i) sq += (with[i] - without[i]) * (with[i] - without[i]);
+    out[name] = {{"pearson_r", std::isfinite(r) ? nlohmann::json(r) : nlohmann::json(nullptr)},
+                 {"rms_difference_deg", std::sqrt(sq / static_cast<double>(with.size()))},
+                 {"samples", with.size()}};
+  }
+  return out;
+}
+
+nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, Series& s,
+                         const TransparencyReference* reference) {
   nlohmann::json m;
   m["device"] = dev.name();
   m["effort_unit"] = dev.effortUnit();
@@ -296,6 +335,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
   }
   m["tracking"] = tracking;
   m["transparency"] = transparency;
+  if (reference != nullptr) m["transparency_r"] = transparencyR(dev, s, *reference);
   m["effort"] = effort;
   // Faults and other events.
   nlohmann::json faults = nlohmann::json::array();
@@ -324,15 +364,56 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
 
 }  // namespace
 
-nlohmann::json sessionMetrics(const record::SessionRecord& rec) {
+std::string loadTransparencyReference(const std::string& path, TransparencyReference& out) {
+  std::ifstream in(path);
+  if (!in) return path + ": cannot read";
+  TransparencyReference ref;
+  std::string line;
+  int line_no = 0;
+  std::vector<std::string> cols;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    const std::string where = path + ":" + std::to_string(line_no) + ": ";
+    if (cols.empty()) {
+      cols = cells;
+      if (cols.empty() || cols[0] != "t_s") return where + "the header must start with t_s";
+      for (std::size_t i = 1; i < cols.size(); ++i) {
+        const std::string& c = cols[i];
+        if (c.size() < 5 || c.compare(c.size() - 4, 4, "_deg") != 0) return where + "column '" + c + "' is not <joint>_deg";
+        ref.joints_deg.push_back({c.substr(0, c.size() - 4), {}});
+      }
+      continue;
+    }
+    if (cells.size() != cols.size()) return where + "expected " + std::to_string(cols.size()) + " values";
+    std::vector<double> v(cells.size());
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      char* end = nullptr;
+      v[i] = std::strtod(cells[i].c_str(), &end);
+      if (end == cells[i].c_str() || *end != 0 || !std::isfinite(v[i])) return where + "'" + cells[i] + "' is not a finite number";
+    }
+    if (!ref.t_s.empty() && v[0] <= ref.t_s.back()) return where + "t_s must increase";
+    ref.t_s.push_back(v[0]);
+    for (std::size_t i = 1; i < v.size(); ++i) ref.joints_deg[i - 1].second.push_back(v[i]);
+  }
+  if (ref.t_s.size() < 2) return path + ": fewer than two samples";
+  out = std::move(ref);
+  return {};
+}
+
+nlohmann::json sessionMetrics(const record::SessionRecord& rec, const TransparencyReference* reference) {
   Layout l = layoutFor(rec);
   if (!l.device) return {{"error", l.error}};
   Series s = extract(rec, *l.device);
-  return metricsOf(rec, *l.device, s);
+  return metricsOf(rec, *l.device, s, reference);
 }
 
 std::string writeReport(const std::string& record_path, const std::string& previous_path, const std::string& html_path,
-                        const std::function<void(const std::string&)>& progress) {
+                        const std::function<void(const std::string&)>& progress, const std::string& reference_path) {
   auto say = [&](const std::string& m) {
     if (progress) progress(m);
   };
@@ -341,9 +422,14 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   if (std::string err = record::readRecord(record_path, rec); !err.empty()) return err;
   Layout l = layoutFor(rec);
   if (!l.device) return record_path + ": " + l.error;
+  TransparencyReference reference;
+  if (!reference_path.empty()) {
+    say("reading the device-free reference " + reference_path);
+    if (std::string err = loadTransparencyReference(reference_path, reference); !err.empty()) return err;
+  }
   say("computing metrics over " + std::to_string(rec.cycles.size()) + " cycles");
   Series s = extract(rec, *l.device);
-  const nlohmann::json m = metricsOf(rec, *l.device, s);
+  const nlohmann::json m = metricsOf(rec, *l.device, s, reference_path.empty() ? nullptr : &reference);
   nlohmann::json prev;
   if (!previous_path.empty()) {
     say("reading the previous session " + previous_path);
@@ -403,16 +489,30 @@ std::string writeReport(const std::string& record_path, const std::string& previ
     h << "<p>No assessment (transparent) phase in this session.</p>";
   } else {
     h << "<p class='note'>Interaction " << (unit == "N" ? "force" : "torque")
-      << " while the device followed the hand (assessment); the glove paper measured ≈ 0.1 N peak (000 §4.3). "
-         "The Pearson r of 000 Table 4 / 001 Table 2 compares joint trajectories with and without the device; the "
-         "daemon never sees the hand without the device, so that r is computed by the bench (phalanx bench "
-         "glove-free-motion), and here r is given for tracking (below).</p>";
+      << " while the device followed the hand (assessment); the glove paper measured ≈ 0.1 N peak (000 §4.3), "
+         "the exoskeleton paper 0.0029 / 0.0092 N·m RMS at MCP / PIP (001 §8.7).</p>";
     h << "<table><tr><th>channel</th><th>RMS (" << esc(unit) << ")</th><th>peak (" << esc(unit) << ")</th></tr>";
     for (const auto& [c, v] : m["transparency"].items()) {
       h << "<tr><td>" << esc(c) << "</td><td>" << fmt(v["interaction_rms"].get<double>(), 3) << "</td><td>"
         << fmt(v["interaction_peak"].get<double>(), 3) << "</td></tr>";
     }
     h << "</table>";
+  }
+  if (m.contains("transparency_r") && !m["transparency_r"].empty()) {
+    h << "<p class='note'>Kinematic transparency (001 Table 2, 000 Table 4): Pearson r between each joint's "
+         "trajectory with the device (assessment) and a device-free recording of the same motion ("
+      << esc(reference_path) << "). 001 Table 2, full flexion–extension (iii): MCP 0.894, PIP 0.985, DIP 0.989.</p>"
+      << "<table><tr><th>joint</th><th>Pearson r</th><th>RMS difference (deg)</th><th>samples</th></tr>";
+    for (const auto& [j, v] : m["transparency_r"].items()) {
+      h << "<tr><td>" << esc(j) << "</td><td>"
+        << (v["pearson_r"].is_number() ? fmt(v["pearson_r"].get<double>(), 4) : "–") << "</td><td>"
+        << fmt(v["rms_difference_deg"].get<double>(), 2) << "</td><td>" << v["samples"].get<std::size_t>() << "</td></tr>";
+    }
+    h << "</table>";
+  } else if (!m["transparency"].empty()) {
+    h << "<p class='note'>The Pearson r of 001 Table 2 / 000 Table 4 compares joint trajectories with and without "
+         "the device; give a device-free recording of the same motion (phalanx record report --reference) to "
+         "compute it.</p>";
   }
   // Tracking.
   h << "<h2>Tracking (assistance, playback)</h2>";

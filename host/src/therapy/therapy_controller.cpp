@@ -130,9 +130,11 @@ void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_
   last_faults_ = tel.fault_bits;
 
   cmd.mode = out_.mode;
+  std::array<float, kMaxChannels> setpoint{};
+  if (out_.mode == protocol::Mode::kSetpoint) device_->commandFromEffort(out_.effort, setpoint);
   for (std::size_t c = 0; c < kMaxChannels; ++c) {
     const bool drive = c < n && out_.mode == protocol::Mode::kSetpoint;
-    cmd.setpoint[c] = drive ? device_->setpointFromEffort(c, out_.effort[c]) : 0.0f;
+    cmd.setpoint[c] = drive ? setpoint[c] : 0.0f;
     cmd.gain_scale_permille[c] = c < n ? out_.gain_permille[c] : 1000;
     if (!drive) out_.effort[c] = 0.0;
     max_abs_command_ = std::fmax(max_abs_command_, std::fabs(out_.effort[c]));

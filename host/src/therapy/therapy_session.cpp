@@ -263,7 +263,8 @@ void TherapySession::finish(const nlohmann::json& summary) {
   nlohmann::json report_info;
   if (writer_.isOpen()) writer_.close(summary);
   if (!config_.report_path.empty() && !config_.record_path.empty()) {
-    const std::string err = writeReport(config_.record_path, config_.previous_record, config_.report_path);
+    const std::string err = writeReport(config_.record_path, config_.previous_record, config_.report_path, nullptr,
+                                        config_.transparency_reference);
     report_info = err.empty() ? nlohmann::json{{"path", config_.report_path}} : nlohmann::json{{"error", err}};
   }
   std::lock_guard<std::mutex> lock(mutex_);

@@ -12,6 +12,7 @@
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
 #include "phalanx/host/modbus/server_options.h"
+#include "phalanx/host/api/dashboard_options.h"
 
 namespace phalanx::host {
 
@@ -77,6 +78,7 @@ struct RunOptions {
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
   GpioOptions gpio;                   ///< e-stop, drive enable, sync pulse (docs/gpio.md); none by default
+  api::DashboardOptions dashboard;    ///< live web dashboard (docs/dashboard.md; API mode only); off by default
 };
 
 /// Validate the GPIO options (line specs, distinct lines, ranges); empty string or the problem, naming the option.

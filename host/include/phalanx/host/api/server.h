@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "phalanx/host/api/dashboard_options.h"
 #include "phalanx/host/daemon.h"
 
 namespace phalanx::host::api {
@@ -19,6 +20,9 @@ struct ServerConfig {
   std::string profiles_dir = ".";  ///< patient profiles <patient>.yaml
   RunOptions defaults;             ///< device, rate, … for sessions the API starts
   unsigned socket_mode = 0660;
+  /// Live dashboard (docs/dashboard.md): off by default. Its URL (with the access token) is printed on stdout
+  /// ("DASHBOARD <url>") and written to <socket_path>.dashboard with socket_mode.
+  DashboardOptions dashboard;
 };
 
 /// Serve until SIGINT/SIGTERM; stops a running session cleanly first. Returns the process exit code.

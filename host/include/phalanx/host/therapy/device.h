@@ -63,6 +63,14 @@ class TherapyDevice {
   /// Effort (+ resists flexion) → the device's setpoint value for that channel, and back.
   virtual float setpointFromEffort(std::size_t channel, double effort) const = 0;
   virtual double effortFromSetpoint(std::size_t channel, float setpoint) const = 0;
+  /// Real time, after observe(): the channels' efforts → the device's setpoints (the first channelCount()).
+  /// Devices whose channels couple (the SEA exoskeleton: exoskeleton torque = J_nᵀ · finger torque, 001 eq 6)
+  /// override it; the default maps each channel with setpointFromEffort. An override may only scale the efforts
+  /// DOWN (e.g. an actuator saturating) and writes back what it commanded, so limits applied before it hold.
+  virtual void commandFromEffort(std::array<double, kMaxChannels>& effort,
+                                 std::array<float, kMaxChannels>& setpoint) const {
+    for (std::size_t c = 0; c < channelCount(); ++c) setpoint[c] = setpointFromEffort(c, effort[c]);
+  }
   /// Start-up parameters (e.g. the glove's strain-gauge tare) and settle time, as Controller.
   virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }
   virtual double startupSettleS() const { return 0.0; }

@@ -4,6 +4,8 @@
 /// session, force/torque traces, tracking error, transparency (Pearson r, 000 Table 4), faults.
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -11,11 +13,24 @@
 
 namespace phalanx::host::therapy {
 
-/// The report's numbers (also embedded in the HTML as JSON). previous may be null.
-nlohmann::json sessionMetrics(const record::SessionRecord& rec);
+/// A device-free recording of the same motion (001 §7.2: motion capture without the exoskeleton; in simulation
+/// the simulated user's own trajectory), for the transparency Pearson r of 001 Table 2 / 000 Table 4.
+/// CSV: a header `t_s,<joint>_deg,...` (joint names of the device, any subset), one row per sample, times in
+/// the session's clock, '#' comment lines allowed.
+struct TransparencyReference {
+  std::vector<double> t_s;
+  std::vector<std::pair<std::string, std::vector<double>>> joints_deg;
+};
+/// "" or "<path>:<line>: <problem>".
+std::string loadTransparencyReference(const std::string& path, TransparencyReference& out);
 
-/// Reads record_path (and previous_path if not empty), writes html_path. "" or an error.
+/// The report's numbers (also embedded in the HTML as JSON). With a reference, "transparency_r" gives per joint
+/// the Pearson r between the joint flexion recorded during assessment and the reference at the same times.
+nlohmann::json sessionMetrics(const record::SessionRecord& rec, const TransparencyReference* reference = nullptr);
+
+/// Reads record_path (and previous_path / reference_path if not empty), writes html_path. "" or an error.
 std::string writeReport(const std::string& record_path, const std::string& previous_path, const std::string& html_path,
-                        const std::function<void(const std::string&)>& progress = nullptr);
+                        const std::function<void(const std::string&)>& progress = nullptr,
+                        const std::string& reference_path = "");
 
 }  // namespace phalanx::host::therapy

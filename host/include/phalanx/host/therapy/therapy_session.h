@@ -24,6 +24,7 @@ struct TherapySessionConfig {
   nlohmann::json exercise_params;
   std::string report_path;      ///< "" = no report; written at session end from the record
   std::string previous_record;  ///< earlier session of the same patient, for the report's comparison
+  std::string transparency_reference;  ///< "" or a device-free recording for the report's transparency r
   record::WriterConfig writer;
 };
 

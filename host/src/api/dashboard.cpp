@@ -1,0 +1,301 @@
+#include "phalanx/host/api/dashboard.h"
+
+#include <arpa/inet.h>
+#include <sys/random.h>
+#include <sys/socket.h>
+
+#include <httplib.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+namespace phalanx::host::api {
+
+// dashboard_assets.cpp, generated at configure time from host/web/ (the page and its canvas plotter are
+// compiled into the binary: no CDN, no files to install).
+const char* dashboardHtml();
+const char* dashboardJs();
+
+namespace {
+
+/// 4 workers: a page keeps one keep-alive connection polling; a clinic has one or two screens open.
+constexpr int kWorkers = 4;
+/// The largest valid API request is < 1 KiB; the socket API's limit.
+constexpr std::size_t kMaxBodyBytes = 64 * 1024;
+
+std::string hostPort(const std::string& address, uint16_t port) {
+  const bool v6 = address.find(':') != std::string::npos;
+  return (v6 ? "[" + address + "]" : address) + ":" + std::to_string(port);
+}
+
+bool tokensEqual(const std::string& a, const std::string& b) {
+  // Constant time over the expected length: the comparison does not tell how many characters matched.
+  if (a.size() != b.size()) return false;
+  unsigned char diff = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+nlohmann::json num(const nlohmann::json& v) { return v.is_number() ? v : nlohmann::json(nullptr); }
+
+}  // namespace
+
+bool isLoopbackAddress(const std::string& address) {
+  in_addr a4{};
+  if (::inet_pton(AF_INET, address.c_str(), &a4) == 1) return (ntohl(a4.s_addr) >> 24) == 127;
+  in6_addr a6{};
+  if (::inet_pton(AF_INET6, address.c_str(), &a6) == 1) return IN6_IS_ADDR_LOOPBACK(&a6);
+  return false;
+}
+
+std::string parseDashboardSpec(const std::string& spec, DashboardOptions& out) {
+  std::string address, port;
+  if (!spec.empty() && spec[0] == '[') {
+    const auto close = spec.find(']');
+    if (close == std::string::npos || close + 1 >= spec.size() || spec[close + 1] != ':') {
+      return "--dashboard: '" + spec + "' is not [IPV6]:PORT";
+    }
+    address = spec.substr(1, close - 1);
+    port = spec.substr(close + 2);
+  } else {
+    const auto colon = spec.rfind(':');
+    if (colon == std::string::npos || spec.find(':') != colon) return "--dashboard: '" + spec + "' is not ADDRESS:PORT";
+    address = spec.substr(0, colon);
+    port = spec.substr(colon + 1);
+  }
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoul(port) > 65535) {
+    return "--dashboard: port '" + port + "' is not 0..65535";
+  }
+  DashboardOptions o = out;
+  o.enabled = true;
+  o.address = address;
+  o.port = static_cast<uint16_t>(std::stoul(port));
+  if (std::string err = validateDashboardOptions(o); !err.empty()) return err;
+  out = o;
+  return {};
+}
+
+std::string validateDashboardOptions(const DashboardOptions& opt) {
+  in_addr a4{};
+  in6_addr a6{};
+  if (::inet_pton(AF_INET, opt.address.c_str(), &a4) != 1 && ::inet_pton(AF_INET6, opt.address.c_str(), &a6) != 1) {
+    return "dashboard address '" + opt.address + "' is not an IPv4 or IPv6 address literal";
+  }
+  if (!isLoopbackAddress(opt.address) && !opt.allow_remote) {
+    return "dashboard address " + opt.address +
+           " is not a loopback address: the dashboard serves patient data and session controls over plain HTTP; "
+           "set dashboard.allow_remote: true in the configuration file to serve it on a network";
+  }
+  return {};
+}
+
+struct Dashboard::Http {
+  httplib::Server server;
+};
+
+Dashboard::Dashboard(const DashboardOptions& options, RequestHandler handler)
+    : options_(options), handler_(std::move(handler)), http_(std::make_unique<Http>()) {}
+
+Dashboard::~Dashboard() { stop(); }
+
+std::string Dashboard::url() const { return "http://" + hostPort(options_.address, port_) + "/#token=" + token_; }
+
+std::string Dashboard::start() {
+  if (std::string err = validateDashboardOptions(options_); !err.empty()) return err;
+  unsigned char raw[16];
+  if (::getrandom(raw, sizeof raw, 0) != static_cast<ssize_t>(sizeof raw)) return "dashboard: no random token";
+  char hex[3];
+  token_.clear();
+  for (unsigned char b : raw) {
+    std::snprintf(hex, sizeof hex, "%02x", b);
+    token_ += hex;
+  }
+  httplib::Server& s = http_->server;
+  s.new_task_queue = [] { return new httplib::ThreadPool(kWorkers); };
+  // cpp-httplib sets SO_REUSEPORT by default, which would let a second process bind the same port and take
+  // connections; a listener here is exclusive (SO_REUSEADDR only, for restarts).
+  s.set_socket_options([](int sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  s.set_payload_max_length(kMaxBodyBytes);
+  s.set_read_timeout(5, 0);
+  s.set_write_timeout(5, 0);
+  s.set_keep_alive_timeout(2);
+  s.set_keep_alive_max_count(200);
+
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    res.set_header("Cache-Control", "no-store");
+    res.set_header("X-Content-Type-Options", "nosniff");
+    res.set_header("X-Frame-Options", "DENY");
+    res.set_header("Referrer-Policy", "no-referrer");
+    res.set_header("Content-Security-Policy",
+                   "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+                   "connect-src 'self'; frame-ancestors 'none'");
+    // DNS rebinding: the Host header must name this listener.
+    const std::string host = req.get_header_value("Host");
+    std::set<std::string> allowed{hostPort(options_.address, port_)};
+    if (isLoopbackAddress(options_.address)) {
+      allowed.insert("localhost:" + std::to_string(port_));
+      allowed.insert(hostPort("127.0.0.1", port_));
+      allowed.insert(hostPort("::1", port_));
+    }
+    if (allowed.count(host) == 0) {
+      res.status = 421;
+      res.set_content("{\"ok\":false,\"error\":\"Host header does not name this dashboard\"}", "application/json");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    const std::string origin = req.get_header_value("Origin");
+    if (!origin.empty() && origin != "http://" + host) {
+      res.status = 403;
+      res.set_content("{\"ok\":false,\"error\":\"cross-origin request refused\"}", "application/json");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (req.path.rfind("/api/", 0) == 0 && !tokensEqual(req.get_header_value("X-Phalanx-Token"), token_)) {
+      res.status = 401;
+      res.set_content("{\"ok\":false,\"error\":\"missing or wrong X-Phalanx-Token (open the URL phalanxd printed)\"}",
+                      "application/json");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  s.Get("/", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(dashboardHtml(), "text/html; charset=utf-8");
+  });
+  s.Get("/dashboard.js", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(dashboardJs(), "text/javascript; charset=utf-8");
+  });
+  s.Get("/api/samples", [this](const httplib::Request& req, httplib::Response& res) {
+    uint64_t after = 0;
+    if (req.has_param("after")) {
+      const std::string a = req.get_param_value("after");
+      if (a.empty() || a.size() > 19 || a.find_first_not_of("0123456789") != std::string::npos) {
+        res.status = 400;
+        res.set_content("{\"ok\":false,\"error\":\"after: expected a non-negative integer\"}", "application/json");
+        return;
+      }
+      after = std::stoull(a);
+    }
+    res.set_content(samplesAfter(after).dump(), "application/json");
+  });
+  s.Post("/api/request", [this](const httplib::Request& req, httplib::Response& res) {
+    // The same validated handler as the UNIX socket: one JSON request, one answer.
+    res.set_content(handler_(req.body).dump(), "application/json");
+  });
+  s.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    if (res.body.empty()) {
+      res.set_content("{\"ok\":false,\"error\":\"HTTP " + std::to_string(res.status) + "\"}", "application/json");
+    }
+  });
+
+  int port = -1;
+  if (options_.port == 0) {
+    port = s.bind_to_any_port(options_.address);
+  } else if (s.bind_to_port(options_.address, options_.port)) {
+    port = options_.port;
+  }
+  if (port <= 0) return "dashboard: cannot listen on " + hostPort(options_.address, options_.port);
+  port_ = static_cast<uint16_t>(port);
+  running_ = true;
+  listen_thread_ = std::thread([this] { http_->server.listen_after_bind(); });
+  // Serving before start() returns, so that stop() (which only stops a running server) can never miss it.
+  for (int i = 0; i < 1000 && !http_->server.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  sample_thread_ = std::thread([this] { sampleLoop(); });
+  return {};
+}
+
+void Dashboard::stop() {
+  if (!running_.exchange(false)) return;
+  http_->server.stop();
+  if (listen_thread_.joinable()) listen_thread_.join();
+  if (sample_thread_.joinable()) sample_thread_.join();
+}
+
+void Dashboard::sampleLoop() {
+  const auto period = std::chrono::microseconds(static_cast<long>(1e6 / kSampleRateHz));
+  auto next = std::chrono::steady_clock::now();
+  while (running_) {
+    takeSample();
+    next += period;
+    const auto now = std::chrono::steady_clock::now();
+    if (next < now) next = now;  // after a long status call (a "stop" writing its report): no burst
+    std::this_thread::sleep_until(next);
+  }
+}
+
+void Dashboard::takeSample() {
+  const nlohmann::json resp = handler_("{\"cmd\":\"status\"}");
+  if (!resp.value("ok", false)) return;
+  const nlohmann::json& r = resp["result"];
+  nlohmann::json st{{"session_running", r.value("session_running", false)}};
+  nlohmann::json sample;
+  std::string session;
+  nlohmann::json meta;
+  if (r.contains("session")) {
+    const nlohmann::json& s = r["session"];
+    for (const char* k : {"phase", "patient", "record", "device", "exercise", "t_s", "cycles", "device_mode", "faults",
+                          "estop", "limited_cycles", "effort_unit"}) {
+      if (s.contains(k)) st[k] = s[k];
+    }
+    session = s.value("record", std::string()) + "|" + s.value("device", std::string());
+    if (s.contains("channels") && s.contains("joints") && s["t_s"].is_number()) {
+      meta = {{"session", session}, {"effort_unit", s.value("effort_unit", std::string())},
+              {"channels", nlohmann::json::array()}, {"joints", nlohmann::json::array()}};
+      sample = {{"t", s["t_s"]}, {"j", nlohmann::json::array()}, {"q", nlohmann::json::array()},
+                {"tg", nlohmann::json::array()}, {"em", nlohmann::json::array()}, {"ec", nlohmann::json::array()},
+                {"lim", nlohmann::json::array()}};
+      for (const auto& [name, v] : s["joints"].items()) {
+        meta["joints"].push_back(name);
+        sample["j"].push_back(num(v["flexion_deg"]));
+      }
+      for (const auto& [name, v] : s["channels"].items()) {
+        meta["channels"].push_back(name);
+        sample["q"].push_back(num(v["q_deg"]));
+        sample["tg"].push_back(num(v["target_deg"]));
+        sample["em"].push_back(num(v["effort_measured"]));
+        sample["ec"].push_back(num(v["effort_command"]));
+        sample["lim"].push_back(num(v["effort_max"]));
+      }
+    }
+  }
+  if (r.contains("last_session") && r["last_session"].is_object()) {
+    const auto& l = r["last_session"];
+    st["last_session"] = {{"exit_code", num(l.value("exit_code", nlohmann::json()))},
+                          {"error", l.value("error", std::string())},
+                          {"report", l.contains("report") ? l["report"] : nlohmann::json(nullptr)}};
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  status_ = st;
+  if (sample.is_null()) return;
+  const double t = sample["t"].get<double>();
+  if (session != last_session_) {  // a new session: its plots start empty
+    ring_.clear();
+    last_session_ = session;
+    last_t_s_ = -1.0;
+  }
+  meta_ = meta;
+  if (t == last_t_s_) return;  // the loop has not published a newer snapshot
+  last_t_s_ = t;
+  sample["seq"] = ++seq_;
+  ring_.push_back(std::move(sample));
+  while (ring_.size() > kRingSamples) ring_.pop_front();
+}
+
+nlohmann::json Dashboard::samplesAfter(uint64_t after) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  nlohmann::json out{{"ok", true}, {"status", status_}, {"meta", meta_}, {"samples", nlohmann::json::array()},
+                     {"rate_hz", kSampleRateHz}};
+  std::size_t n = 0;
+  for (const auto& s : ring_) {
+    if (s["seq"].get<uint64_t>() <= after) continue;
+    out["samples"].push_back(s);
+    if (++n >= kMaxSamplesPerAnswer) break;
+  }
+  out["last_seq"] = seq_;
+  return out;
+}
+
+}  // namespace phalanx::host::api

@@ -1,0 +1,214 @@
+// Phalanx live dashboard: polls /api/samples (50 Hz samples, batched), draws strip charts on canvases (no
+// libraries), and sends start/stop/exercise/reset as control-API requests to /api/request. docs/dashboard.md.
+'use strict';
+
+const WINDOW_S = 10;          // plotted time window
+const POLL_MS = 100;          // poll period: 5 samples per answer at 50 Hz
+const COLORS = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#8c564b', '#17becf', '#7f7f7f',
+                '#bcbd22', '#e377c2', '#393b79', '#637939', '#8c6d31', '#843c39', '#7b4173'];
+
+function tokenFromUrl() {
+  const m = /token=([0-9a-f]+)/.exec(window.location.hash);
+  if (m) {
+    sessionStorage.setItem('phalanx-token', m[1]);
+    history.replaceState(null, '', window.location.pathname);  // keep the token out of the address bar
+    return m[1];
+  }
+  return sessionStorage.getItem('phalanx-token') || '';
+}
+const TOKEN = tokenFromUrl();
+
+// A strip chart: named series of (t, y) over the last WINDOW_S seconds, auto-scaled.
+class StripChart {
+  constructor(canvas, title) {
+    this.canvas = canvas;
+    this.ctx = canvas.getContext('2d');
+    this.title = title;
+    this.reset([], '');
+  }
+  reset(names, unit, dashed) {
+    this.names = names;
+    this.unit = unit;
+    this.dashed = dashed || [];
+    this.t = [];
+    this.y = names.map(() => []);
+  }
+  push(t, values) {
+    this.t.push(t);
+    for (let i = 0; i < this.y.length; ++i) {
+      const v = values[i];
+      this.y[i].push(typeof v === 'number' && isFinite(v) ? v : NaN);
+    }
+    const t0 = t - WINDOW_S;
+    let drop = 0;
+    while (drop < this.t.length && this.t[drop] < t0) ++drop;
+    if (drop > 0) {
+      this.t.splice(0, drop);
+      for (const s of this.y) s.splice(0, drop);
+    }
+  }
+  draw() {
+    const c = this.ctx, W = this.canvas.width, H = this.canvas.height;
+    const L = 60, R = 150, T = 22, B = 26;
+    c.clearRect(0, 0, W, H);
+    c.fillStyle = '#222';
+    c.font = '13px sans-serif';
+    c.fillText(this.title + (this.unit ? ' (' + this.unit + ')' : ''), L, 15);
+    if (this.t.length < 2) {
+      c.fillStyle = '#888';
+      c.fillText('no data', L + 10, T + 30);
+      return;
+    }
+    const t1 = this.t[this.t.length - 1], t0 = t1 - WINDOW_S;
+    let lo = Infinity, hi = -Infinity;
+    for (const s of this.y) for (const v of s) if (!isNaN(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    if (!isFinite(lo)) { lo = -1; hi = 1; }
+    if (hi - lo < 1e-6) { lo -= 1; hi += 1; }
+    const pad = 0.05 * (hi - lo);
+    lo -= pad; hi += pad;
+    const X = (t) => L + (t - t0) / WINDOW_S * (W - L - R);
+    const Y = (v) => T + (hi - v) / (hi - lo) * (H - T - B);
+    // grid and axes
+    c.strokeStyle = '#e4e4e4';
+    c.lineWidth = 1;
+    c.fillStyle = '#555';
+    c.font = '11px sans-serif';
+    for (let k = 0; k <= 4; ++k) {
+      const v = lo + (hi - lo) * k / 4;
+      c.beginPath(); c.moveTo(L, Y(v)); c.lineTo(W - R, Y(v)); c.stroke();
+      c.fillText(v.toPrecision(3), 4, Y(v) + 4);
+    }
+    for (let s = Math.ceil(t0); s <= t1; s += 2) {
+      c.beginPath(); c.moveTo(X(s), T); c.lineTo(X(s), H - B); c.stroke();
+      c.fillText(s.toFixed(0) + ' s', X(s) - 8, H - 8);
+    }
+    c.strokeStyle = '#999';
+    c.strokeRect(L, T, W - L - R, H - T - B);
+    // series
+    for (let i = 0; i < this.y.length; ++i) {
+      const color = COLORS[i % COLORS.length];
+      c.strokeStyle = color;
+      c.lineWidth = 1.6;
+      c.setLineDash(this.dashed[i] ? [5, 4] : []);
+      c.beginPath();
+      let pen = false;
+      for (let k = 0; k < this.t.length; ++k) {
+        const v = this.y[i][k];
+        if (isNaN(v)) { pen = false; continue; }
+        if (pen) c.lineTo(X(this.t[k]), Y(v)); else c.moveTo(X(this.t[k]), Y(v));
+        pen = true;
+      }
+      c.stroke();
+      c.setLineDash([]);
+      c.fillStyle = color;
+      c.fillText(this.names[i], W - R + 8, T + 12 + 13 * i);
+    }
+  }
+}
+
+const charts = {
+  joints: new StripChart(document.getElementById('plot-joints'), 'joint flexion'),
+  channels: new StripChart(document.getElementById('plot-channels'), 'channel flexion q (solid) and target (dashed)'),
+  efforts: new StripChart(document.getElementById('plot-efforts'), 'effort measured (solid) and commanded (dashed)'),
+};
+let lastSeq = 0;
+let session = null;
+let running = false;
+
+function setField(id, text, bad) {
+  const el = document.getElementById(id);
+  el.textContent = text;
+  el.className = bad === undefined ? '' : (bad ? 'bad' : 'ok');
+}
+
+function message(text, isError) {
+  const el = document.getElementById('message');
+  el.textContent = text;
+  el.className = isError ? 'error' : '';
+}
+
+function showStatus(st) {
+  running = !!st.session_running;
+  setField('phase', st.phase || (running ? 'running' : 'none'));
+  setField('patient', st.patient || '–');
+  setField('device', st.device || '–');
+  setField('exercise', st.exercise || '–');
+  setField('mode', st.device_mode || '–');
+  // The API gives the latched faults as one comma-separated string ("none" when none).
+  let faults = Array.isArray(st.faults) ? st.faults.join(', ') : String(st.faults || '');
+  if (faults === 'none') faults = '';
+  setField('faults', st.faults === undefined ? '–' : (faults ? faults : 'none'),
+           st.faults === undefined ? undefined : faults.length > 0);
+  setField('estop', st.estop === undefined ? '–' : (st.estop ? 'PRESSED' : 'released'),
+           st.estop === undefined ? undefined : !!st.estop);
+  setField('time', typeof st.t_s === 'number' ? st.t_s.toFixed(1) + ' s' : '–');
+  setField('limited', st.limited_cycles === undefined ? '–' : String(st.limited_cycles));
+  document.getElementById('stop').disabled = !running;
+  document.getElementById('reset').disabled = !running;
+  document.getElementById('start').disabled = running;
+}
+
+function startSession(meta) {
+  session = meta.session;
+  const unit = meta.effort_unit || '';
+  const ch = meta.channels || [];
+  charts.joints.reset(meta.joints || [], 'deg');
+  charts.channels.reset(ch.concat(ch.map((c) => c + ' target')), 'deg', ch.map(() => false).concat(ch.map(() => true)));
+  charts.efforts.reset(ch.concat(ch.map((c) => c + ' cmd')), unit, ch.map(() => false).concat(ch.map(() => true)));
+}
+
+async function poll() {
+  try {
+    const r = await fetch('api/samples?after=' + lastSeq, { headers: { 'X-Phalanx-Token': TOKEN }, cache: 'no-store' });
+    const a = await r.json();
+    if (!r.ok) {
+      message(a.error || ('HTTP ' + r.status), true);
+      return;
+    }
+    showStatus(a.status || {});
+    if (a.meta && a.meta.session && a.meta.session !== session) startSession(a.meta);
+    for (const s of a.samples) {
+      lastSeq = Math.max(lastSeq, s.seq);
+      charts.joints.push(s.t, s.j);
+      charts.channels.push(s.t, s.q.concat(s.tg));
+      charts.efforts.push(s.t, s.em.concat(s.ec));
+    }
+    if (a.last_seq < lastSeq) lastSeq = 0;  // the daemon restarted
+    for (const c of Object.values(charts)) c.draw();
+  } catch (e) {
+    message('dashboard: ' + e, true);
+  } finally {
+    setTimeout(poll, POLL_MS);
+  }
+}
+
+// Every control is one control-API request, validated by the daemon exactly as on its UNIX socket.
+async function request(body) {
+  try {
+    const r = await fetch('api/request', {
+      method: 'POST',
+      headers: { 'X-Phalanx-Token': TOKEN, 'Content-Type': 'application/json' },
+      body: JSON.stringify(body),
+    });
+    const a = await r.json();
+    if (a.ok) message(body.cmd + ': ok' + (a.result && a.result.record ? ' (' + a.result.record + ')' : ''), false);
+    else message(body.cmd + ': ' + (a.error || 'refused'), true);
+    return a;
+  } catch (e) {
+    message(body.cmd + ': ' + e, true);
+    return null;
+  }
+}
+
+document.getElementById('stop').addEventListener('click', () => request({ cmd: 'stop' }));
+document.getElementById('reset').addEventListener('click', () => request({ cmd: 'reset' }));
+document.getElementById('change').addEventListener('click',
+  () => request({ cmd: 'exercise', exercise: document.getElementById('exercise-select').value }));
+document.getElementById('start').addEventListener('click', () => {
+  const body = { cmd: 'start', exercise: document.getElementById('exercise-select').value };
+  const p = document.getElementById('patient-input').value.trim();
+  if (p) body.patient = p;
+  request(body);
+});
+if (!TOKEN) message('no access token: open the URL phalanxd printed (…/#token=…)', true);
+poll();

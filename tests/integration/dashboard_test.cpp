@@ -1,0 +1,433 @@
+// The live dashboard end to end: phalanxd --api --dashboard running a simulated session; its HTTP access rules;
+// and Debian's headless Chromium, driven over the DevTools protocol (--remote-debugging-pipe: JSON messages on
+// fds 3/4, no extra library), opening the page, reading the mode/fault/e-stop fields, checking by canvas pixel
+// reads and two screenshots that the plots move, pressing STOP and checking that the session stopped.
+#include <gtest/gtest.h>
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/api/client.h"
+#include "process.h"
+
+extern char** environ;
+
+using phalanx::test::binPath;
+using phalanx::test::Process;
+
+namespace {
+
+std::string tempDir() {
+  char tmpl[] = "/tmp/phalanx-dash-XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d == nullptr ? std::string("/tmp") : std::string(d);
+}
+
+/// phalanxd --api with the dashboard on an ephemeral loopback port, simulated SEA finger exoskeleton.
+class DashDaemon {
+ public:
+  explicit DashDaemon(const std::string& device = "sim:sea_finger") : dir_(tempDir()), socket_(dir_ + "/api.sock") {
+    proc_ = std::make_unique<Process>(std::vector<std::string>{
+        binPath("phalanxd"), "--api", socket_, "--records-dir", dir_, "--profiles-dir", dir_, "--no-realtime",
+        "--device", device, "--scenario", "close-open", "--dashboard", "127.0.0.1:0",
+        // Chromium starting on a loaded 2-core machine can stall this non-real-time daemon past the default
+        // 20 ms command timeout (the device then latches command-timeout and goes safe, as it must); the test is
+        // about the dashboard, so the commands carry 200 ms.
+        "--command-timeout-ms", "200"});
+    EXPECT_EQ(proc_->readStdoutLine(5000), "API " + socket_) << proc_->stderrText();
+    const std::string line = proc_->readStdoutLine(5000);
+    EXPECT_EQ(line.rfind("DASHBOARD http://127.0.0.1:", 0), 0u) << line << proc_->stderrText();
+    url_ = line.substr(10);
+    const auto colon = url_.find(':', 7);
+    port_ = std::atoi(url_.c_str() + colon + 1);
+    token_ = url_.substr(url_.find("#token=") + 7);
+  }
+  ~DashDaemon() {
+    proc_->signal(SIGTERM);
+    proc_->wait(10000);
+    std::system(("rm -rf " + dir_).c_str());
+  }
+  nlohmann::json api(const nlohmann::json& req) {
+    nlohmann::json resp;
+    EXPECT_EQ(phalanx::host::api::call(socket_, req, resp), "") << req.dump();
+    return resp;
+  }
+  nlohmann::json waitRunning() {
+    nlohmann::json s;
+    for (int i = 0; i < 300; ++i) {
+      s = api({{"cmd", "status"}})["result"];
+      if (s.contains("session") && s["session"].contains("t_s")) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return s;
+  }
+  const std::string& url() const { return url_; }
+  const std::string& token() const { return token_; }
+  const std::string& dir() const { return dir_; }
+  const std::string& socket() const { return socket_; }
+  int port() const { return port_; }
+  Process& process() { return *proc_; }
+
+ private:
+  std::string dir_, socket_, url_, token_;
+  int port_ = 0;
+  std::unique_ptr<Process> proc_;
+};
+
+struct HttpAnswer {
+  int status = 0;
+  std::string body;
+};
+
+/// Minimal HTTP/1.1 client on loopback (the test needs exact control of Host and headers).
+HttpAnswer http(int port, const std::string& method, const std::string& path, const std::string& host,
+                const std::string& extra_headers = "", const std::string& body = "") {
+  HttpAnswer a;
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in sa{};
+  sa.sin_family = AF_INET;
+  sa.sin_port = htons(static_cast<uint16_t>(port));
+  sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) {
+    ::close(fd);
+    return a;
+  }
+  std::string req = method + " " + path + " HTTP/1.1\r\nHost: " + host + "\r\nConnection: close\r\n" + extra_headers;
+  if (!body.empty() || method == "POST") req += "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
+  req += "\r\n" + body;
+  (void)!::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
+  std::string resp;
+  char buf[8192];
+  pollfd p{fd, POLLIN, 0};
+  while (::poll(&p, 1, 5000) > 0) {
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    resp.append(buf, static_cast<size_t>(n));
+  }
+  ::close(fd);
+  if (resp.rfind("HTTP/1.1 ", 0) == 0) a.status = std::atoi(resp.c_str() + 9);
+  const auto b = resp.find("\r\n\r\n");
+  if (b != std::string::npos) a.body = resp.substr(b + 4);
+  return a;
+}
+
+/// Chromium over the DevTools protocol on a pipe pair: we write commands to its fd 3, read answers from its fd 4;
+/// messages are JSON terminated by a NUL byte.
+class Chromium {
+ public:
+  static std::string executable() {
+    if (const char* e = std::getenv("PHALANX_CHROMIUM"); e != nullptr && *e != 0) return e;
+    for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"}) {
+      if (::access(p, X_OK) == 0) return p;
+    }
+    return {};
+  }
+  Chromium(const std::string& exe, const std::string& profile_dir, const std::string& log) {
+    int to_child[2], from_child[2];
+    if (::pipe(to_child) != 0 || ::pipe(from_child) != 0) return;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    posix_spawn_file_actions_adddup2(&fa, to_child[0], 3);
+    posix_spawn_file_actions_adddup2(&fa, from_child[1], 4);
+    std::vector<std::string> args = {exe,
+                                     "--headless=new",
+                                     "--remote-debugging-pipe",
+                                     "--no-sandbox",  // the test may run as root (CI containers)
+                                     "--disable-gpu",
+                                     "--disable-dev-shm-usage",
+                                     "--no-first-run",
+                                     "--no-default-browser-check",
+                                     "--disable-extensions",
+                                     "--window-size=1100,900",
+                                     "--user-data-dir=" + profile_dir,
+                                     "about:blank"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, exe.c_str(), &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    ::close(to_child[0]);
+    ::close(from_child[1]);
+    if (rc != 0) {
+      pid_ = -1;
+      ::close(to_child[1]);
+      ::close(from_child[0]);
+      return;
+    }
+    out_ = to_child[1];
+    in_ = from_child[0];
+    ::fcntl(out_, F_SETFD, FD_CLOEXEC);
+    ::fcntl(in_, F_SETFD, FD_CLOEXEC);
+  }
+  ~Chromium() {
+    if (pid_ > 0) {
+      nlohmann::json ignored;
+      call("Browser.close", nlohmann::json::object(), "", ignored, 3000);
+      for (int i = 0; i < 100 && ::waitpid(pid_, nullptr, WNOHANG) == 0; ++i) usleep(20000);
+      if (::waitpid(pid_, nullptr, WNOHANG) == 0) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, nullptr, 0);
+      }
+    }
+    if (out_ >= 0) ::close(out_);
+    if (in_ >= 0) ::close(in_);
+  }
+  bool ok() const { return pid_ > 0; }
+
+  /// One command; "" and its result, or an error.
+  std::string call(const std::string& method, const nlohmann::json& params, const std::string& session,
+                   nlohmann::json& result, int timeout_ms = 15000) {
+    const int id = ++next_id_;
+    nlohmann::json msg{{"id", id}, {"method", method}, {"params", params}};
+    if (!session.empty()) msg["sessionId"] = session;
+    const std::string text = msg.dump() + std::string(1, '\0');
+    if (::write(out_, text.data(), text.size()) != static_cast<ssize_t>(text.size())) return "write to chromium failed";
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+    for (;;) {
+      for (std::size_t z; (z = buf_.find('\0')) != std::string::npos;) {
+        const nlohmann::json m = nlohmann::json::parse(buf_.substr(0, z), nullptr, false);
+        buf_.erase(0, z + 1);
+        if (!m.is_object() || !m.contains("id") || m["id"] != id) continue;  // events, other answers
+        if (m.contains("error")) return method + ": " + m["error"].dump();
+        result = m.value("result", nlohmann::json::object());
+        return {};
+      }
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return method + ": no answer within " + std::to_string(timeout_ms) + " ms";
+      pollfd p{in_, POLLIN, 0};
+      if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+      char b[65536];
+      const ssize_t n = ::read(in_, b, sizeof b);
+      if (n <= 0) return method + ": chromium closed the pipe";
+      buf_.append(b, static_cast<std::size_t>(n));
+    }
+  }
+  /// Evaluates a JavaScript expression in the page; its value (by value; promises awaited).
+  nlohmann::json eval(const std::string& session, const std::string& expr) {
+    nlohmann::json r;
+    const std::string err =
+        call("Runtime.evaluate", {{"expression", expr}, {"returnByValue", true}, {"awaitPromise", true}}, session, r);
+    EXPECT_EQ(err, "") << expr;
+    if (r.contains("exceptionDetails")) ADD_FAILURE() << expr << ": " << r["exceptionDetails"].dump();
+    return r.contains("result") ? r["result"].value("value", nlohmann::json()) : nlohmann::json();
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  int in_ = -1;
+  int next_id_ = 0;
+  std::string buf_;
+};
+
+std::string base64Decode(const std::string& in) {
+  auto val = [](char c) -> int {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+  };
+  std::string out;
+  int bits = 0, acc = 0;
+  for (char c : in) {
+    const int v = val(c);
+    if (v < 0) continue;
+    acc = (acc << 6) | v;
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out.push_back(static_cast<char>((acc >> bits) & 0xff));
+    }
+  }
+  return out;
+}
+
+// Canvas pixel read: a checksum of the plot's pixels and how many are not background.
+const char* kPlotSignature = R"JS((() => {
+  const c = document.getElementById('plot-joints');
+  const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+  let h = 0, ink = 0;
+  for (let i = 0; i < d.length; i += 4) {
+    const v = d[i] | (d[i + 1] << 8) | (d[i + 2] << 16);
+    h = (Math.imul(h, 31) + v) | 0;
+    if (d[i + 3] > 0 && (d[i] < 200 || d[i + 1] < 200 || d[i + 2] < 200)) ++ink;
+  }
+  return {hash: h, ink: ink};
+})())JS";
+
+}  // namespace
+
+// Access rules, checked without a browser (they hold whether or not Chromium is installed).
+TEST(Dashboard, ServesOnlyLoopbackWithItsTokenAndTheSameValidatedRequests) {
+  DashDaemon d;
+  const std::string host = "127.0.0.1:" + std::to_string(d.port());
+  const std::string tok = "X-Phalanx-Token: " + d.token() + "\r\n";
+  // The page and its script are served from the binary; they contain no external reference.
+  const HttpAnswer page = http(d.port(), "GET", "/", host);
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.body.find("plot-joints"), std::string::npos);
+  const HttpAnswer js = http(d.port(), "GET", "/dashboard.js", host);
+  EXPECT_EQ(js.status, 200);
+  EXPECT_NE(js.body.find("class StripChart"), std::string::npos);
+  for (const std::string& body : {page.body, js.body}) {
+    EXPECT_EQ(body.find("http://"), std::string::npos);
+    EXPECT_EQ(body.find("https://"), std::string::npos);
+  }
+  // Data and controls need the token; a wrong Host (DNS rebinding) or a foreign Origin is refused.
+  EXPECT_EQ(http(d.port(), "GET", "/api/samples", host).status, 401);
+  EXPECT_EQ(http(d.port(), "GET", "/api/samples", host, "X-Phalanx-Token: 0123\r\n").status, 401);
+  EXPECT_EQ(http(d.port(), "GET", "/api/samples", "evil.example:" + std::to_string(d.port()), tok).status, 421);
+  EXPECT_EQ(http(d.port(), "POST", "/api/request", host, tok + "Origin: http://evil.example\r\n",
+                 R"({"cmd":"stop"})").status,
+            403);
+  EXPECT_EQ(http(d.port(), "GET", "/api/samples?after=-1", host, tok).status, 400);
+  // Requests go through the API's validation: the same refusals, word for word, as on the UNIX socket.
+  for (const std::string req : {R"({"cmd":"start","exercise":"juggling"})", R"({"cmd":"stop"})",
+                                R"({"cmd":"status","verbose":true})", "not json"}) {
+    const HttpAnswer a = http(d.port(), "POST", "/api/request", host, tok, req);
+    EXPECT_EQ(a.status, 200);
+    const nlohmann::json via_http = nlohmann::json::parse(a.body, nullptr, false);
+    std::string via_socket;
+    ASSERT_EQ(phalanx::host::api::callRaw(d.socket(), req, via_socket), "");
+    EXPECT_EQ(via_http.value("ok", true), false) << a.body;
+    EXPECT_EQ(via_http, nlohmann::json::parse(via_socket, nullptr, false)) << req;
+  }
+  EXPECT_FALSE(d.api({{"cmd", "status"}})["result"]["session_running"].get<bool>());
+  // The URL file next to the socket has the socket's mode.
+  struct stat st {};
+  ASSERT_EQ(::stat((d.socket() + ".dashboard").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0660u);
+}
+
+TEST(Dashboard, NonLoopbackAddressesAreRefusedUnlessConfigured) {
+  Process p({binPath("phalanxd"), "--api", "/tmp/phalanx-dash-never.sock", "--dashboard", "0.0.0.0:8080"});
+  EXPECT_EQ(p.wait(5000), 2);
+  EXPECT_NE(p.stderrText().find("not a loopback address"), std::string::npos) << p.stderrText();
+  Process q({binPath("phalanxd"), "--api", "/tmp/phalanx-dash-never.sock", "--dashboard", "localhost:99999"});
+  EXPECT_EQ(q.wait(5000), 2);
+  EXPECT_NE(q.stderrText().find("port"), std::string::npos) << q.stderrText();
+  Process r({binPath("phalanxd"), "--dashboard", "127.0.0.1:8080", "--device", "sim:glove5"});
+  EXPECT_EQ(r.wait(5000), 2);
+  EXPECT_NE(r.stderrText().find("needs --api"), std::string::npos) << r.stderrText();
+}
+
+TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
+  const std::string exe = Chromium::executable();
+  if (exe.empty()) {
+    if (std::getenv("CI") != nullptr) FAIL() << "chromium is not installed on CI (tools/setup.sh installs it)";
+    GTEST_SKIP() << "chromium is not installed (Debian package 'chromium'; tools/setup.sh installs it): the "
+                    "browser test of the dashboard did not run";
+  }
+  DashDaemon d;
+  const nlohmann::json started = d.api({{"cmd", "start"}, {"exercise", "assessment"}});
+  ASSERT_TRUE(started.value("ok", false)) << started.dump();
+  const nlohmann::json st = d.waitRunning();
+  ASSERT_TRUE(st["session"].contains("t_s")) << st.dump() << d.process().stderrText();
+
+  Chromium chrome(exe, d.dir() + "/chromium-profile", d.dir() + "/chromium.log");
+  ASSERT_TRUE(chrome.ok());
+  nlohmann::json r;
+  ASSERT_EQ(chrome.call("Target.createTarget", {{"url", d.url()}}, "", r), "");
+  const std::string target = r.value("targetId", "");
+  ASSERT_EQ(chrome.call("Target.attachToTarget", {{"targetId", target}, {"flatten", true}}, "", r), "");
+  const std::string session = r.value("sessionId", "");
+  ASSERT_FALSE(session.empty());
+
+  // The page shows the running session: phase, mode, faults and e-stop as the API reports them.
+  nlohmann::json fields;
+  // null until the page has loaded (the target is created before its document exists).
+  const std::string read_fields =
+      "(() => { try { return {phase: document.getElementById('phase').textContent, mode: document.getElementById('mode').textContent,"
+      " faults: document.getElementById('faults').textContent, estop: document.getElementById('estop').textContent,"
+      " device: document.getElementById('device').textContent, exercise: document.getElementById('exercise').textContent,"
+      " stop_enabled: !document.getElementById('stop').disabled, message: document.getElementById('message').textContent}; } catch (e) { return null; } })()";
+  for (int i = 0; i < 100; ++i) {
+    fields = chrome.eval(session, read_fields);
+    if (fields.is_object() && fields.value("phase", "") == "running" && fields.value("mode", "–") != "–") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  const nlohmann::json api_st = d.api({{"cmd", "status"}})["result"]["session"];
+  std::printf("page: %s\napi:  device_mode %s, faults %s, estop %s\n", fields.dump().c_str(),
+              api_st.value("device_mode", "").c_str(), api_st["faults"].dump().c_str(), api_st["estop"].dump().c_str());
+  EXPECT_EQ(fields.value("phase", ""), "running");
+  EXPECT_EQ(fields.value("device", ""), "sea_finger");
+  EXPECT_EQ(fields.value("exercise", ""), "assessment");
+  EXPECT_EQ(fields.value("mode", ""), api_st.value("device_mode", "?"));
+  EXPECT_EQ(fields.value("mode", ""), "transparent");  // assessment: the device follows the finger
+  const std::string api_faults = api_st.value("faults", "?");
+  EXPECT_EQ(fields.value("faults", ""), api_faults);  // "none" when none
+  EXPECT_EQ(fields.value("estop", ""), api_st["estop"].get<bool>() ? "PRESSED" : "released");
+  EXPECT_TRUE(fields.value("stop_enabled", false));
+
+  // The plots move: two canvas pixel reads and two screenshots 1.5 s apart differ, and the plot has ink.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // a full plot window's worth of lines
+  const nlohmann::json sig1 = chrome.eval(session, kPlotSignature);
+  ASSERT_EQ(chrome.call("Page.captureScreenshot", {{"format", "png"}}, session, r), "");
+  const std::string shot1 = base64Decode(r.value("data", ""));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const nlohmann::json sig2 = chrome.eval(session, kPlotSignature);
+  ASSERT_EQ(chrome.call("Page.captureScreenshot", {{"format", "png"}}, session, r), "");
+  const std::string shot2 = base64Decode(r.value("data", ""));
+  std::ofstream(d.dir() + "/../phalanx-dashboard-1.png", std::ios::binary) << shot1;
+  std::ofstream(d.dir() + "/../phalanx-dashboard-2.png", std::ios::binary) << shot2;
+  std::printf("plot signatures %s → %s; screenshots %zu and %zu bytes (/tmp/phalanx-dashboard-[12].png)\n",
+              sig1.dump().c_str(), sig2.dump().c_str(), shot1.size(), shot2.size());
+  EXPECT_GT(sig1.value("ink", 0), 2000) << "the joint plot has lines on it";
+  EXPECT_GT(sig2.value("ink", 0), 2000);
+  EXPECT_NE(sig1.value("hash", 0), sig2.value("hash", 0)) << "the joint plot moved";
+  EXPECT_EQ(shot1.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_GT(shot1.size(), 10000u);
+  EXPECT_TRUE(shot1 != shot2) << "the screenshots differ";
+
+  // STOP on the page ends the session (through the control API's stop request).
+  chrome.eval(session, "document.getElementById('stop').click(), true");
+  bool stopped = false;
+  nlohmann::json after;
+  for (int i = 0; i < 150 && !stopped; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    after = d.api({{"cmd", "status"}})["result"];
+    stopped = !after.value("session_running", true);
+  }
+  EXPECT_TRUE(stopped) << after.dump();
+  ASSERT_TRUE(after.contains("last_session")) << after.dump();
+  EXPECT_EQ(after["last_session"].value("exit_code", -1), 0) << after.dump();
+  const nlohmann::json& ls = after["last_session"];
+  std::printf("session with the page polling: %s cycles in %.2f s, overruns %s, period jitter %s, cycle time %s, "
+              "faults seen %s\n",
+              ls.value("cycles", nlohmann::json()).dump().c_str(), ls.value("seconds", 0.0),
+              ls.value("overruns", nlohmann::json()).dump().c_str(), ls.value("period_jitter", nlohmann::json()).dump().c_str(),
+              ls.value("cycle_time", nlohmann::json()).dump().c_str(), ls.value("faults_seen", nlohmann::json()).dump().c_str());
+  nlohmann::json page_after;
+  for (int i = 0; i < 50; ++i) {
+    page_after = chrome.eval(session, read_fields);
+    if (page_after.is_object() && page_after.value("phase", "") == "ended" && !page_after.value("stop_enabled", true)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::printf("page after STOP: %s\n", page_after.dump().c_str());
+  EXPECT_EQ(page_after.value("phase", ""), "ended");
+  EXPECT_FALSE(page_after.value("stop_enabled", true));
+  EXPECT_EQ(page_after.value("message", ""), "stop: ok");
+}
