@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -20,6 +21,7 @@
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/realtime.h"
+#include "phalanx/linux/usb_link.h"
 
 extern char** environ;
 
@@ -216,9 +218,15 @@ std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options&
 }
 
 std::string validate(const RunOptions& opt) {
-  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0) {
-    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud] or can:can0[:node][@fd|@classic])";
+  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0 &&
+      opt.device.rfind("usb:", 0) != 0) {
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud], can:can0[:node][@fd|@classic] or usb:VID:PID[:serial])";
   }
+  if (opt.device.rfind("usb:", 0) == 0) {
+    linux_hal::UsbLink::Options o;
+    if (std::string err = linux_hal::parseUsbDevice(opt.device, o); !err.empty()) return err;
+  }
+  if (opt.device.rfind("serial:", 0) == 0 && opt.device.size() == 7) return "device: 'serial:' needs a path (serial:/dev/ttyACM0)";
   if (opt.device.rfind("can:", 0) == 0) {
     linux_hal::CanLink::Options o;
     if (std::string err = parseCanDevice(opt.device, o); !err.empty()) return err;
@@ -258,6 +266,8 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
 
   SimChild sim;
   const bool is_can = opt.device.rfind("can:", 0) == 0;
+  const bool is_usb = opt.device.rfind("usb:", 0) == 0;
+  const bool is_serial = opt.device.rfind("serial:", 0) == 0;
   std::string path = opt.device.substr(opt.device.find(':') + 1);
   unsigned baud = 0;
   protocol::DeviceType expected = protocol::DeviceType::kAny;
@@ -267,7 +277,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                : name == "sea_finger" ? protocol::DeviceType::kSeaFinger
                                       : protocol::DeviceType::kPantograph;
     if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
-  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can) {
+  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can && !is_usb) {
     try {
       baud = static_cast<unsigned>(std::stoul(path.substr(at + 1)));
     } catch (...) {
@@ -277,7 +287,15 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   }
   linux_hal::SerialLink link;
   linux_hal::CanLink can;
-  if (is_can) {
+  linux_hal::UsbLink usb;
+  if (is_usb) {
+    linux_hal::UsbLink::Options o;
+    linux_hal::parseUsbDevice(opt.device, o);  // validated above
+    if (std::string err = usb.open(o); !err.empty()) return fail(err, 3);
+    path = opt.device;
+    summary["link"] = {{"usb", opt.device.substr(4)}, {"where", usb.where()}};
+    std::fprintf(stderr, "phalanxd: USB device %s at %s\n", opt.device.substr(4).c_str(), usb.where().c_str());
+  } else if (is_can) {
     linux_hal::CanLink::Options o;
     parseCanDevice(opt.device, o);  // validated above
     if (std::string err = can.open(o); !err.empty()) return fail(err, 3);
@@ -290,14 +308,23 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     summary["link"] = path;
   }
   // One flush for either transport; false on a hard link error.
-  auto flushLink = [&]() { return is_can ? can.flush() : link.flush(); };
-  auto linkError = [&]() { return is_can ? can.error() : link.error(); };
+  // USB: handle libusb's completions (never a hard error: an unplug is a link outage, handled below).
+  auto flushLink = [&]() {
+    if (is_usb) {
+      usb.service();
+      return true;
+    }
+    return is_can ? can.flush() : link.flush();
+  };
+  auto linkError = [&]() { return is_can ? can.error() : is_usb ? usb.error() : link.error(); };
   linux_hal::CanBusState can_state = can.state();
 
-  HostSession session = is_can ? HostSession(static_cast<hal::PacketLink&>(can)) : HostSession(link);
+  HostSession session = is_can   ? HostSession(static_cast<hal::PacketLink&>(can))
+                        : is_usb ? HostSession(static_cast<hal::PacketLink&>(usb))
+                                 : HostSession(link);
   session.setEventCallback(logEvent, opt.hooks);
   std::random_device rd;
-  const uint32_t session_id = rd();
+  uint32_t session_id = rd();
   session.sendHello(session_id, expected);
   flushLink();
   const uint64_t hs_start = linux_hal::monotonicNs();
@@ -413,6 +440,31 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   if (opt.hooks != nullptr) {
     if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
   }
+  // Hot-unplug (usb:, serial:): report, send nothing (the device's own command timeout takes it to its safe
+  // state), reopen every 100 ms, then a new handshake, the start-up parameters again (a re-plugged board may have
+  // rebooted), faults cleared as at start, and only then new commands: nothing from before the outage is resent.
+  enum class Phase { kUp, kDown, kHandshake, kParams, kFirstTelemetry };
+  Phase phase = Phase::kUp;
+  const bool can_reconnect = is_usb || is_serial;
+  const auto startup_params = controller->startupParams();
+  size_t param_index = 0;
+  uint64_t phase_ns = 0;
+  uint64_t lost_ns = 0;
+  uint64_t telemetry_at_handshake = 0;
+  uint64_t outages = 0;
+  uint64_t reconnects = 0;
+  uint64_t cycles_offline = 0;
+  double outage_max_s = 0.0;
+  double outage_total_s = 0.0;
+  auto linkLost = [&]() { return is_usb ? !usb.connected() : (is_serial && (link.hungUp() || !link.isOpen())); };
+  auto reopen = [&]() -> std::string {
+    if (is_usb) return usb.reconnect();
+    return link.open(path, baud);
+  };
+  auto sendParam = [&]() {
+    session.sendParamSet(startup_params[param_index].first, startup_params[param_index].second);
+    phase_ns = linux_hal::monotonicNs();
+  };
   while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
          (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
@@ -423,7 +475,87 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     expected_wake_ns += (1 + missed) * period_ns;
     ++cycles;
 
-    if (session.poll(wake_ns) == 0) ++cycles_without_telemetry;
+    const int new_telemetry = session.poll(wake_ns);
+    if (can_reconnect && phase == Phase::kUp && linkLost()) {
+      ++outages;
+      lost_ns = wake_ns;
+      std::fprintf(stderr,
+                   "phalanxd: link lost at t=%.3f s (%s): no commands are sent; the device's command timeout (%u ms) "
+                   "takes it to its safe state; reconnecting\n",
+                   static_cast<double>(wake_ns - start_ns) * 1e-9,
+                   is_usb ? usb.error().c_str() : "serial port hung up", opt.command_timeout_ms);
+      if (!is_usb) link.close();
+      phase = Phase::kDown;
+      phase_ns = 0;
+    }
+    if (phase != Phase::kUp) {
+      ++cycles_offline;
+      flushLink();
+      if (phase == Phase::kDown && wake_ns - phase_ns >= 100000000ull) {
+        phase_ns = wake_ns;
+        if (reopen().empty()) {
+          session_id = rd();
+          session.sendHello(session_id, layout.type);
+          flushLink();
+          phase = Phase::kHandshake;
+          std::fprintf(stderr, "phalanxd: link back at t=%.3f s after %.3f s (%s); new handshake\n",
+                       static_cast<double>(wake_ns - start_ns) * 1e-9, static_cast<double>(wake_ns - lost_ns) * 1e-9,
+                       is_usb ? usb.where().c_str() : path.c_str());
+        }
+      } else if (phase != Phase::kDown && linkLost()) {
+        if (!is_usb) link.close();
+        phase = Phase::kDown;  // lost again before control resumed
+      } else if (phase == Phase::kHandshake) {
+        if (session.handshake() == HandshakeResult::kOk) {
+          if (session.layout()->type != layout.type) {
+            summary["link_error"] = "after reconnect: a different device answered (" + std::string(session.layout()->name) + ")";
+            break;
+          }
+          telemetry_at_handshake = session.stats().telemetry_received;
+          param_index = 0;
+          phase = startup_params.empty() ? Phase::kFirstTelemetry : Phase::kParams;
+          if (phase == Phase::kParams) sendParam();
+        } else if (session.handshake() != HandshakeResult::kPending) {
+          summary["link_error"] = "after reconnect: " + session.handshakeError();
+          break;
+        } else if (static_cast<double>(wake_ns - phase_ns) > opt.handshake_timeout_s * 1e9) {
+          session_id = rd();  // a board that rebooted may have missed it: ask again
+          session.sendHello(session_id, layout.type);
+          phase_ns = wake_ns;
+        }
+      } else if (phase == Phase::kParams) {
+        if (session.lastParamValid()) {
+          if (session.lastParam().status != protocol::ParamStatus::kOk) {
+            summary["link_error"] = "after reconnect: device refused start-up parameter " +
+                                    std::to_string(startup_params[param_index].first);
+            break;
+          }
+          if (++param_index == startup_params.size()) {
+            phase = Phase::kFirstTelemetry;
+          } else {
+            sendParam();
+          }
+        } else if (static_cast<double>(wake_ns - phase_ns) > opt.handshake_timeout_s * 1e9) {
+          sendParam();
+        }
+      } else if (phase == Phase::kFirstTelemetry && session.stats().telemetry_received > telemetry_at_handshake) {
+        if (session.latest().fault_bits != 0 && opt.clear_faults) {
+          std::fprintf(stderr, "phalanxd: clearing faults latched during the outage: %s\n",
+                       faultList(session.latest().fault_bits).c_str());
+          session.sendClearFaults();
+          flushLink();
+        }
+        const double outage_s = static_cast<double>(wake_ns - lost_ns) * 1e-9;
+        outage_total_s += outage_s;
+        outage_max_s = std::max(outage_max_s, outage_s);
+        ++reconnects;
+        std::fprintf(stderr, "phalanxd: control resumed at t=%.3f s after an outage of %.3f s (new session)\n",
+                     static_cast<double>(wake_ns - start_ns) * 1e-9, outage_s);
+        phase = Phase::kUp;
+      }
+      continue;
+    }
+    if (new_telemetry == 0) ++cycles_without_telemetry;
     const TelemetryFrame& tel = session.latest();
     faults_seen |= tel.fault_bits;
     const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
@@ -505,6 +637,26 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                {"unknown_id", s.host_rx.unknown_id},
                                {"bad_length", s.host_rx.bad_length}};
   summary["faults_seen"] = faultList(faults_seen);
+  if (can_reconnect) {
+    summary["outages"] = {{"count", outages},         {"reconnects", reconnects},     {"cycles_offline", cycles_offline},
+                          {"max_s", outage_max_s},    {"total_s", outage_total_s}, {"connected_at_end", phase == Phase::kUp}};
+  }
+  if (is_usb) {
+    const auto& u = usb.stats();
+    const auto& r = usb.rxStats();
+    summary["usb"] = {{"tx_messages", u.tx_messages},
+                      {"tx_completed", u.tx_completed},
+                      {"tx_dropped_busy", u.tx_dropped_busy},
+                      {"tx_dropped_offline", u.tx_dropped_offline},
+                      {"tx_failed", u.tx_failed},
+                      {"rx_transfers", u.rx_transfers},
+                      {"rx_overflow", u.rx_overflow},
+                      {"rx_failed", u.rx_failed},
+                      {"disconnects", u.disconnects},
+                      {"connects", u.connects},
+                      {"reconnect_attempts", u.reconnect_attempts},
+                      {"rx_rejected", {{"bad_id", r.bad_id}, {"bad_length", r.bad_length}, {"crc", r.crc}}}};
+  }
   if (is_can) {
     const auto& c = can.stats();
     const auto& m = can.mapperStats();

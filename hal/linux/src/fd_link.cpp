@@ -1,6 +1,7 @@
 #include "phalanx/linux/fd_link.h"
 
 #include <fcntl.h>
+#include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -130,6 +131,9 @@ std::string SerialLink::open(const std::string& path, unsigned baud) {
     ::close(fd);
     return path + ": " + err;
   }
+  // Exclusive: a second opener (ModemManager probing a new ttyACM with AT commands, a stray terminal) would
+  // steal bytes from the stream and inject its own.
+  ioctl(fd, TIOCEXCL);
   tcflush(fd, TCIOFLUSH);
   adopt(fd);
   return {};
