@@ -22,7 +22,10 @@ bool makeRaw(int fd, speed_t speed, std::string& err) {
   }
   cfmakeraw(&t);
   t.c_cflag |= CLOCAL | CREAD;
-  t.c_cc[VMIN] = 0;
+  // VMIN 1 (not 0): with VMIN = VTIME = 0 a tty read() with no data returns 0 even on a non-blocking descriptor,
+  // indistinguishable from the 0 of a hung-up tty (USB CDC-ACM unplugged); with VMIN 1 "no data" is EAGAIN and 0
+  // means hang-up. The descriptor is O_NONBLOCK, so VMIN never makes a read wait.
+  t.c_cc[VMIN] = 1;
   t.c_cc[VTIME] = 0;
   if (speed != 0 && (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0)) {
     err = errnoText("cfsetspeed");

@@ -49,10 +49,10 @@ class FfsLink : public hal::PacketLink {
   bool online() const { return online_; }
   const FfsLinkStats& stats() const { return stats_; }
 
-  static constexpr size_t kOutRequests = 8;   ///< OUT requests kept queued
-  static constexpr size_t kInRequests = 16;   ///< IN request pool
+  static constexpr size_t kOutRequests = 32;  ///< OUT requests kept queued (see docs/usb.md)
+  static constexpr size_t kInRequests = 64;   ///< IN request pool (see docs/usb.md)
   static constexpr size_t kBufferBytes = 512; ///< a high-speed max packet; OUT reads are rounded up to it
-  static constexpr size_t kRxRing = 32;
+  static constexpr size_t kRxRing = 128;
 
  private:
   struct Req {

@@ -70,9 +70,9 @@ class UsbLink : public hal::PacketLink {
   /// "bus-port.path" of the open device in sysfs, and its bus/address (for reports).
   const std::string& where() const { return where_; }
 
-  static constexpr size_t kInTransfers = 16;   ///< IN transfers kept submitted (see docs/usb.md)
-  static constexpr size_t kOutTransfers = 16;  ///< OUT transfer pool
-  static constexpr size_t kRxRing = 32;        ///< received bodies waiting for receive()
+  static constexpr size_t kInTransfers = 64;   ///< IN transfers kept submitted (see docs/usb.md)
+  static constexpr size_t kOutTransfers = 32;  ///< OUT transfer pool (see docs/usb.md)
+  static constexpr size_t kRxRing = 128;       ///< received bodies waiting for receive()
   static constexpr size_t kInBufferBytes = 512;  ///< one high-speed max packet; every body is shorter
 
  private:
