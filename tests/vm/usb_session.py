@@ -109,7 +109,12 @@ def start_sim(name, args):
 
 def stop_sim(p, log):
     p.terminate()
-    p.wait(timeout=10)
+    try:
+        p.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        print("WARNING: firmware-sim did not stop within 10 s of SIGTERM; killed", flush=True)
+        p.kill()
+        p.wait()
     log.seek(0)
     return log.read()
 

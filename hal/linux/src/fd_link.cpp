@@ -69,6 +69,9 @@ void FdLink::adopt(int fd) {
 }
 
 void FdLink::close() {
+  // Discard unsent output first: closing a tty waits for it to drain (the USB gadget's ttyGS0 up to 15 s when no
+  // host reads), and stale frames are worth nothing to the next session anyway.
+  if (fd_ >= 0 && isatty(fd_)) tcflush(fd_, TCIOFLUSH);
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
 }
