@@ -268,6 +268,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   const bool is_can = opt.device.rfind("can:", 0) == 0;
   const bool is_usb = opt.device.rfind("usb:", 0) == 0;
   const bool is_serial = opt.device.rfind("serial:", 0) == 0;
+  const bool can_reconnect = is_usb || is_serial;  // hot-unplug handled in the loop
   std::string path = opt.device.substr(opt.device.find(':') + 1);
   unsigned baud = 0;
   protocol::DeviceType expected = protocol::DeviceType::kAny;
@@ -440,12 +441,12 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   if (opt.hooks != nullptr) {
     if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
   }
+  if (can_reconnect) std::fprintf(stderr, "phalanxd: control loop started on %s\n", path.c_str());
   // Hot-unplug (usb:, serial:): report, send nothing (the device's own command timeout takes it to its safe
   // state), reopen every 100 ms, then a new handshake, the start-up parameters again (a re-plugged board may have
   // rebooted), faults cleared as at start, and only then new commands: nothing from before the outage is resent.
   enum class Phase { kUp, kDown, kHandshake, kParams, kFirstTelemetry };
   Phase phase = Phase::kUp;
-  const bool can_reconnect = is_usb || is_serial;
   const auto startup_params = controller->startupParams();
   size_t param_index = 0;
   uint64_t phase_ns = 0;

@@ -149,6 +149,12 @@ def run_daemon(name, device, seconds, actions=()):
     d = subprocess.Popen(CHRT(80) + [BIN + "/phalanxd", "--no-realtime", "--device", device, "--seconds", str(seconds),
                           "--json", "--scene", "rigid-ball", "--rate-hz", str(RATE)],
                          stdout=subprocess.PIPE, stderr=open(os.path.join(OUT, "%s.phalanxd.log" % name), "w"), text=True)
+    if actions:
+        # Timed from the control loop's start: in a loaded VM the daemon's start-up alone can take seconds.
+        deadline = time.monotonic() + 60
+        while "control loop started" not in daemon_log(name):
+            check(time.monotonic() < deadline and d.poll() is None, "%s: the session never started" % name)
+            time.sleep(0.05)
     t0 = time.monotonic()
     for at, act in sorted(actions, key=lambda a: a[0]):
         while time.monotonic() - t0 < at:
