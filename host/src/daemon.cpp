@@ -18,6 +18,7 @@
 
 #include "phalanx/host/controller.h"
 #include "phalanx/host/modbus/server.h"
+#include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/realtime.h"
@@ -442,30 +443,39 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
   }
   if (can_reconnect) std::fprintf(stderr, "phalanxd: control loop started on %s\n", path.c_str());
-  // Hot-unplug (usb:, serial:): report, send nothing (the device's own command timeout takes it to its safe
-  // state), reopen every 100 ms, then a new handshake, the start-up parameters again (a re-plugged board may have
-  // rebooted), faults cleared as at start, and only then new commands: nothing from before the outage is resent.
-  enum class Phase { kUp, kDown, kHandshake, kParams, kFirstTelemetry };
-  Phase phase = Phase::kUp;
-  const auto startup_params = controller->startupParams();
-  size_t param_index = 0;
-  uint64_t phase_ns = 0;
-  uint64_t lost_ns = 0;
-  uint64_t telemetry_at_handshake = 0;
-  uint64_t outages = 0;
-  uint64_t reconnects = 0;
-  uint64_t cycles_offline = 0;
-  double outage_max_s = 0.0;
-  double outage_total_s = 0.0;
-  auto linkLost = [&]() { return is_usb ? !usb.connected() : (is_serial && (link.hungUp() || !link.isOpen())); };
-  auto reopen = [&]() -> std::string {
-    if (is_usb) return usb.reconnect();
-    return link.open(path, baud);
-  };
-  auto sendParam = [&]() {
-    session.sendParamSet(startup_params[param_index].first, startup_params[param_index].second);
-    phase_ns = linux_hal::monotonicNs();
-  };
+  // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
+  // cleared, then new commands (host/include/phalanx/host/link_recovery.h).
+  struct DaemonLink final : RecoveryLink {
+    bool is_usb;
+    linux_hal::UsbLink& usb;
+    linux_hal::SerialLink& serial;
+    const std::string& path;
+    unsigned baud;
+    DaemonLink(bool u, linux_hal::UsbLink& ul, linux_hal::SerialLink& sl, const std::string& p, unsigned b)
+        : is_usb(u), usb(ul), serial(sl), path(p), baud(b) {}
+    bool lost() override { return is_usb ? !usb.connected() : (serial.hungUp() || !serial.isOpen()); }
+    void drop() override {
+      if (!is_usb) serial.close();  // an open descriptor would keep the ttyACM minor busy
+    }
+    std::string reopen() override { return is_usb ? usb.reconnect() : serial.open(path, baud); }
+    void flush() override {
+      if (is_usb) {
+        usb.service();
+      } else {
+        serial.flush();
+      }
+    }
+    std::string describe() override {
+      if (!is_usb) return serial.hungUp() ? "serial port hung up" : serial.isOpen() ? path : "serial port closed";
+      return usb.connected() ? usb.where() : usb.error();
+    }
+  } daemon_link(is_usb, usb, link, path, baud);
+  LinkRecoveryOptions rec_opt;
+  rec_opt.handshake_timeout_ns = static_cast<uint64_t>(opt.handshake_timeout_s * 1e9);
+  rec_opt.clear_faults = opt.clear_faults;
+  LinkRecovery recovery(
+      daemon_link, session, layout.type, controller->startupParams(), rec_opt, [&rd]() { return static_cast<uint32_t>(rd()); },
+      [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns);
   while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
          (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
@@ -477,84 +487,13 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     ++cycles;
 
     const int new_telemetry = session.poll(wake_ns);
-    if (can_reconnect && phase == Phase::kUp && linkLost()) {
-      ++outages;
-      lost_ns = wake_ns;
-      std::fprintf(stderr,
-                   "phalanxd: link lost at t=%.3f s (%s): no commands are sent; the device's command timeout (%u ms) "
-                   "takes it to its safe state; reconnecting\n",
-                   static_cast<double>(wake_ns - start_ns) * 1e-9,
-                   is_usb ? usb.error().c_str() : "serial port hung up", opt.command_timeout_ms);
-      if (!is_usb) link.close();
-      phase = Phase::kDown;
-      phase_ns = 0;
-    }
-    if (phase != Phase::kUp) {
-      ++cycles_offline;
-      flushLink();
-      if (phase == Phase::kDown && wake_ns - phase_ns >= 100000000ull) {
-        phase_ns = wake_ns;
-        if (reopen().empty()) {
-          session_id = rd();
-          session.sendHello(session_id, layout.type);
-          flushLink();
-          phase = Phase::kHandshake;
-          std::fprintf(stderr, "phalanxd: link back at t=%.3f s after %.3f s (%s); new handshake\n",
-                       static_cast<double>(wake_ns - start_ns) * 1e-9, static_cast<double>(wake_ns - lost_ns) * 1e-9,
-                       is_usb ? usb.where().c_str() : path.c_str());
-        }
-      } else if (phase != Phase::kDown && linkLost()) {
-        if (!is_usb) link.close();
-        phase = Phase::kDown;  // lost again before control resumed
-      } else if (phase == Phase::kHandshake) {
-        if (session.handshake() == HandshakeResult::kOk) {
-          if (session.layout()->type != layout.type) {
-            summary["link_error"] = "after reconnect: a different device answered (" + std::string(session.layout()->name) + ")";
-            break;
-          }
-          telemetry_at_handshake = session.stats().telemetry_received;
-          param_index = 0;
-          phase = startup_params.empty() ? Phase::kFirstTelemetry : Phase::kParams;
-          if (phase == Phase::kParams) sendParam();
-        } else if (session.handshake() != HandshakeResult::kPending) {
-          summary["link_error"] = "after reconnect: " + session.handshakeError();
-          break;
-        } else if (static_cast<double>(wake_ns - phase_ns) > opt.handshake_timeout_s * 1e9) {
-          session_id = rd();  // a board that rebooted may have missed it: ask again
-          session.sendHello(session_id, layout.type);
-          phase_ns = wake_ns;
-        }
-      } else if (phase == Phase::kParams) {
-        if (session.lastParamValid()) {
-          if (session.lastParam().status != protocol::ParamStatus::kOk) {
-            summary["link_error"] = "after reconnect: device refused start-up parameter " +
-                                    std::to_string(startup_params[param_index].first);
-            break;
-          }
-          if (++param_index == startup_params.size()) {
-            phase = Phase::kFirstTelemetry;
-          } else {
-            sendParam();
-          }
-        } else if (static_cast<double>(wake_ns - phase_ns) > opt.handshake_timeout_s * 1e9) {
-          sendParam();
-        }
-      } else if (phase == Phase::kFirstTelemetry && session.stats().telemetry_received > telemetry_at_handshake) {
-        if (session.latest().fault_bits != 0 && opt.clear_faults) {
-          std::fprintf(stderr, "phalanxd: clearing faults latched during the outage: %s\n",
-                       faultList(session.latest().fault_bits).c_str());
-          session.sendClearFaults();
-          flushLink();
-        }
-        const double outage_s = static_cast<double>(wake_ns - lost_ns) * 1e-9;
-        outage_total_s += outage_s;
-        outage_max_s = std::max(outage_max_s, outage_s);
-        ++reconnects;
-        std::fprintf(stderr, "phalanxd: control resumed at t=%.3f s after an outage of %.3f s (new session)\n",
-                     static_cast<double>(wake_ns - start_ns) * 1e-9, outage_s);
-        phase = Phase::kUp;
+    if (can_reconnect) {
+      const LinkRecovery::Step st = recovery.step(wake_ns);
+      if (st == LinkRecovery::Step::kFailed) {
+        summary["link_error"] = recovery.error();
+        break;
       }
-      continue;
+      if (st == LinkRecovery::Step::kOffline) continue;
     }
     if (new_telemetry == 0) ++cycles_without_telemetry;
     const TelemetryFrame& tel = session.latest();
@@ -639,8 +578,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                {"bad_length", s.host_rx.bad_length}};
   summary["faults_seen"] = faultList(faults_seen);
   if (can_reconnect) {
-    summary["outages"] = {{"count", outages},         {"reconnects", reconnects},     {"cycles_offline", cycles_offline},
-                          {"max_s", outage_max_s},    {"total_s", outage_total_s}, {"connected_at_end", phase == Phase::kUp}};
+    const LinkRecoveryStats& r = recovery.stats();
+    summary["outages"] = {{"count", r.outages},  {"reconnects", r.reconnects}, {"cycles_offline", r.cycles_offline},
+                          {"max_s", r.max_s},    {"total_s", r.total_s},
+                          {"connected_at_end", recovery.phase() == LinkRecovery::Phase::kUp}};
   }
   if (is_usb) {
     const auto& u = usb.stats();

@@ -5,6 +5,7 @@
 #include <libusb-1.0/libusb.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -24,11 +25,16 @@ std::string readAttr(const std::string& path) {
 }
 
 bool parseHex16(const std::string& s, uint16_t& out) {
+  // Exactly four hexadecimal digits: strtoul alone would also take a sign or leading blanks ("-001").
   if (s.size() != 4) return false;
-  char* end = nullptr;
-  const unsigned long v = std::strtoul(s.c_str(), &end, 16);
-  if (*end != 0) return false;
-  out = static_cast<uint16_t>(v);
+  uint16_t v = 0;
+  for (const char c : s) {
+    if (std::isxdigit(static_cast<unsigned char>(c)) == 0) return false;
+    v = static_cast<uint16_t>(v * 16 + static_cast<uint16_t>(std::isdigit(static_cast<unsigned char>(c)) != 0
+                                                                  ? c - '0'
+                                                                  : std::tolower(static_cast<unsigned char>(c)) - 'a' + 10));
+  }
+  out = v;
   return true;
 }
 
@@ -224,6 +230,7 @@ void UsbLink::lost(const char* why) {
   ++stats_.disconnects;
   error_ = why;
   state_ = State::kDraining;
+  stats_.tx_discarded_unplug += out_queue_.clear();
   // Nothing queued before the unplug may go out afterwards: cancel everything; the callbacks return each one.
   for (auto& x : in_) {
     if (x.in_flight) libusb_cancel_transfer(x.t);
@@ -255,6 +262,7 @@ bool UsbLink::service() {
   if (ctx_ == nullptr) return false;
   timeval zero{0, 0};
   libusb_handle_events_timeout_completed(ctx_, &zero, nullptr);
+  pumpOut();
   if (state_ == State::kDraining && inFlight() == 0) {
     releaseDevice();
     state_ = State::kClosed;
@@ -300,6 +308,29 @@ bool UsbLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
     return false;
   }
   if (len > protocol::kMaxPayload) return false;
+  uint8_t body[protocol::kMaxFrameBody];
+  body[0] = msg_id;
+  std::memcpy(body + 1, payload, len);
+  const uint16_t crc = protocol::crc16(body, len + 1);
+  body[len + 1] = static_cast<uint8_t>(crc & 0xFF);
+  body[len + 2] = static_cast<uint8_t>(crc >> 8);
+  // In order: straight to a free transfer only when nothing is held back.
+  if (out_queue_.empty()) {
+    const int r = submitOut(body, len + 3);
+    if (r != 0) return r > 0;
+  }
+  // Every OUT transfer in flight: hold it back; a newer command replaces an older one still waiting here.
+  const uint64_t before = out_queue_.superseded();
+  if (out_queue_.push(msg_id, body, len + 3) == UsbOutQueue::Push::kFull) {
+    ++stats_.tx_dropped_busy;
+    return false;
+  }
+  stats_.tx_superseded += out_queue_.superseded() - before;
+  ++stats_.tx_queued;
+  return pumpOut();
+}
+
+int UsbLink::submitOut(const uint8_t* body, size_t len) {
   Xfer* slot = nullptr;
   for (auto& x : out_) {
     if (!x.in_flight) {
@@ -307,31 +338,33 @@ bool UsbLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
       break;
     }
   }
-  if (slot == nullptr) {
-    ++stats_.tx_dropped_busy;
-    return false;
-  }
-  slot->buf[0] = msg_id;
-  std::memcpy(slot->buf + 1, payload, len);
-  const uint16_t crc = protocol::crc16(slot->buf, len + 1);
-  slot->buf[len + 1] = static_cast<uint8_t>(crc & 0xFF);
-  slot->buf[len + 2] = static_cast<uint8_t>(crc >> 8);
-  libusb_fill_bulk_transfer(slot->t, handle_, ep_out_, slot->buf, static_cast<int>(len + 3), &UsbLink::onTransfer,
-                            slot, 0);
+  if (slot == nullptr) return 0;
+  std::memcpy(slot->buf, body, len);
+  libusb_fill_bulk_transfer(slot->t, handle_, ep_out_, slot->buf, static_cast<int>(len), &UsbLink::onTransfer, slot, 0);
   const int rc = libusb_submit_transfer(slot->t);
   if (rc == LIBUSB_ERROR_NO_DEVICE) {
     lost("device unplugged");
     ++stats_.tx_dropped_offline;
-    return false;
+    return -1;
   }
   if (rc != 0) {
     ++stats_.tx_failed;
     error_ = std::string("OUT submit: ") + libusb_error_name(rc);
-    return false;
+    return -1;
   }
   slot->in_flight = true;
   ++stats_.tx_messages;
-  return true;
+  return 1;
+}
+
+bool UsbLink::pumpOut() {
+  while (state_ == State::kConnected && !out_queue_.empty()) {
+    const UsbOutQueue::Body& b = out_queue_.front();
+    const int r = submitOut(b.data, b.len);
+    if (r == 0) break;
+    out_queue_.pop();  // submitted, or failed and counted (a failed submit is not retried)
+  }
+  return state_ == State::kConnected;
 }
 
 bool UsbLink::receive(uint8_t& msg_id, uint8_t* payload, size_t& len) {

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "phalanx/hal/hal.h"
+#include "phalanx/linux/usb_out_queue.h"
 
 struct libusb_context;
 struct libusb_device_handle;
@@ -23,7 +24,10 @@ namespace phalanx::linux_hal {
 struct UsbLinkStats {
   uint64_t tx_messages = 0;          ///< OUT transfers submitted
   uint64_t tx_completed = 0;         ///< OUT transfers the device took whole
-  uint64_t tx_dropped_busy = 0;      ///< messages refused: every OUT transfer of the pool in flight
+  uint64_t tx_queued = 0;            ///< messages held back because every OUT transfer was in flight
+  uint64_t tx_superseded = 0;        ///< held-back commands replaced by a newer one before they could go out
+  uint64_t tx_dropped_busy = 0;      ///< messages refused: every OUT transfer in flight and the queue full
+  uint64_t tx_discarded_unplug = 0;  ///< held-back messages discarded because the device went away
   uint64_t tx_dropped_offline = 0;   ///< messages refused: no device
   uint64_t tx_failed = 0;            ///< OUT transfers that ended in an error other than unplug
   uint64_t rx_transfers = 0;         ///< IN transfers completed with data
@@ -71,7 +75,7 @@ class UsbLink : public hal::PacketLink {
   const std::string& where() const { return where_; }
 
   static constexpr size_t kInTransfers = 64;   ///< IN transfers kept submitted (see docs/usb.md)
-  static constexpr size_t kOutTransfers = 32;  ///< OUT transfer pool (see docs/usb.md)
+  static constexpr size_t kOutTransfers = 8;   ///< OUT transfers in flight at most (see docs/usb.md)
   static constexpr size_t kRxRing = 128;       ///< received bodies waiting for receive()
   static constexpr size_t kInBufferBytes = 512;  ///< one high-speed max packet; every body is shorter
 
@@ -87,6 +91,10 @@ class UsbLink : public hal::PacketLink {
   void complete(Xfer& x);
   void lost(const char* why);
   bool submitIn(Xfer& x);
+  /// Submit held-back messages while OUT transfers are free. False if the device went away meanwhile.
+  bool pumpOut();
+  /// Submit one body on a free OUT transfer: 1 submitted, 0 no free transfer, -1 failed (counted).
+  int submitOut(const uint8_t* body, size_t len);
   std::string openDevice();
   void releaseDevice();
   size_t inFlight() const;
@@ -107,6 +115,7 @@ class UsbLink : public hal::PacketLink {
     size_t len;
   };
   Body ring_[kRxRing] = {};
+  UsbOutQueue out_queue_;
   size_t ring_head_ = 0;
   size_t ring_len_ = 0;
   hal::PacketRxStats rx_stats_;
