@@ -588,7 +588,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     const auto& r = usb.rxStats();
     summary["usb"] = {{"tx_messages", u.tx_messages},
                       {"tx_completed", u.tx_completed},
+                      {"tx_queued", u.tx_queued},
+                      {"tx_superseded", u.tx_superseded},
                       {"tx_dropped_busy", u.tx_dropped_busy},
+                      {"tx_discarded_unplug", u.tx_discarded_unplug},
                       {"tx_dropped_offline", u.tx_dropped_offline},
                       {"tx_failed", u.tx_failed},
                       {"rx_transfers", u.rx_transfers},
