@@ -394,7 +394,13 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       usleep(500);
       session.poll(linux_hal::monotonicNs());
     }
-    if (!session.lastParamValid() || session.lastParam().status != protocol::ParamStatus::kOk) {
+    if (!session.lastParamValid()) {
+      char what[128];
+      std::snprintf(what, sizeof what, "device did not answer start-up parameter 0x%04x within %.1f s", id,
+                    opt.handshake_timeout_s);
+      return fail(what, 4);
+    }
+    if (session.lastParam().status != protocol::ParamStatus::kOk) {
       char what[96];
       std::snprintf(what, sizeof what, "device refused start-up parameter 0x%04x (status %d)", id,
                     static_cast<int>(session.lastParam().status));
