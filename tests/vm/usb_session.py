@@ -193,7 +193,7 @@ def daemon_log(name):
     return open(os.path.join(OUT, "%s.phalanxd.log" % name)).read()
 
 
-def check_clean(name, s):
+def check_clean(name, s, unplugged=False):
     tel, cmd, rx = s["telemetry"], s["commands"], s["host_rx_errors"]
     check(tel["lost"] == 0, "%s: %d telemetry frames lost" % (name, tel["lost"]))
     check(cmd["unsent_link_full"] == 0, "%s: %d commands not sent" % (name, cmd["unsent_link_full"]))
@@ -206,8 +206,11 @@ def check_clean(name, s):
     check(all(v == 0 for v in rx.values()), "%s: host rejected frames: %s" % (name, rx))
     if "usb" in s:
         u = s["usb"]
-        check(u["rx_overflow"] == 0 and u["tx_dropped_busy"] == 0 and u["tx_failed"] == 0 and u["rx_failed"] == 0,
-              "%s: USB link counters %s" % (name, u))
+        check(u["rx_overflow"] == 0 and u["tx_dropped_busy"] == 0, "%s: USB link counters %s" % (name, u))
+        # While the UDC is being unbound, transfers end in LIBUSB_TRANSFER_ERROR before the device is gone (seen:
+        # 259 IN, 4 OUT in one run, 0 in another); they belong to the outage. A quiet session must have none.
+        if not unplugged:
+            check(u["tx_failed"] == 0 and u["rx_failed"] == 0, "%s: USB transfers failed: %s" % (name, u))
 
 
 def line(name, s):
@@ -284,7 +287,7 @@ def replug(kind):
     check(s["commands"]["sent"] >= s["cycles"] - o["cycles_offline"],
           "%s: control did not resume (%d commands in %d cycles with a link)" % (name, s["commands"]["sent"],
                                                                                 s["cycles"] - o["cycles_offline"]))
-    check_clean(name, s)
+    check_clean(name, s, unplugged=True)
     m = re.search(r"after an outage of ([0-9.]+) s", log)
     print("RESULT %s: unplugged 1 s mid-session: reported, device safe by its own command timeout, reconnected and "
           "re-handshaked, control resumed after %s s, 0 lost inside the sessions" % (name, m.group(1) if m else "?"), flush=True)
