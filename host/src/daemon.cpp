@@ -309,6 +309,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
     summary["link"] = path;
   }
+  std::string serial_write_error;
   // One flush for either transport; false on a hard link error.
   // USB: handle libusb's completions (never a hard error: an unplug is a link outage, handled below).
   auto flushLink = [&]() {
@@ -316,7 +317,14 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       usb.service();
       return true;
     }
-    return is_can ? can.flush() : link.flush();
+    if (is_serial && link.isOpen() && !link.flush()) {
+      // A write error on a serial device (CDC-ACM unplugged: the tty may fail writes before it reads as hung up)
+      // is a lost link, handled by reconnecting like a hang-up, not the end of the session.
+      serial_write_error = link.error();
+      link.close();
+      return true;
+    }
+    return is_can ? can.flush() : is_serial ? true : link.flush();
   };
   auto linkError = [&]() { return is_can ? can.error() : is_usb ? usb.error() : link.error(); };
   linux_hal::CanBusState can_state = can.state();
@@ -457,13 +465,20 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     linux_hal::SerialLink& serial;
     const std::string& path;
     unsigned baud;
-    DaemonLink(bool u, linux_hal::UsbLink& ul, linux_hal::SerialLink& sl, const std::string& p, unsigned b)
-        : is_usb(u), usb(ul), serial(sl), path(p), baud(b) {}
+    std::string& write_error;
+    DaemonLink(bool u, linux_hal::UsbLink& ul, linux_hal::SerialLink& sl, const std::string& p, unsigned b,
+               std::string& we)
+        : is_usb(u), usb(ul), serial(sl), path(p), baud(b), write_error(we) {}
     bool lost() override { return is_usb ? !usb.connected() : (serial.hungUp() || !serial.isOpen()); }
     void drop() override {
       if (!is_usb) serial.close();  // an open descriptor would keep the ttyACM minor busy
     }
-    std::string reopen() override { return is_usb ? usb.reconnect() : serial.open(path, baud); }
+    std::string reopen() override {
+      if (is_usb) return usb.reconnect();
+      std::string err = serial.open(path, baud);
+      if (err.empty()) write_error.clear();
+      return err;
+    }
     void flush() override {
       if (is_usb) {
         usb.service();
@@ -472,10 +487,14 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       }
     }
     std::string describe() override {
-      if (!is_usb) return serial.hungUp() ? "serial port hung up" : serial.isOpen() ? path : "serial port closed";
+      if (!is_usb) {
+        if (serial.hungUp()) return "serial port hung up";
+        if (serial.isOpen()) return path;
+        return write_error.empty() ? "serial port closed" : write_error;
+      }
       return usb.connected() ? usb.where() : usb.error();
     }
-  } daemon_link(is_usb, usb, link, path, baud);
+  } daemon_link(is_usb, usb, link, path, baud, serial_write_error);
   LinkRecoveryOptions rec_opt;
   rec_opt.handshake_timeout_ns = static_cast<uint64_t>(opt.handshake_timeout_s * 1e9);
   rec_opt.clear_faults = opt.clear_faults;
@@ -633,7 +652,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   controller->summarize(extra);
   if (!extra.empty()) summary[layout.name] = extra;
   if (opt.hooks != nullptr) opt.hooks->onEnd(summary);
-  return summary.contains("link_error") ? 6 : 0;
+  if (summary.contains("link_error")) {
+    std::fprintf(stderr, "phalanxd: session ended by a link error: %s\n", summary["link_error"].get<std::string>().c_str());
+    return 6;
+  }
+  return 0;
 }
 
 }  // namespace phalanx::host

@@ -57,6 +57,7 @@ LinkRecovery::Step LinkRecovery::step(uint64_t now_ns) {
       if (now_ns >= next_reopen_ns_) {
         next_reopen_ns_ = now_ns + opt_.reopen_period_ns;
         if (link_.reopen().empty()) {
+          session_.resyncStream();  // byte streams: the frame cut by the unplug is not a rejected frame
           sendHello(now_ns);
           phase_ = Phase::kHandshake;
           std::snprintf(msg, sizeof msg, "link back at t=%.3f s after %.3f s (%s); new handshake",

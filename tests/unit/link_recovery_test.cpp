@@ -17,6 +17,7 @@
 #include "phalanx/fw_sim/sim_device.h"
 #include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
+#include "phalanx/protocol/codec.h"
 #include "phalanx/protocol/messages.h"
 #include "phalanx/sim/board.h"
 
@@ -252,4 +253,27 @@ TEST(LinkRecovery, ARefusedStartupParameterEndsTheSession) {
   for (int i = 0; i < 300 && st == LinkRecovery::Step::kOffline; ++i) st = r.cycle();
   EXPECT_EQ(st, LinkRecovery::Step::kFailed);
   EXPECT_EQ(r.rec->error(), "after reconnect: device refused start-up parameter 30583");
+}
+
+// A byte stream reopened after an unplug: the frame the unplug cut and the tail of one the device was sending when
+// the port reopened are dropped without being counted as rejected; the next whole frame decodes.
+TEST(LinkRecovery, ReopenedByteStreamDropsTheCutFrameWithoutCountingIt) {
+  protocol::Command c;
+  c.channel_count = 5;
+  uint8_t a[protocol::kMaxEncodedFrame];
+  const size_t n = protocol::encodeFrame(c, a);
+  ASSERT_GT(n, 10u);
+  protocol::StreamDecoder d;
+  for (size_t i = 0; i < n / 2; ++i) EXPECT_FALSE(d.push(a[i]));  // cut here by the unplug
+  d.resync();
+  for (size_t i = n / 3; i < n; ++i) EXPECT_FALSE(d.push(a[i]));  // the reopened port starts mid-frame
+  bool got = false;
+  for (size_t i = 0; i < n; ++i) got = d.push(a[i]);
+  EXPECT_TRUE(got);
+  EXPECT_EQ(d.stats().total_rejected(), 0u);
+  // Without resync the same bytes are one rejected frame.
+  protocol::StreamDecoder e;
+  for (size_t i = 0; i < n / 2; ++i) e.push(a[i]);
+  for (size_t i = n / 3; i < n; ++i) e.push(a[i]);
+  EXPECT_EQ(e.stats().total_rejected(), 1u);
 }

@@ -171,7 +171,7 @@ def run_daemon(name, device, seconds, actions=()):
     t0 = time.monotonic()
     for at, act in sorted(actions, key=lambda a: a[0]):
         while time.monotonic() - t0 < at:
-            check(d.poll() is None, "%s: phalanxd ended early" % name)
+            check(d.poll() is None, "%s: phalanxd ended early (exit %s): %r" % (name, d.returncode, daemon_log(name)[-300:]))
             time.sleep(0.01)
         act()
     out, _ = d.communicate(timeout=seconds + (600 if WRAP else 90))
