@@ -1,7 +1,11 @@
 // firmware-sim: the firmware core and a device app running on the simulated board in real time, with the
 // device's physical plant inside, talking to the host over a pseudo-terminal exactly as a USB CDC board would.
 // With --can IF it talks over SocketCAN instead (classic CAN or CAN-FD, docs/protocol.md "CAN and CAN-FD").
-// Prints "PTY <path>" (or "CAN <if> node <n> <fd|classic>") on stdout once the link is up; logs events and safe-state entries on stderr.
+// With --ffs DIR it is a USB device through FunctionFS (vendor interface, bulk endpoints; docs/usb.md), with
+// --tty PATH it talks over an existing serial device (the USB gadget's CDC-ACM port /dev/ttyGS0), reopened after a
+// hang-up (USB unplug).
+// Prints "PTY <path>" (or "CAN <if> node <n> <fd|classic>", "USB <dir>", "TTY <path>") on stdout once the link
+// is up; logs events and safe-state entries on stderr.
 #include <signal.h>
 #include <sys/prctl.h>
 #include <unistd.h>
@@ -14,6 +18,7 @@
 #include "phalanx/fw_sim/sim_device.h"
 #include "phalanx/linux/can_link.h"
 #include "phalanx/linux/fd_link.h"
+#include "phalanx/linux/ffs_link.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/sim/board.h"
 
@@ -55,6 +60,10 @@ int main(int argc, char** argv) {
   cli.add_option("--node", can_node, "CAN node id")->check(CLI::Range(1u, 63u));
   cli.add_option("--can-mode", can_mode, "fd (one message per CAN-FD frame) | classic (compact 8-byte frames)")
       ->check(CLI::IsMember({"fd", "classic"}));
+  std::string ffs_dir;
+  std::string tty_path;
+  cli.add_option("--ffs", ffs_dir, "be a USB device: a mounted FunctionFS instance (e.g. /dev/ffs-phalanx)");
+  cli.add_option("--tty", tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
   try {
     cli.parse(argc, argv);
@@ -73,10 +82,28 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", error.c_str());
     return 2;
   }
-  linux_hal::PtyMaster link;  // stays closed when the link is CAN
+  linux_hal::PtyMaster link;  // stays closed when the link is CAN, USB or a tty
+  linux_hal::SerialLink tty;
   linux_hal::CanLink can;
+  linux_hal::FfsLink ffs;
   const bool use_can = !can_if.empty();
-  if (use_can) {
+  const bool use_ffs = !ffs_dir.empty();
+  const bool use_tty = !tty_path.empty();
+  if (static_cast<int>(use_can) + static_cast<int>(use_ffs) + static_cast<int>(use_tty) > 1) {
+    std::fprintf(stderr, "firmware-sim: error: --can, --ffs and --tty exclude each other\n");
+    return 2;
+  }
+  if (use_ffs) {
+    if (const std::string err = ffs.open(ffs_dir); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 3;
+    }
+  } else if (use_tty) {
+    if (const std::string err = tty.open(tty_path, 0); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 3;
+    }
+  } else if (use_can) {
     linux_hal::CanLink::Options o;
     o.ifname = can_if;
     o.node = static_cast<uint8_t>(can_node);
@@ -91,8 +118,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
     return 3;
   }
-  sim::SimBoard board(dev->pwmCount(), dev->adcCount(), dev->encoderCount(), link);
+  sim::SimBoard board(dev->pwmCount(), dev->adcCount(), dev->encoderCount(),
+                     use_tty ? static_cast<linux_hal::FdLink&>(tty) : static_cast<linux_hal::FdLink&>(link));
   if (use_can) board.board().packets = &can;
+  if (use_ffs) board.board().packets = &ffs;
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
   cfg.firmware_build_id = PHALANX_BUILD_ID;
@@ -102,6 +131,10 @@ int main(int argc, char** argv) {
 
   if (use_can) {
     std::printf("CAN %s node %u %s\n", can_if.c_str(), can_node, can_mode.c_str());
+  } else if (use_ffs) {
+    std::printf("USB %s\n", ffs_dir.c_str());
+  } else if (use_tty) {
+    std::printf("TTY %s\n", tty_path.c_str());
   } else {
     std::printf("PTY %s\n", link.slavePath().c_str());
   }
@@ -112,16 +145,42 @@ int main(int argc, char** argv) {
   linux_hal::PeriodicTimer timer(period_us * 1000u);
   uint64_t overruns = 0;
   bool was_active = false;
+  bool ffs_online = false;
+  uint64_t tty_reopen_at = 0;
   const auto max_ticks = static_cast<uint64_t>(seconds * tick_hz);
   for (uint64_t n = 0; g_stop == 0 && (max_ticks == 0 || n < max_ticks); ++n) {
     overruns += timer.wait();
     for (unsigned i = 0; i < substeps; ++i) dev->plant().step(sub_dt_s, board.io());
     board.clock().advanceUs(period_us);
     const uint64_t deadline_us = core.commandDeadlineUs();
+    if (use_ffs) {
+      ffs.service();
+      if (ffs.online() != ffs_online) {
+        ffs_online = ffs.online();
+        std::fprintf(stderr, "firmware-sim: USB %s t_us=%llu\n", ffs_online ? "enabled (host configured us)" : "disabled (unplugged)",
+                     static_cast<unsigned long long>(board.clock().nowUs()));
+      }
+    }
+    if (use_tty && tty.hungUp() && n >= tty_reopen_at) {
+      // USB unplug hangs the gadget's tty up: this descriptor is dead for good; reopen until the port is back.
+      if (tty.isOpen()) {
+        std::fprintf(stderr, "firmware-sim: TTY %s hung up t_us=%llu\n", tty_path.c_str(),
+                     static_cast<unsigned long long>(board.clock().nowUs()));
+      }
+      tty.close();
+      if (const std::string err = tty.open(tty_path, 0); err.empty()) {
+        std::fprintf(stderr, "firmware-sim: TTY %s reopened t_us=%llu\n", tty_path.c_str(),
+                     static_cast<unsigned long long>(board.clock().nowUs()));
+      } else {
+        tty_reopen_at = n + tick_hz / 20;  // every 50 ms
+      }
+    }
     core.tick();
     if (use_can) {
       can.flush();
-    } else {
+    } else if (use_tty) {
+      tty.flush();
+    } else if (!use_ffs) {
       link.flush();
     }
     // Observe the power stage itself (the simulated H-bridges), not the core's opinion of it.
@@ -142,6 +201,19 @@ int main(int argc, char** argv) {
                core.counters().ticks, static_cast<unsigned long long>(overruns), core.counters().commands_applied,
                core.counters().commands_rejected, core.counters().cmd_lost, core.rxStats().crc_errors,
                core.rxStats().framing_errors, core.counters().tx_dropped, core.faultBits());
+  if (use_ffs) {
+    const auto& f = ffs.stats();
+    const auto& r = ffs.rxStats();
+    std::fprintf(stderr,
+                 "firmware-sim: usb tx_submitted=%llu tx_completed=%llu tx_dropped_full=%llu tx_dropped_offline=%llu "
+                 "tx_failed=%llu rx_transfers=%llu rx_overflow=%llu enables=%llu disables=%llu rx_bad_id=%u "
+                 "rx_bad_length=%u rx_crc=%u\n",
+                 static_cast<unsigned long long>(f.tx_submitted), static_cast<unsigned long long>(f.tx_completed),
+                 static_cast<unsigned long long>(f.tx_dropped_full), static_cast<unsigned long long>(f.tx_dropped_offline),
+                 static_cast<unsigned long long>(f.tx_failed), static_cast<unsigned long long>(f.rx_transfers),
+                 static_cast<unsigned long long>(f.rx_overflow), static_cast<unsigned long long>(f.enables),
+                 static_cast<unsigned long long>(f.disables), r.bad_id, r.bad_length, r.crc);
+  }
   if (use_can) {
     const auto& c = can.stats();
     const auto& m = can.mapperStats();

@@ -22,10 +22,12 @@
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
 #include "phalanx/host/safety_io.h"
+#include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/gpio.h"
 #include "phalanx/linux/realtime.h"
+#include "phalanx/linux/usb_link.h"
 
 extern char** environ;
 
@@ -281,9 +283,15 @@ std::string validateGpio(const GpioOptions& g) {
 }
 
 std::string validate(const RunOptions& opt) {
-  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0) {
-    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud] or can:can0[:node][@fd|@classic])";
+  if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0 &&
+      opt.device.rfind("usb:", 0) != 0) {
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud], can:can0[:node][@fd|@classic] or usb:VID:PID[:serial])";
   }
+  if (opt.device.rfind("usb:", 0) == 0) {
+    linux_hal::UsbLink::Options o;
+    if (std::string err = linux_hal::parseUsbDevice(opt.device, o); !err.empty()) return err;
+  }
+  if (opt.device.rfind("serial:", 0) == 0 && opt.device.size() == 7) return "device: 'serial:' needs a path (serial:/dev/ttyACM0)";
   if (opt.device.rfind("can:", 0) == 0) {
     linux_hal::CanLink::Options o;
     if (std::string err = parseCanDevice(opt.device, o); !err.empty()) return err;
@@ -364,6 +372,9 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
 
   SimChild sim;
   const bool is_can = opt.device.rfind("can:", 0) == 0;
+  const bool is_usb = opt.device.rfind("usb:", 0) == 0;
+  const bool is_serial = opt.device.rfind("serial:", 0) == 0;
+  const bool can_reconnect = is_usb || is_serial;  // hot-unplug handled in the loop
   std::string path = opt.device.substr(opt.device.find(':') + 1);
   unsigned baud = 0;
   protocol::DeviceType expected = protocol::DeviceType::kAny;
@@ -373,7 +384,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                : name == "sea_finger" ? protocol::DeviceType::kSeaFinger
                                       : protocol::DeviceType::kPantograph;
     if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
-  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can) {
+  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can && !is_usb) {
     try {
       baud = static_cast<unsigned>(std::stoul(path.substr(at + 1)));
     } catch (...) {
@@ -383,7 +394,15 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   }
   linux_hal::SerialLink link;
   linux_hal::CanLink can;
-  if (is_can) {
+  linux_hal::UsbLink usb;
+  if (is_usb) {
+    linux_hal::UsbLink::Options o;
+    linux_hal::parseUsbDevice(opt.device, o);  // validated above
+    if (std::string err = usb.open(o); !err.empty()) return fail(err, 3);
+    path = opt.device;
+    summary["link"] = {{"usb", opt.device.substr(4)}, {"where", usb.where()}};
+    std::fprintf(stderr, "phalanxd: USB device %s at %s\n", opt.device.substr(4).c_str(), usb.where().c_str());
+  } else if (is_can) {
     linux_hal::CanLink::Options o;
     parseCanDevice(opt.device, o);  // validated above
     if (std::string err = can.open(o); !err.empty()) return fail(err, 3);
@@ -395,15 +414,32 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
     summary["link"] = path;
   }
+  std::string serial_write_error;
   // One flush for either transport; false on a hard link error.
-  auto flushLink = [&]() { return is_can ? can.flush() : link.flush(); };
-  auto linkError = [&]() { return is_can ? can.error() : link.error(); };
+  // USB: handle libusb's completions (never a hard error: an unplug is a link outage, handled below).
+  auto flushLink = [&]() {
+    if (is_usb) {
+      usb.service();
+      return true;
+    }
+    if (is_serial && link.isOpen() && !link.flush()) {
+      // A write error on a serial device (CDC-ACM unplugged: the tty may fail writes before it reads as hung up)
+      // is a lost link, handled by reconnecting like a hang-up, not the end of the session.
+      serial_write_error = link.error();
+      link.close();
+      return true;
+    }
+    return is_can ? can.flush() : is_serial ? true : link.flush();
+  };
+  auto linkError = [&]() { return is_can ? can.error() : is_usb ? usb.error() : link.error(); };
   linux_hal::CanBusState can_state = can.state();
 
-  HostSession session = is_can ? HostSession(static_cast<hal::PacketLink&>(can)) : HostSession(link);
+  HostSession session = is_can   ? HostSession(static_cast<hal::PacketLink&>(can))
+                        : is_usb ? HostSession(static_cast<hal::PacketLink&>(usb))
+                                 : HostSession(link);
   session.setEventCallback(logEvent, opt.hooks);
   std::random_device rd;
-  const uint32_t session_id = rd();
+  uint32_t session_id = rd();
   session.sendHello(session_id, expected);
   flushLink();
   const uint64_t hs_start = linux_hal::monotonicNs();
@@ -496,7 +532,13 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       usleep(500);
       session.poll(linux_hal::monotonicNs());
     }
-    if (!session.lastParamValid() || session.lastParam().status != protocol::ParamStatus::kOk) {
+    if (!session.lastParamValid()) {
+      char what[128];
+      std::snprintf(what, sizeof what, "device did not answer start-up parameter 0x%04x within %.1f s", id,
+                    opt.handshake_timeout_s);
+      return fail(what, 4);
+    }
+    if (session.lastParam().status != protocol::ParamStatus::kOk) {
       char what[96];
       std::snprintf(what, sizeof what, "device refused start-up parameter 0x%04x (status %d)", id,
                     static_cast<int>(session.lastParam().status));
@@ -570,6 +612,51 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     }
     std::fprintf(stderr, "phalanxd: sync: pulses at %g Hz on %s\n", io.sync.rateHz(), opt.gpio.sync.c_str());
   }
+  if (can_reconnect) std::fprintf(stderr, "phalanxd: control loop started on %s\n", path.c_str());
+  // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
+  // cleared, then new commands (host/include/phalanx/host/link_recovery.h).
+  struct DaemonLink final : RecoveryLink {
+    bool is_usb;
+    linux_hal::UsbLink& usb;
+    linux_hal::SerialLink& serial;
+    const std::string& path;
+    unsigned baud;
+    std::string& write_error;
+    DaemonLink(bool u, linux_hal::UsbLink& ul, linux_hal::SerialLink& sl, const std::string& p, unsigned b,
+               std::string& we)
+        : is_usb(u), usb(ul), serial(sl), path(p), baud(b), write_error(we) {}
+    bool lost() override { return is_usb ? !usb.connected() : (serial.hungUp() || !serial.isOpen()); }
+    void drop() override {
+      if (!is_usb) serial.close();  // an open descriptor would keep the ttyACM minor busy
+    }
+    std::string reopen() override {
+      if (is_usb) return usb.reconnect();
+      std::string err = serial.open(path, baud);
+      if (err.empty()) write_error.clear();
+      return err;
+    }
+    void flush() override {
+      if (is_usb) {
+        usb.service();
+      } else {
+        serial.flush();
+      }
+    }
+    std::string describe() override {
+      if (!is_usb) {
+        if (serial.hungUp()) return "serial port hung up";
+        if (serial.isOpen()) return path;
+        return write_error.empty() ? "serial port closed" : write_error;
+      }
+      return usb.connected() ? usb.where() : usb.error();
+    }
+  } daemon_link(is_usb, usb, link, path, baud, serial_write_error);
+  LinkRecoveryOptions rec_opt;
+  rec_opt.handshake_timeout_ns = static_cast<uint64_t>(opt.handshake_timeout_s * 1e9);
+  rec_opt.clear_faults = opt.clear_faults;
+  LinkRecovery recovery(
+      daemon_link, session, layout.type, controller->startupParams(), rec_opt, [&rd]() { return static_cast<uint32_t>(rd()); },
+      [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns);
   while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
          (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
     const uint32_t missed = timer.wait();
@@ -580,7 +667,16 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     expected_wake_ns += (1 + missed) * period_ns;
     ++cycles;
 
-    if (session.poll(wake_ns) == 0) ++cycles_without_telemetry;
+    const int new_telemetry = session.poll(wake_ns);
+    if (can_reconnect) {
+      const LinkRecovery::Step st = recovery.step(wake_ns);
+      if (st == LinkRecovery::Step::kFailed) {
+        summary["link_error"] = recovery.error();
+        break;
+      }
+      if (st == LinkRecovery::Step::kOffline) continue;
+    }
+    if (new_telemetry == 0) ++cycles_without_telemetry;
     const TelemetryFrame& tel = session.latest();
     faults_seen |= tel.fault_bits;
     const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
@@ -723,6 +819,31 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                {"unknown_id", s.host_rx.unknown_id},
                                {"bad_length", s.host_rx.bad_length}};
   summary["faults_seen"] = faultList(faults_seen);
+  if (can_reconnect) {
+    const LinkRecoveryStats& r = recovery.stats();
+    summary["outages"] = {{"count", r.outages},  {"reconnects", r.reconnects}, {"cycles_offline", r.cycles_offline},
+                          {"max_s", r.max_s},    {"total_s", r.total_s},
+                          {"connected_at_end", recovery.phase() == LinkRecovery::Phase::kUp}};
+  }
+  if (is_usb) {
+    const auto& u = usb.stats();
+    const auto& r = usb.rxStats();
+    summary["usb"] = {{"tx_messages", u.tx_messages},
+                      {"tx_completed", u.tx_completed},
+                      {"tx_queued", u.tx_queued},
+                      {"tx_superseded", u.tx_superseded},
+                      {"tx_dropped_busy", u.tx_dropped_busy},
+                      {"tx_discarded_unplug", u.tx_discarded_unplug},
+                      {"tx_dropped_offline", u.tx_dropped_offline},
+                      {"tx_failed", u.tx_failed},
+                      {"rx_transfers", u.rx_transfers},
+                      {"rx_overflow", u.rx_overflow},
+                      {"rx_failed", u.rx_failed},
+                      {"disconnects", u.disconnects},
+                      {"connects", u.connects},
+                      {"reconnect_attempts", u.reconnect_attempts},
+                      {"rx_rejected", {{"bad_id", r.bad_id}, {"bad_length", r.bad_length}, {"crc", r.crc}}}};
+  }
   if (is_can) {
     const auto& c = can.stats();
     const auto& m = can.mapperStats();
@@ -782,7 +903,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   controller->summarize(extra);
   if (!extra.empty()) summary[layout.name] = extra;
   if (opt.hooks != nullptr) opt.hooks->onEnd(summary);
-  return summary.contains("link_error") ? 6 : 0;
+  if (summary.contains("link_error")) {
+    std::fprintf(stderr, "phalanxd: session ended by a link error: %s\n", summary["link_error"].get<std::string>().c_str());
+    return 6;
+  }
+  return 0;
 }
 
 }  // namespace phalanx::host

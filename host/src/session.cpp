@@ -26,6 +26,9 @@ void HostSession::sendHello(uint32_t session_id, DeviceType expected) {
   h.session_id = session_id;
   session_id_ = session_id;
   handshake_ = HandshakeResult::kPending;
+  // A new session (also after a reconnect) starts a new telemetry sequence baseline: a gap across the outage is
+  // the outage, reported by the daemon, not frames lost inside a session.
+  have_tel_seq_ = false;
   sendMsg(h);
 }
 
@@ -125,11 +128,9 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
         if (t.time_us < last_time_us_) ++time_wraps_;
         stats_.device_cmd_lost += static_cast<uint8_t>(t.cmd_lost - last_dev_cmd_lost_);
         stats_.device_rx_errors += static_cast<uint8_t>(t.rx_errors - last_dev_rx_errors_);
-      } else {
-        // The device's counters start at session start; what they held before this session is not ours.
-        stats_.device_cmd_lost = 0;
-        stats_.device_rx_errors = 0;
       }
+      // Else: the first telemetry of a session only sets the baseline of the device's counters (what they held
+      // before this session is not ours; what earlier sessions of this run accumulated stays counted).
       have_tel_seq_ = true;
       last_tel_seq_ = t.seq;
       last_time_us_ = t.time_us;

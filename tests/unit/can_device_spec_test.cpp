@@ -43,6 +43,6 @@ TEST(CanDeviceSpec, ValidateAcceptsCanDevicesAndReportsBadOnes) {
   EXPECT_EQ(phalanx::host::validate(opt), "");
   opt.device = "can:vcan0:99";
   EXPECT_NE(phalanx::host::validate(opt), "");
-  opt.device = "usb:1234";
+  opt.device = "spi:1234";  // (usb: is a device kind since the USB transport)
   EXPECT_NE(phalanx::host::validate(opt).find("can:can0"), std::string::npos);
 }

@@ -310,6 +310,10 @@ BodyStatus checkBody(const uint8_t* body, size_t len, Frame& out) {
 }
 
 bool StreamDecoder::push(uint8_t byte) {
+  if (hunting_) {
+    hunting_ = byte != 0;
+    return false;
+  }
   if (byte != 0) {
     if (raw_len_ < sizeof raw_) {
       raw_[raw_len_++] = byte;

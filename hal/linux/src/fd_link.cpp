@@ -1,6 +1,7 @@
 #include "phalanx/linux/fd_link.h"
 
 #include <fcntl.h>
+#include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -21,7 +22,10 @@ bool makeRaw(int fd, speed_t speed, std::string& err) {
   }
   cfmakeraw(&t);
   t.c_cflag |= CLOCAL | CREAD;
-  t.c_cc[VMIN] = 0;
+  // VMIN 1 (not 0): with VMIN = VTIME = 0 a tty read() with no data returns 0 even on a non-blocking descriptor,
+  // indistinguishable from the 0 of a hung-up tty (USB CDC-ACM unplugged); with VMIN 1 "no data" is EAGAIN and 0
+  // means hang-up. The descriptor is O_NONBLOCK, so VMIN never makes a read wait.
+  t.c_cc[VMIN] = 1;
   t.c_cc[VTIME] = 0;
   if (speed != 0 && (cfsetispeed(&t, speed) != 0 || cfsetospeed(&t, speed) != 0)) {
     err = errnoText("cfsetspeed");
@@ -65,6 +69,9 @@ void FdLink::adopt(int fd) {
 }
 
 void FdLink::close() {
+  // Discard unsent output first: closing a tty waits for it to drain (the USB gadget's ttyGS0 up to 15 s when no
+  // host reads), and stale frames are worth nothing to the next session anyway.
+  if (fd_ >= 0 && isatty(fd_)) tcflush(fd_, TCIOFLUSH);
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
 }
@@ -130,6 +137,9 @@ std::string SerialLink::open(const std::string& path, unsigned baud) {
     ::close(fd);
     return path + ": " + err;
   }
+  // Exclusive: a second opener (ModemManager probing a new ttyACM with AT commands, a stray terminal) would
+  // steal bytes from the stream and inject its own.
+  ioctl(fd, TIOCEXCL);
   tcflush(fd, TCIOFLUSH);
   adopt(fd);
   return {};

@@ -72,8 +72,16 @@ class StreamDecoder {
   bool push(uint8_t byte);
   const Frame& frame() const { return frame_; }
   const DecodeStats& stats() const { return stats_; }
+  /// The stream was interrupted (a serial port reopened after a hang-up): drop what was collected and ignore
+  /// bytes up to the next delimiter, so that a frame cut by the interruption is neither judged nor counted.
+  void resync() {
+    raw_len_ = 0;
+    overflow_ = false;
+    hunting_ = true;
+  }
 
  private:
+  bool hunting_ = false;
   uint8_t raw_[kMaxEncodedFrame] = {};
   uint8_t decoded_[kMaxFrameBody] = {};
   size_t raw_len_ = 0;

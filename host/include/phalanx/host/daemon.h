@@ -54,7 +54,7 @@ struct GpioOptions {
 };
 
 struct RunOptions {
-  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud] or can:<if>[:node][@fd|@classic]
+  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud], can:<if>[:node][@fd|@classic] or usb:VID:PID[:serial]
   double seconds = 0.0;               ///< 0: until SIGINT/SIGTERM
   unsigned rate_hz = 1000;
   unsigned command_timeout_ms = 20;   ///< each command's own timeout: the device goes safe if the next is late

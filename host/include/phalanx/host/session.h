@@ -48,6 +48,8 @@ class HostSession {
   /// Assigns the next sequence number, records the send time for the round-trip measurement, sends.
   bool sendCommand(protocol::Command& cmd, uint64_t now_ns);
   void sendClearFaults();
+  /// The byte stream was interrupted and reopened: a frame cut by the interruption is dropped, not counted.
+  void resyncStream() { decoder_.resync(); }
   bool sendParamGet(uint16_t id);
   bool sendParamSet(uint16_t id, float value);
 
