@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
   int sea_cal_smooth = 1;
   sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(CLI::Range(1, 1000));
-  sea_cal->add_option("--smooth", sea_cal_smooth, "centred moving average over n rows before the fit")
+  sea_cal->add_option("--smooth", sea_cal_smooth, "centred quadratic Savitzky-Golay smoothing over n rows before the fit (30 s at 1 kHz: 51)")
       ->check(CLI::Range(1, 1001));
   sea_cal->add_flag("--json", json, "JSON output");
 

@@ -79,7 +79,7 @@ TEST(SeaCalibrate, RecoversAPerturbedSubjectFromNoisyDataToTheNoiseFloor) {
 }
 
 TEST(SeaCalibrate, SmoothingAnOversampledRecordingReducesTheResidualToTheThetaSevenNoise) {
-  // 1 kHz recording of a ≤ 0.8 Hz motion, 25-row centred moving average (opt.smooth_samples): the residual falls
+  // 1 kHz recording of a ≤ 0.8 Hz motion, 25-row centred Savitzky–Golay smoothing (opt.smooth_samples): the residual falls
   // from the propagated input noise to below the single-sensor noise, and the parameters stay within tolerance.
   const ps::Model<double> truth = perturbedSubject(1.0);
   std::vector<CalibrationSample> samples;

@@ -28,11 +28,11 @@ struct CalibrationOptions {
   /// Use every n-th sample (1 = all). A 1 kHz recording over a 2 s range of motion is 2000 rows; more rows
   /// add time, not information (the noise is white, the model smooth).
   int stride = 1;
-  /// Centred moving average over this many consecutive rows, applied to all three channels before the fit
-  /// (1 = none). The fit's inputs θ1r, θ6r are noisy too (errors in variables) and their noise, propagated
-  /// through the model, dominates the residual; a recording at 1 kHz of a ≤ 1 Hz motion can be averaged over
-  /// ~25 rows (25 ms: amplitude loss < 0.1 % at 1 Hz) before the fit. Only for white sensor noise; a recording
-  /// of already-filtered sensors gains less.
+  /// Centred quadratic Savitzky–Golay smoothing over this many consecutive rows, applied to all three channels
+  /// before the fit (1 = none). The fit's inputs θ1r, θ6r are noisy too (errors in variables); a recording at
+  /// 1 kHz of a ≤ 1 Hz motion can be smoothed over ~51 rows before the fit (docs/sea-model.md §Parameter
+  /// estimation: 30 s, `--smooth 51 --stride 10`). Only for white sensor noise; a recording of already-filtered
+  /// sensors gains less.
   int smooth_samples = 1;
   /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
   /// local minima (docs/sea-model.md §Parameter estimation).
