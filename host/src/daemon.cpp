@@ -818,6 +818,8 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                                {"framing", s.host_rx.framing_errors},
                                {"unknown_id", s.host_rx.unknown_id},
                                {"bad_length", s.host_rx.bad_length}};
+  // Faults latched while the link was down are read (and cleared) by the reconnect, outside the control cycles.
+  if (can_reconnect) faults_seen |= recovery.stats().faults_after_reconnect;
   summary["faults_seen"] = faultList(faults_seen);
   if (can_reconnect) {
     const LinkRecoveryStats& r = recovery.stats();

@@ -100,6 +100,7 @@ LinkRecovery::Step LinkRecovery::step(uint64_t now_ns) {
       break;
     case Phase::kFirstTelemetry:
       if (session_.stats().telemetry_received > telemetry_at_handshake_) {
+        stats_.faults_after_reconnect |= session_.latest().fault_bits;
         if (session_.latest().fault_bits != 0 && opt_.clear_faults) {
           log_("clearing faults latched during the outage: " + faultList(session_.latest().fault_bits));
           session_.sendClearFaults();

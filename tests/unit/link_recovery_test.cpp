@@ -189,6 +189,7 @@ TEST(LinkRecovery, UnplugGoesSafeReconnectsAndResumesWithNewCommandsOnly) {
   EXPECT_LE(offline_after_plug, 100 + 10);  // the next reopen (≤ 100 ms), handshake, parameter, first telemetry
   EXPECT_TRUE(r.logged("link back at t="));
   EXPECT_TRUE(r.logged("clearing faults latched during the outage: command-timeout"));
+  EXPECT_NE(r.rec->stats().faults_after_reconnect & protocol::fault::kCommandTimeout, 0u);  // reported in faults_seen
   EXPECT_TRUE(r.logged("control resumed at t="));
   EXPECT_EQ(r.rec->phase(), LinkRecovery::Phase::kUp);
   EXPECT_EQ(r.rec->stats().outages, 1u);

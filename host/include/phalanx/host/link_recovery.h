@@ -50,6 +50,7 @@ struct LinkRecoveryStats {
   uint64_t cycles_offline = 0;  ///< step() calls that returned kOffline
   double max_s = 0.0;           ///< longest outage (loss seen → control resumed)
   double total_s = 0.0;
+  uint16_t faults_after_reconnect = 0;  ///< fault bits the device reported after a reconnect (latched while offline)
 };
 
 class LinkRecovery {
