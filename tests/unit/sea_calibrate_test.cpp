@@ -15,14 +15,16 @@ using namespace phalanx::host::sea;
 namespace ps = phalanx::sea;
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
-/// A 4 s range-of-motion recording at 500 Hz on the subject `truth`: MCP and PIP finger sines at different
-/// frequencies so (θ1r, θ6r) cover the workspace; sensor noise σ (rad) and the wire's 1e-4 rad quantisation.
-std::vector<CalibrationSample> recording(const ps::Model<double>& truth, double noise_rad, unsigned seed) {
+/// A range-of-motion recording on the subject `truth` (default 4 s at 500 Hz): MCP and PIP finger sines at
+/// different frequencies so (θ1r, θ6r) cover the workspace; sensor noise σ (rad) and the wire's 1e-4 rad
+/// quantisation.
+std::vector<CalibrationSample> recording(const ps::Model<double>& truth, double noise_rad, unsigned seed,
+                                         int rows = 2000, double dt_s = 0.002) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> n(0.0, noise_rad);
   std::vector<CalibrationSample> out;
-  for (int k = 0; k < 2000; ++k) {
-    const double t = k * 0.002;
+  for (int k = 0; k < rows; ++k) {
+    const double t = k * dt_s;
     const double mcp = -30 * kDeg + 28 * kDeg * std::sin(2 * M_PI * 0.5 * t);
     const double pip = -40 * kDeg + 38 * kDeg * std::sin(2 * M_PI * 0.8 * t + 1.0);
     ps::Data<double> d;
@@ -32,6 +34,20 @@ std::vector<CalibrationSample> recording(const ps::Model<double>& truth, double 
                    q(d.sensors_rad[ps::kSensorRedundant])});
   }
   return out;
+}
+
+/// A random subject uniform in the inner 80 % of the Table 4 box.
+ps::Model<double> randomSubject(std::mt19937& rng) {
+  const auto lo = ps::toArray(ps::table4Lower<double>());
+  const auto hi = ps::toArray(ps::table4Upper<double>());
+  std::array<double, 7> p{};
+  for (std::size_t i = 0; i < 7; ++i) {
+    std::uniform_real_distribution<double> u(lo[i] + 0.1 * (hi[i] - lo[i]), hi[i] - 0.1 * (hi[i] - lo[i]));
+    p[i] = u(rng);
+  }
+  ps::Model<double> m = ps::defaultModel<double>();
+  m.subject = ps::fromArray(p);
+  return m;
 }
 
 ps::Model<double> perturbedSubject(double scale) {
@@ -114,18 +130,11 @@ TEST(SeaCalibrate, SmoothingAnOversampledRecordingReducesTheResidualToTheThetaSe
 ///   sea_calibrate_test --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_RandomSubjects*'
 TEST(SeaCalibrate, DISABLED_RandomSubjectsSweep) {
   std::mt19937 rng(42);
-  const auto lo = ps::toArray(ps::table4Lower<double>());
-  const auto hi = ps::toArray(ps::table4Upper<double>());
   int within_1mm = 0;
   const int trials = 12;
   for (int trial = 0; trial < trials; ++trial) {
-    ps::Model<double> truth = ps::defaultModel<double>();
-    std::array<double, 7> p{};
-    for (std::size_t i = 0; i < 7; ++i) {
-      std::uniform_real_distribution<double> u(lo[i] + 0.1 * (hi[i] - lo[i]), hi[i] - 0.1 * (hi[i] - lo[i]));
-      p[i] = u(rng);
-    }
-    truth.subject = ps::fromArray(p);
+    const ps::Model<double> truth = randomSubject(rng);
+    const auto p = ps::toArray(truth.subject);
     const auto samples = recording(truth, 0.05 * kDeg, 100u + static_cast<unsigned>(trial));
     CalibrationOptions opt;
     CalibrationResult r;
@@ -166,31 +175,12 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsSweep) {
 /// the data's, not the search's.
 TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
   std::mt19937 rng(42);
-  const auto lo = ps::toArray(ps::table4Lower<double>());
-  const auto hi = ps::toArray(ps::table4Upper<double>());
   int within_1mm = 0;
   const int trials = 12;
   for (int trial = 0; trial < trials; ++trial) {
-    ps::Model<double> truth = ps::defaultModel<double>();
-    std::array<double, 7> p{};
-    for (std::size_t i = 0; i < 7; ++i) {
-      std::uniform_real_distribution<double> u(lo[i] + 0.1 * (hi[i] - lo[i]), hi[i] - 0.1 * (hi[i] - lo[i]));
-      p[i] = u(rng);
-    }
-    truth.subject = ps::fromArray(p);
-    std::mt19937 nrng(100u + static_cast<unsigned>(trial));
-    std::normal_distribution<double> n(0.0, 0.05 * kDeg);
-    std::vector<CalibrationSample> samples;
-    for (int k = 0; k < 30000; ++k) {
-      const double t = k * 0.001;
-      const double mcp = -30 * kDeg + 28 * kDeg * std::sin(2 * M_PI * 0.5 * t);
-      const double pip = -40 * kDeg + 38 * kDeg * std::sin(2 * M_PI * 0.8 * t + 1.0);
-      ps::Data<double> d;
-      if (!ps::isUsable(ps::computeFromFinger(truth, ps::FingerAngles<double>{mcp, pip, -20 * kDeg, 0.0}, d))) continue;
-      auto q = [&](double v) { return std::round((v + n(nrng)) / 1e-4) * 1e-4; };
-      samples.push_back({q(d.sensors_rad[ps::kSensorExoMcp]), q(d.sensors_rad[ps::kSensorExoPip]),
-                         q(d.sensors_rad[ps::kSensorRedundant])});
-    }
+    const ps::Model<double> truth = randomSubject(rng);
+    const auto p = ps::toArray(truth.subject);
+    const auto samples = recording(truth, 0.05 * kDeg, 100u + static_cast<unsigned>(trial), 30000, 0.001);
     CalibrationOptions opt;
     opt.smooth_samples = 51;
     opt.stride = 10;

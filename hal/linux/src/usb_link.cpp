@@ -1,5 +1,7 @@
 #include "phalanx/linux/usb_link.h"
 
+#include "phalanx/linux/packet_body.h"
+
 #include <dirent.h>
 #include <fcntl.h>
 #include <libusb-1.0/libusb.h>
@@ -373,18 +375,7 @@ bool UsbLink::receive(uint8_t& msg_id, uint8_t* payload, size_t& len) {
     const Body& b = ring_[ring_head_];
     ring_head_ = (ring_head_ + 1) % kRxRing;
     --ring_len_;
-    protocol::Frame f;
-    switch (protocol::checkBody(b.data, b.len, f)) {
-      case protocol::BodyStatus::kOk:
-        msg_id = f.id;
-        len = f.len;
-        std::memcpy(payload, f.payload, f.len);
-        return true;
-      case protocol::BodyStatus::kCrc: ++rx_stats_.crc; break;
-      case protocol::BodyStatus::kUnknownId: ++rx_stats_.bad_id; break;
-      case protocol::BodyStatus::kTooShort:
-      case protocol::BodyStatus::kBadLength: ++rx_stats_.bad_length; break;
-    }
+    if (acceptBody(b.data, b.len, rx_stats_, msg_id, payload, len)) return true;
   }
   return false;
 }
