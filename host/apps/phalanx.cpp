@@ -56,10 +56,12 @@ int main(int argc, char** argv) {
   bench->require_subcommand(1);
   phalanx::host::glove::GloveBenchOptions bench_opt;
   bool bench_no_noise = false;
+  bool bench_no_drift = false;
   auto add_bench_options = [&](CLI::App* sc) {
     sc->add_option("--seconds", bench_opt.seconds, "scenario length (0: its default)")->check(CLI::Range(0.0, 600.0));
     sc->add_option("--seed", bench_opt.seed, "simulation seed");
     sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
+    sc->add_flag("--no-drift", bench_no_drift, "simulated strain gauges without their slow zero drift (noise stays)");
     sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
   };
   CLI::App* free_motion = bench->add_subcommand("glove-free-motion", "close/open maneuvers at zero force (000 §4.3)");
@@ -180,6 +182,7 @@ int main(int argc, char** argv) {
   if (const int rc = phalanx::host::cli::runTherapyCommands(therapy_cli); rc >= 0) return rc;
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
+    bench_opt.drift = !bench_no_drift;
     const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
                                                         : phalanx::host::glove::benchGrasp(bench_opt);
     std::cout << result.dump(2) << std::endl;

@@ -39,14 +39,28 @@ struct GloveRig {
 
 }  // namespace
 
-// Issue target: ≤ 50 mN; the paper measured ≈ 100 mN at 300 Hz. Measured here: 0.165 N in telemetry, 0.14 N true
-// (docs/glove-firmware.md): the target is NOT met yet. This bound guards what has been reached.
-TEST(GloveFreeMotion, PeakContactForceStaysBelowTwoHundredMillinewtons) {
+// Issue target: ≤ 50 mN; the paper measured ≈ 100 mN at 300 Hz. With the plant's sensor noise and gauge drift the
+// target is NOT met (0.073–0.080 N in telemetry, 0.091–0.132 N true over seeds 1–5, docs/glove-firmware.md). These
+// bounds guard what has been reached.
+TEST(GloveFreeMotion, PeakContactForceStaysBelowOneHundredFiftyMillinewtons) {
   const auto r = host::glove::benchFreeMotion({});
   EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
-  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.200) << r.dump(2);
+  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.100) << r.dump(2);
   for (const auto& [name, finger] : r["fingers"].items()) {
-    EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.200) << name;
+    EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.150) << name;
+  }
+}
+
+// The loop's own share: without sensor noise and drift the free-motion peak is within the 50 mN target, so what is
+// left above it comes from the gauge (its noise through the loop, its drift since the tare).
+TEST(GloveFreeMotion, WithoutSensorNoiseThePeakIsWithinFiftyMillinewtons) {
+  host::glove::GloveBenchOptions o;
+  o.noise = false;
+  const auto r = host::glove::benchFreeMotion(o);
+  EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
+  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.050) << r.dump(2);
+  for (const auto& [name, finger] : r["fingers"].items()) {
+    EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.050) << name;
   }
 }
 

@@ -22,6 +22,7 @@ struct Trace {
   std::array<std::vector<double>, kNumFingers> setpoint;
   std::array<std::vector<bool>, kNumFingers> contact;
   std::array<std::vector<double>, kNumFingers> true_current;          // plant truth, motor current
+  std::array<double, kNumFingers> drift_change{};                     // plant truth, max |gauge drift − at start|
   uint16_t faults = 0;
 };
 
@@ -32,6 +33,8 @@ Trace run(sim::GlovePlantConfig plant, const GloveControllerConfig& ctl_cfg, dou
   Trace tr;
   if (!rig.handshake().empty()) return tr;
   const auto steps = static_cast<long>(seconds * 1000.0);
+  std::array<double, kNumFingers> drift0{};
+  for (size_t f = 0; f < kNumFingers; ++f) drift0[f] = device.glovePlant().strainDrift_N(static_cast<int>(f));
   for (long i = 0; i < steps; ++i) {
     rig.step();
     tr.faults |= rig.session().latest().fault_bits;
@@ -44,6 +47,8 @@ Trace run(sim::GlovePlantConfig plant, const GloveControllerConfig& ctl_cfg, dou
       tr.setpoint[f].push_back(rig.lastCommand().setpoint[f]);
       tr.contact[f].push_back(controller.lastRender()[f].in_contact);
       tr.true_current[f].push_back(device.glovePlant().truth(static_cast<int>(f)).motor_current_A);
+      const double drift = device.glovePlant().strainDrift_N(static_cast<int>(f)) - drift0[f];
+      tr.drift_change[f] = std::fmax(tr.drift_change[f], std::fabs(drift));
     }
   }
   return tr;
@@ -59,6 +64,7 @@ sim::GlovePlantConfig plantConfig(const GloveBenchOptions& o, sim::HandScenario 
   sim::GlovePlantConfig plant;
   plant.seed = o.seed;
   plant.noise = o.noise;
+  if (!o.drift) plant.params.strain_drift_N = 0.0;
   plant.scenario = scenario;
   return plant;
 }
@@ -80,6 +86,7 @@ nlohmann::json benchFreeMotion(const GloveBenchOptions& o) {
   out["seconds"] = seconds;
   out["seed"] = o.seed;
   out["noise"] = o.noise;
+  out["drift"] = o.noise && o.drift;
   out["faults"] = with.faults;
   double worst_peak = 0.0;
   std::array<double, 3> r_sum{};
@@ -89,6 +96,9 @@ nlohmann::json benchFreeMotion(const GloveBenchOptions& o) {
     worst_peak = std::fmax(worst_peak, peak);
     finger["peak_contact_force_N"] = peak;
     finger["truth"]["peak_contact_force_N"] = peakAbs(with.true_force[f]);
+    // The loop regulates the *measured* force to zero, so the gauge's zero drift since the start-up tare shows
+    // up one for one in the true force: this is the part of the true peak no controller can remove.
+    finger["truth"]["strain_drift_change_max_N"] = with.drift_change[f];
     for (size_t j = 0; j < 3; ++j) {
       const double r = pearson(with.alpha[f][j], without.alpha[f][j]);
       finger["pearson_r_alpha"].push_back(r);

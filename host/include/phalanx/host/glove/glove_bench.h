@@ -13,6 +13,7 @@ struct GloveBenchOptions {
   double seconds = 0.0;  ///< 0: the scenario's default length
   uint32_t seed = 1;
   bool noise = true;
+  bool drift = true;  ///< false: the simulated strain gauges' slow zero drift is off (noise stays)
 };
 
 /// Free motion (000 §4.3): close/open maneuvers of 1 s with zero commanded force, with and without cables.

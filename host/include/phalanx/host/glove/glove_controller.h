@@ -21,9 +21,9 @@ struct GloveControllerConfig {
   /// Force-loop gain in contact, sent as the command's gain scale: min(1, k_ref / k_object); 0 disables.
   /// In contact the firmware's admittance loop closes through the rendered stiffness (setpoint k·x moves with the
   /// glove), so its loop gain grows with k; with the full gain a rigid ball (2000 N/m) limit-cycles at ≈ 20 Hz
-  /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 150 N/m keeps the grasp error ≤ 3.4 % at
-  /// 0.5–1.5 A RMS with the firmware's kp = 0.75 (docs/glove-firmware.md).
-  double contact_gain_ref_N_per_m = 150.0;
+  /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 75 N/m keeps the grasp error ≤ 3.4 % at
+  /// 0.5–1.5 A RMS with the firmware's kp = 1.5 (an effective 0.056 m/s per N on the rigid ball; glove-firmware.md).
+  double contact_gain_ref_N_per_m = 75.0;
 };
 
 /// Per-finger session figures, for the summary.
