@@ -380,9 +380,10 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   protocol::DeviceType expected = protocol::DeviceType::kAny;
   if (opt.device.rfind("sim:", 0) == 0) {
     const std::string name = path;
-    expected = name == "glove5" ? protocol::DeviceType::kGlove5
-               : name == "sea_finger" ? protocol::DeviceType::kSeaFinger
-                                      : protocol::DeviceType::kPantograph;
+    // sim:sea_rig is the sea_finger firmware on the §7.1 test-rig plant: it answers as a sea_finger.
+    expected = name == "glove5"                            ? protocol::DeviceType::kGlove5
+               : name == "sea_finger" || name == "sea_rig" ? protocol::DeviceType::kSeaFinger
+                                                           : protocol::DeviceType::kPantograph;
     if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
   } else if (const auto at = path.find('@'); at != std::string::npos && !is_can && !is_usb) {
     try {

@@ -158,3 +158,13 @@ TEST(Daemon, ReportsADeviceThatNeverAnswersTheHandshake) {
   EXPECT_EQ(d.wait(10000), 4);
   EXPECT_NE(d.stderrText().find("handshake"), std::string::npos) << d.stderrText();
 }
+
+// Every simulated device the daemon offers answers its handshake (sim:sea_rig is the sea_finger firmware on the
+// test-rig plant; it used to be expected as a pantograph and was refused).
+TEST(Daemon, EverySimulatedDeviceCompletesItsHandshake) {
+  for (const char* device : {"sim:glove5", "sim:sea_finger", "sim:sea_rig", "sim:pantograph"}) {
+    Process d({binPath("phalanxd"), "--device", device, "--seconds", "0.5", "--no-realtime"});
+    EXPECT_EQ(d.wait(20000), 0) << device << ": " << d.stderrText();
+    EXPECT_EQ(d.stderrText().find("mismatch"), std::string::npos) << device << ": " << d.stderrText();
+  }
+}
