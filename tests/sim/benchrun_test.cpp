@@ -1,5 +1,5 @@
-// The bench runner end to end on the simulated SEA rig (real time: the reference instrument is polled over
-// Modbus as on the bench), with short plans so the suite stays within its time budget.
+// The bench runner end to end on the simulated SEA rig and the haptic pen (real time: the reference instrument is
+// polled over Modbus as on the bench), with short plans so the suite stays within its time budget.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -121,6 +121,87 @@ steps:
   EXPECT_LT(s.instrument.size(), 1100u) << "stale samples are never scored";
 }
 
+namespace {
+
+// The pen pressed into the stiff box's x wall: 0.5 s free, 0.5 s move, first 1.5 s of the press (pen-wall schedule).
+const char* kPenHeader = R"(
+version: 1
+device: sim:pantograph
+seed: 2
+instrument: {type: int32, scale: 1.0e-5, unit: N, poll_hz: 500, timeout_ms: 30, stale_ms: 50}
+max_stale_percent: 5
+)";
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+}  // namespace
+
+TEST(BenchRun, PenWallPlanPassesOnTheSimulatedPantographWithExitZero) {
+  const std::string text = std::string(kPenHeader) + R"(
+steps:
+  - name: x wall 16 N/cm
+    kind: pen-wall
+    stiffness_N_per_cm: 16
+    seconds: 2.5
+    settle_s: 0.5
+    limits:
+      penetration_mm_max: 2.0
+      wall_energy_generated_mJ_max: 0.1
+      setpoint_vs_instrument: {nrmse_percent_max: 15}
+      estimate_vs_instrument: {nrmse_percent_max: 5}
+)";
+  const br::Plan p = plan(text);
+  const br::PlanResult r = br::runPlan(p, noProgress);
+  ASSERT_EQ(r.steps.size(), 1u);
+  const br::StepResult& s = r.steps[0];
+  EXPECT_TRUE(s.pass) << s.error << "\n" << br::toJson(r).dump(1);
+  EXPECT_EQ(s.checks.size(), 6u);
+  EXPECT_EQ(s.faults, 0u);
+  // The instrument really measures the wall force: near 0 in free space, the pressed force at the end (the hand
+  // target is 1.5 cm beyond the wall: ≈ 1–3 N) — and it agrees with what the scene commanded.
+  ASSERT_GT(s.instrument.size(), 1800u);
+  EXPECT_LT(std::fabs(s.instrument.front()), 0.05) << "free space at 0.5 s";
+  EXPECT_GT(s.instrument.back(), 0.5);
+  EXPECT_NEAR(s.instrument.back(), s.setpoint.back(), 0.15 * s.setpoint.back());
+  EXPECT_GT(s.step_metrics["peak_tip_penetration_mm"].get<double>(), 0.05) << "the tip did reach the wall";
+  // The same plan from a file through the command: exit 0, a report with the pen figures.
+  const std::string plan_path = writeTemp("pen-pass.yaml", text), report = ::testing::TempDir() + "pen-pass.html";
+  EXPECT_EQ(br::benchRunMain(plan_path, report), 0);
+  std::stringstream html;
+  html << std::ifstream(report).rdbuf();
+  EXPECT_NE(html.str().find("peak_tip_penetration_mm"), std::string::npos);
+}
+
+TEST(BenchRun, PenWallPlanWithLimitsTooTightFailsWithExitOne) {
+  const std::string text = std::string(kPenHeader) + R"(
+steps:
+  - name: x wall, limits too tight
+    kind: pen-wall
+    stiffness_N_per_cm: 3
+    seconds: 2.0
+    settle_s: 0.5
+    limits:
+      penetration_mm_max: 0.01
+      setpoint_vs_instrument: {nrmse_percent_max: 0.01}
+)";
+  const std::string plan_path = writeTemp("pen-fail.yaml", text), report = ::testing::TempDir() + "pen-fail.html";
+  EXPECT_EQ(br::benchRunMain(plan_path, report), 1);
+  const br::PlanResult r = br::runPlan(plan(text), noProgress);
+  ASSERT_EQ(r.steps.size(), 1u);
+  const br::StepResult& s = r.steps[0];
+  EXPECT_FALSE(s.pass);
+  EXPECT_TRUE(s.error.empty()) << s.error << ": it fails on its limits, not on the instrument";
+  ASSERT_EQ(s.checks.size(), 2u);
+  EXPECT_EQ(s.checks[0].what, "setpoint_vs_instrument.nrmse_percent");
+  EXPECT_EQ(s.checks[1].what, "penetration_mm");
+  EXPECT_FALSE(s.checks[0].pass);
+  EXPECT_FALSE(s.checks[1].pass);
+}
+
 TEST(BenchRun, PlanErrorsNameTheKey) {
   br::Plan p;
   EXPECT_NE(br::loadPlanText("version: 1\nsteps: []\n", "p", p).find("steps: expected a non-empty list"), std::string::npos);
@@ -132,6 +213,16 @@ TEST(BenchRun, PlanErrorsNameTheKey) {
                 .find("needs a sea-rig-chirp"),
             std::string::npos);
   EXPECT_NE(br::loadPlanText("device: serial:/dev/ttyACM0\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("not supported"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: sim:pantograph\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("does not run on sim:pantograph"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: sim:glove5\nsteps: [{kind: pen-wall}]\n", "p", p).find("does not run on sim:glove5"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: sim:pantograph\nsteps: [{kind: pen-wall, stiffness_N_per_cm: 100}]\n", "p", p)
+                .find("steps[0].stiffness_N_per_cm"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("steps: [{kind: sea-rig-sine, limits: {penetration_mm_max: 1}}]\n", "p", p)
+                .find("steps[0].limits.penetration_mm_max: unknown key"),
             std::string::npos);
   EXPECT_NE(br::loadPlanText("instrument: {baud_rate: 9600}\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("instrument.baud_rate"),
             std::string::npos);
