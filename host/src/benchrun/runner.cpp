@@ -26,7 +26,7 @@ constexpr double kSmoothHz = 0.5;       // moving average of |G| over frequency 
 constexpr size_t kSeaTorque0 = 7;       // sea_finger sample: SEA 0 joint torque estimate (devices.h)
 constexpr size_t kGloveForce0 = 15;     // glove5 sample: pad force of finger 0 (devices.h)
 constexpr size_t kPenTorque0 = 6;       // pantograph sample: measured motor torque q1 (devices.h)
-constexpr size_t kExcludeAfter = 2;     // rig steps after an unscorable one also not scored (docs/bench-runner.md)
+constexpr size_t kExcludeAfter = 4;     // rig steps after an unscorable one also not scored (docs/bench-runner.md)
 
 void sleepUntil(uint64_t t_ns) {
   timespec ts{static_cast<time_t>(t_ns / 1000000000ull), static_cast<long>(t_ns % 1000000000ull)};

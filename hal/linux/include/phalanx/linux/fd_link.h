@@ -34,6 +34,7 @@ class FdLink : public hal::ByteLink {
  protected:
   void adopt(int fd);
   std::string error_;
+  bool probe_when_idle_ = true;  ///< see read(): false for a serial tty (SerialLink), whose hang-up FIONREAD reports
 
  private:
   int fd_ = -1;

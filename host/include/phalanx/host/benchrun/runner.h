@@ -86,7 +86,7 @@ struct StepResult {
   std::string error;                 ///< device/instrument problem; the step fails
   std::vector<double> t, setpoint, estimate, instrument;  ///< fresh-instrument samples after settle
   uint64_t samples_total = 0, samples_stale = 0;
-  uint64_t samples_excluded = 0;     ///< not scored by design (pen-wall: the braking pulses and 2 ms after them)
+  uint64_t samples_excluded = 0;     ///< not scored by design (pen-wall: the braking pulses and 4 ms after them)
   uint16_t faults = 0;
   PairMetrics est, sp;               ///< estimate vs instrument, setpoint vs instrument
   std::vector<Check> checks;
