@@ -46,7 +46,14 @@ YAML
 "${TASKSET[@]}" "$BIN/phalanxd" --config "$WORK/phalanxd.yaml" --json >"$WORK/summary.json" 2>"$WORK/phalanxd.err" &
 DAEMON=$!
 uptime_ms() {
-  mbpoll -m tcp -p "$PORT" -0 -1 -B -t 3:int -r 12 127.0.0.1 | sed -n 's/^\[12\]: *//p' | tr -d '[:space:]'
+  local v
+  v=$(mbpoll -m tcp -p "$PORT" -0 -1 -B -t 3:int -r 12 127.0.0.1 | sed -n 's/^\[12\]: *//p' | tr -d '[:space:]') || true
+  if [ -z "$v" ]; then
+    echo "modbus-load: cannot read the loop clock over Modbus; phalanxd said:" >&2
+    cat "$WORK/phalanxd.err" >&2
+    exit 3
+  fi
+  echo "$v"
 }
 # One reference sleeper per phase: 1 kHz, histogram to 1000 µs (beyond: "overflows" = periods it would miss).
 reference() {  # $1: phase name
