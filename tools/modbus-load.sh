@@ -10,7 +10,7 @@
 # machine (other processes, the hypervisor) is the cause, not the daemon.
 #
 # Usage: tools/modbus-load.sh [build/host/bin] [clients=16] [phase_s=10]
-# Environment: DEVICE=sim:glove5|sim:sea_rig|sim:pantograph (default sim:glove5), PIN=<cpu> (pin the daemon, its
+# Environment: DEVICE=sim:glove5|sim:sea_finger|sim:pantograph (default sim:glove5), PIN=<cpu> (pin the daemon, its
 # simulated device and the reference sleeper to one CPU; the clients stay unpinned), PORT (default 15502).
 set -euo pipefail
 BIN=${1:-build/host/bin}
