@@ -10,7 +10,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
   zlib1g-dev
-  nlohmann-json3-dev libceres-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev mbpoll libnlopt-dev
+  nlohmann-json3-dev libceres-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev mbpoll libnlopt-dev rt-tests
   clang libclang-rt-14-dev valgrind
   qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils
   linux-source-6.1 linux-headers-amd64

@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "phalanx/host/benchrun/runner.h"
+#include "phalanx/host/pen/pen_bench.h"
+#include "phalanx/host/pen/pen_scene.h"
 
 namespace phalanx::host::benchrun {
 namespace {
@@ -63,8 +65,8 @@ void apply(const YAML::Node& root, Plan& p) {
     throw Bad{"version: only version 1 is understood"};
   }
   if (root["device"]) p.device = get<std::string>(root["device"], "device", "string");
-  if (p.device != "sim:sea_rig" && p.device != "sim:glove5") {
-    throw Bad{"device: '" + p.device + "' is not supported (sim:sea_rig, sim:glove5; real devices: not yet)"};
+  if (p.device != "sim:sea_rig" && p.device != "sim:glove5" && p.device != "sim:pantograph") {
+    throw Bad{"device: '" + p.device + "' is not supported (sim:sea_rig, sim:glove5, sim:pantograph; real devices: not yet)"};
   }
   if (root["controller"]) p.controller = get<std::string>(root["controller"], "controller", "string");
   if (p.controller != "ours" && p.controller != "paper") throw Bad{"controller: must be ours or paper"};
@@ -83,17 +85,35 @@ void apply(const YAML::Node& root, Plan& p) {
     const std::string w = "steps[" + std::to_string(i) + "]";
     const YAML::Node s = steps[i];
     onlyKeys(s, w, {"name", "kind", "seconds", "settle_s", "peak_Nm", "hz", "amplitude_Nm", "f0_hz", "fmax_hz", "finger",
-                    "instrument_hang_at_s", "limits"});
+                    "stiffness_N_per_cm", "braking", "instrument_hang_at_s", "limits"});
     Step st;
-    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion)"};
+    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, pen-wall)"};
     st.kind = get<std::string>(s["kind"], w + ".kind", "string");
     const bool sea = st.kind == "sea-rig-sine" || st.kind == "sea-rig-chirp";
-    if (!sea && st.kind != "glove-free-motion") {
-      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp or glove-free-motion"};
+    const bool pen = st.kind == "pen-wall";
+    if (!sea && !pen && st.kind != "glove-free-motion") {
+      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion or pen-wall"};
     }
-    if (sea != (p.device == "sim:sea_rig")) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device};
+    const std::string runs_on = sea ? "sim:sea_rig" : (pen ? "sim:pantograph" : "sim:glove5");
+    if (runs_on != p.device) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device};
     st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
     if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
+    if (pen) {
+      if (s["stiffness_N_per_cm"]) {
+        // 64 N/cm: the top of `phalanx bench pen-wall --sweep` (docs/pen-plant.md).
+        st.stiffness_N_per_cm = number(s["stiffness_N_per_cm"], w + ".stiffness_N_per_cm", 0.1, 64.0);
+      }
+      if (s["braking"]) st.braking = get<bool>(s["braking"], w + ".braking", "boolean");
+      // Default: the whole wall-bench schedule (presses, corners, hands-off impact); a shorter step stops early.
+      pen::PenWallBenchOptions o;
+      o.stiffness_N_per_cm = st.stiffness_N_per_cm;
+      double total = 0.0;
+      for (const pen::PenWallPhase& ph : pen::wallBenchSchedule(pen::wallBenchScene(o))) total += ph.move_s + ph.hold_s;
+      st.seconds = total;
+      st.settle_s = 0.5;  // the first free hold
+    } else if (s["stiffness_N_per_cm"] || s["braking"]) {
+      throw Bad{w + ": stiffness_N_per_cm and braking are pen-wall keys"};
+    }
     if (s["seconds"]) st.seconds = number(s["seconds"], w + ".seconds", 0.5, 600.0);
     if (s["settle_s"]) st.settle_s = number(s["settle_s"], w + ".settle_s", 0.0, 60.0);
     if (st.kind == "sea-rig-chirp") st.settle_s = s["settle_s"] ? st.settle_s : 0.0;
@@ -110,7 +130,17 @@ void apply(const YAML::Node& root, Plan& p) {
       st.instrument_hang_at_s = number(s["instrument_hang_at_s"], w + ".instrument_hang_at_s", 0.0, 600.0);
     }
     if (const YAML::Node l = s["limits"]) {
-      onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument"});
+      if (pen) {
+        onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument", "penetration_mm_max",
+                                    "wall_energy_generated_mJ_max"});
+        if (l["penetration_mm_max"]) st.penetration_mm_max = number(l["penetration_mm_max"], w + ".limits.penetration_mm_max", 0.0, 1e3);
+        if (l["wall_energy_generated_mJ_max"]) {
+          st.wall_energy_generated_mJ_max =
+              number(l["wall_energy_generated_mJ_max"], w + ".limits.wall_energy_generated_mJ_max", -1e6, 1e6);
+        }
+      } else {
+        onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument"});
+      }
       if (l["estimate_vs_instrument"]) {
         st.estimate_vs_instrument = limitsOf(l["estimate_vs_instrument"], w + ".limits.estimate_vs_instrument");
       }

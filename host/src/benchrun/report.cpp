@@ -212,7 +212,7 @@ std::string renderHtml(const Plan& plan, const PlanResult& res) {
   o << "<p class='note'>Reference instrument: Modbus " << esc(plan.instrument.transport) << ", " << esc(plan.instrument.table)
     << " register " << plan.instrument.address << " (" << esc(plan.instrument.type) << ", scale " << fmt(plan.instrument.scale)
     << ", offset " << fmt(plan.instrument.offset) << "), polled at " << fmt(plan.instrument.poll_hz) << " Hz; "
-    << "in simulation a simulated amplifier serves the plant's true joint torque / fingertip force. "
+    << "in simulation a simulated amplifier serves the plant's true joint torque / fingertip force / pen wall force. "
        "Metrics (seeds/001): RMSE; NRMSE = RMSE / peak |reference|; fidelity F = (1 − var(y − y<sub>ref</sub>)/var(y))·100 % "
        "(eq 15); −3 dB bandwidth of |Y(jω)|/|R(jω)| (eq 17) on a linear chirp (eq 16). "
        "<i>estimate vs instrument</i>: y = the device's own estimate, reference = the instrument; "
@@ -233,9 +233,18 @@ std::string renderHtml(const Plan& plan, const PlanResult& res) {
     o << "<h2 id='s" << &s - res.steps.data() << "'>" << esc(s.name) << " <span class='" << (s.pass ? "pass'>pass" : "fail'>fail")
       << "</span></h2><p class='note'>" << esc(s.kind) << "; " << s.samples_total << " samples scored after settling, "
       << s.samples_stale << " without a fresh instrument reading";
+    if (s.samples_excluded > 0) o << "; " << s.samples_excluded << " not scored by design (braking pulses)";
     if (s.faults) o << "; device faults 0x" << std::hex << s.faults << std::dec;
     o << ".</p>";
     if (!s.error.empty()) o << "<p><b>Error:</b> " << esc(s.error) << "</p>";
+    if (s.step_metrics.is_object() && !s.step_metrics.empty()) {
+      o << "<table><tr><th>step figure</th><th>value</th></tr>";
+      for (const auto& [key, v] : s.step_metrics.items()) {
+        o << "<tr><td>" << esc(key) << "</td><td>" << (v.is_number_float() ? fmt(v.get<double>()) : esc(v.dump()))
+          << "</td></tr>";
+      }
+      o << "</table>";
+    }
     if (s.instrument.empty()) continue;
     o << "<table><tr><th>comparison</th><th>RMSE</th><th>NRMSE</th><th>fidelity (eq 15)</th><th>−3 dB bandwidth (eq 17)</th></tr>"
       << metricRow("estimate vs instrument", s.est, s.unit) << metricRow("setpoint vs instrument", s.sp, s.unit)

@@ -7,10 +7,14 @@
 #include <memory>
 
 #include "phalanx/fw_sim/glove5_sim.h"
+#include "phalanx/fw_sim/pantograph_sim.h"
 #include "phalanx/fw_sim/sea_finger_sim.h"
 #include "phalanx/host/glove/glove_controller.h"
 #include "phalanx/host/lockstep.h"
 #include "phalanx/host/metrics.h"
+#include "phalanx/host/pen/pen_bench.h"
+#include "phalanx/host/pen/pen_controller.h"
+#include "phalanx/host/pen/pen_scene.h"
 #include "phalanx/host/sea/sea_bench.h"
 #include "phalanx/linux/realtime.h"
 
@@ -21,6 +25,8 @@ constexpr double kFs = 1000.0;          // lockstep rig period: 1 kHz
 constexpr double kSmoothHz = 0.5;       // moving average of |G| over frequency (the paper's "filtered", §8.1.3)
 constexpr size_t kSeaTorque0 = 7;       // sea_finger sample: SEA 0 joint torque estimate (devices.h)
 constexpr size_t kGloveForce0 = 15;     // glove5 sample: pad force of finger 0 (devices.h)
+constexpr size_t kPenTorque0 = 6;       // pantograph sample: measured motor torque q1 (devices.h)
+constexpr size_t kExcludeAfter = 4;     // rig steps after an unscorable one also not scored (docs/bench-runner.md)
 
 void sleepUntil(uint64_t t_ns) {
   timespec ts{static_cast<time_t>(t_ns / 1000000000ull), static_cast<long>(t_ns % 1000000000ull)};
@@ -34,16 +40,156 @@ double peakAbs(const std::vector<double>& v) {
   return p;
 }
 
-/// The simulated device of one step: a lockstep rig plus accessors for the three signals.
+/// The simulated device of one step: a lockstep rig plus accessors for the three signals, and for steps that
+/// drive the plant themselves (pen-wall: the hand) hooks around each rig step and kind-specific checks.
 struct SimTarget {
   std::unique_ptr<fw_sim::SimDevice> device;
   std::unique_ptr<Controller> controller;
   std::unique_ptr<LockstepRig> rig;
   std::function<double()> truth, estimate, setpoint;
+  std::function<void(size_t)> before_step;            ///< optional, before rig step k
+  std::function<void()> after_step;                   ///< optional, after each rig step
+  std::function<void(const Step&, StepResult&)> finish;  ///< optional: step_metrics and checks
+  /// optional, after each rig step: true = this step and the next kExcludeAfter are not scored (pen-wall: a
+  /// braking pulse, a one-period impulse that the instrument, sampling at poll_hz, cannot resolve).
+  std::function<bool()> unscorable;
 };
+
+/// Net force two pen-end forces f = J⁻ᵀτ (one per pantograph) put on the pen, minus the gravity compensation:
+/// the force the walls get. |·| in N; NaN when a Jacobian is singular.
+double penWallForce(const phalanx::pen::Data<double>& kin, const pen::JointVecd& tau, const pen::Vec3d& gravity_comp) {
+  namespace pp = phalanx::pen;
+  pen::Vec3d f_b{}, f_t{};
+  if (!pen::tipForceFromTorques(kin.pantograph[pp::kBottom].J, {tau[0], tau[1], tau[2]}, f_b) ||
+      !pen::tipForceFromTorques(kin.pantograph[pp::kTop].J, {tau[3], tau[4], tau[5]}, f_t)) {
+    return std::nan("");
+  }
+  const pen::Vec3d f{f_b[0] + f_t[0] - gravity_comp[0], f_b[1] + f_t[1] - gravity_comp[1], f_b[2] + f_t[2] - gravity_comp[2]};
+  return std::sqrt(pp::dot(f, f));
+}
+
+/// pen-wall: the wall bench's hand schedule (pen_bench.h) driven step by step, the penetration and energy
+/// balance of `phalanx bench pen-wall` accumulated alongside.
+struct PenWallState {
+  pen::PenSceneConfig scene;
+  std::vector<pen::PenWallPhase> phases;
+  std::vector<size_t> phase_start;  ///< first rig step of each phase
+  sim::PenPlant* plant = nullptr;
+  pen::PenController* controller = nullptr;
+  phalanx::pen::Data<double> true_kin{};
+  double w0 = 0.0, wall_work_J = 0.0, peak_pen_m = 0.0, peak_force_N = 0.0;
+  long brake_pulses = 0, split_scaled = 0;
+};
+
+void penBeforeStep(PenWallState& s, size_t k) {
+  size_t i = 0;
+  while (i + 1 < s.phases.size() && k >= s.phase_start[i + 1]) ++i;
+  const pen::PenWallPhase& ph = s.phases[i];
+  const double t = std::min(static_cast<double>(k - s.phase_start[i]) / kFs, ph.move_s + ph.hold_s);
+  const sim::PenVec5 prev = i == 0 ? ph.target : s.phases[i - 1].target;
+  sim::PenVec5 tgt{}, tgt_dot{};
+  pen::wallBenchHandTarget(ph, prev, t, tgt, tgt_dot);
+  s.plant->setHandTarget(tgt, tgt_dot);
+  if (ph.release && t >= ph.move_s - 0.15) s.plant->setHandReleased(true);
+  // Energy the rendered environment puts into the pen: the motors' work minus what gravity compensation did
+  // (as in pen_wall_bench.cpp; the compensation model is the plant's).
+  s.w0 = s.plant->truth().motor_work_J + s.plant->truth().gravity_work_J;
+}
+
+void penAfterStep(PenWallState& s) {
+  const sim::PenTruth& tr = s.plant->truth();
+  s.wall_work_J += tr.motor_work_J + tr.gravity_work_J - s.w0;
+  s.peak_pen_m = std::max(s.peak_pen_m, pen::wallPenetration(s.scene, tr.B_p_tip));
+  const pen::PenRenderOutput& r = s.controller->lastRender();
+  if (r.end[phalanx::pen::kBottom].brake_applied) ++s.brake_pulses;
+  if (s.controller->lastSplit().status == pen::SplitStatus::kScaled) ++s.split_scaled;
+}
 
 SimTarget makeTarget(const Plan& plan, const Step& st) {
   SimTarget t;
+  if (st.kind == "pen-wall") {
+    pen::PenWallBenchOptions o;
+    o.stiffness_N_per_cm = st.stiffness_N_per_cm;
+    o.braking = st.braking;
+    auto s = std::make_shared<PenWallState>();
+    s->scene = pen::wallBenchScene(o);
+    s->phases = pen::wallBenchSchedule(s->scene);
+    size_t start = 0;
+    for (const pen::PenWallPhase& ph : s->phases) {
+      s->phase_start.push_back(start);
+      start += static_cast<size_t>(std::lround((ph.move_s + ph.hold_s) * kFs));
+    }
+    sim::PenPlantConfig pc;
+    pc.seed = plan.seed;
+    pc.noise = plan.noise;
+    pc.scenario = sim::PenHandScenario::kExternal;
+    auto dev = std::make_unique<fw_sim::PantographSimDevice>(pc);
+    pen::PenControllerConfig cc;
+    cc.scene = s->scene;
+    auto ctl = std::make_unique<pen::PenController>(cc);
+    s->plant = &dev->penPlant();
+    s->controller = ctl.get();
+    t.controller = std::move(ctl);
+    t.device = std::move(dev);
+    t.rig = std::make_unique<LockstepRig>(*t.device, *t.controller);
+    auto* rig = t.rig.get();
+    // Instrument: the force the device TRULY puts on the walls — the plant's motor torques after the amplifier
+    // through its true kinematics (f = J⁻ᵀτ per pantograph), minus the force that holds the pen's true weight.
+    t.truth = [s] {
+      const sim::PenTruth& tr = s->plant->truth();
+      if (!phalanx::pen::isUsable(phalanx::pen::computeForward(s->plant->model(), tr.q_rad, s->true_kin))) return std::nan("");
+      const pen::Vec3d g{0.0, s->plant->weightKg(tr.x[2]) * s->plant->config().params.gravity_m_s2, 0.0};
+      return penWallForce(s->true_kin, tr.motor_torque_Nm, g);
+    };
+    // Estimate: what the device reports it renders — its measured motor torques (telemetry 6..11) through the
+    // kinematics of its encoder angles (Jᵀτ inverted per pantograph), minus the controller's gravity compensation.
+    t.estimate = [s, rig] {
+      const auto& tel = rig->session().latest();
+      pen::JointVecd tau{};
+      for (size_t i = 0; i < tau.size(); ++i) tau[i] = static_cast<double>(tel.value[kPenTorque0 + i]);
+      if (!phalanx::pen::isUsable(s->controller->kinematics().status)) return std::nan("");
+      return penWallForce(s->controller->kinematics(), tau, s->controller->lastRender().gravity_force_N);
+    };
+    // Setpoint: the wall force the PD+B scene commanded this cycle (both pen ends, braking pulse included).
+    t.setpoint = [s] {
+      const pen::PenRenderOutput& r = s->controller->lastRender();
+      pen::Vec3d f{};
+      for (const auto& e : r.end) {
+        for (size_t i = 0; i < 3; ++i) f[i] += e.force_N[i];
+      }
+      const double m = std::sqrt(phalanx::pen::dot(f, f));
+      s->peak_force_N = std::max(s->peak_force_N, m);
+      return m;
+    };
+    t.unscorable = [s] {
+      const pen::PenRenderOutput& r = s->controller->lastRender();
+      return r.end[0].brake_applied || r.end[1].brake_applied;
+    };
+    t.before_step = [s](size_t k) { penBeforeStep(*s, k); };
+    t.after_step = [s] { penAfterStep(*s); };
+    t.finish = [s](const Step& step, StepResult& r) {
+      const sim::PenTruth& tr = s->plant->truth();
+      const double stored = pen::wallStoredEnergy(s->scene, tr.B_p_tip) + pen::wallStoredEnergy(s->scene, tr.B_p_eraser);
+      const double generated_mJ = (s->wall_work_J - stored) * 1e3;
+      r.step_metrics = {{"peak_tip_penetration_mm", s->peak_pen_m * 1e3},
+                        {"wall_energy_generated_mJ", generated_mJ},
+                        {"wall_work_mJ", s->wall_work_J * 1e3},
+                        {"peak_commanded_wall_force_N", s->peak_force_N},
+                        {"braking_pulses", s->brake_pulses},
+                        {"split_scaled_cycles", s->split_scaled},
+                        {"stiffness_N_per_cm", step.stiffness_N_per_cm},
+                        {"braking", step.braking}};
+      if (step.penetration_mm_max) {
+        r.checks.push_back({"penetration_mm", s->peak_pen_m * 1e3, *step.penetration_mm_max, false,
+                            s->peak_pen_m * 1e3 <= *step.penetration_mm_max});
+      }
+      if (step.wall_energy_generated_mJ_max) {
+        r.checks.push_back({"wall_energy_generated_mJ", generated_mJ, *step.wall_energy_generated_mJ_max, false,
+                            std::isfinite(generated_mJ) && generated_mJ <= *step.wall_energy_generated_mJ_max});
+      }
+    };
+    return t;
+  }
   if (st.kind == "glove-free-motion") {
     sim::GlovePlantConfig pc;
     pc.seed = plan.seed;
@@ -119,7 +265,7 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   const auto settle = static_cast<size_t>(std::lround(st.settle_s * kFs));
   std::vector<double> sp(steps), est(steps), truth_set(steps);
   std::vector<uint64_t> set_ns(steps);
-  std::vector<uint8_t> stale(steps);
+  std::vector<uint8_t> stale(steps), excluded(steps);
   std::vector<std::pair<uint64_t, double>> samples;  // instrument samples: (arrival time, value)
   samples.reserve(steps);
   uint64_t last_sample_ns = 0;
@@ -132,7 +278,12 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   const uint64_t t0 = linux_hal::monotonicNs();
   size_t next_progress = 0;
   for (size_t k = 0; k < steps; ++k) {
+    if (target.before_step) target.before_step(k);
     target.rig->step();
+    if (target.after_step) target.after_step();
+    if (target.unscorable && target.unscorable()) {
+      for (size_t j = k; j < std::min(steps, k + 1 + kExcludeAfter); ++j) excluded[j] = 1;
+    }
     r.faults |= target.rig->session().latest().fault_bits;
     sp[k] = target.setpoint();
     est[k] = target.estimate();
@@ -191,6 +342,10 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
     if (k - held_at > max_age_steps) stale[k] = 1;
   }
   for (size_t k = settle; k < steps; ++k) {
+    if (excluded[k]) {
+      ++r.samples_excluded;
+      continue;
+    }
     ++r.samples_total;
     if (stale[k] || !std::isfinite(inst_zoh[k])) {
       ++r.samples_stale;
@@ -232,6 +387,7 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   r.sp = comparePair(y_inst, y_sp, kFs, chirp, f_lo, f_hi);
   judge(st.estimate_vs_instrument, r.est, "estimate_vs_instrument", r.checks);
   judge(st.setpoint_vs_instrument, r.sp, "setpoint_vs_instrument", r.checks);
+  if (target.finish) target.finish(st, r);
   if (r.faults != 0 && r.error.empty()) r.error = "device latched faults during the step (bits " + std::to_string(r.faults) + ")";
   r.pass = r.error.empty() && std::all_of(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.pass; });
   return r;
@@ -328,6 +484,7 @@ nlohmann::json toJson(const PlanResult& r) {
   for (const StepResult& s : r.steps) {
     nlohmann::json sj = {{"name", s.name}, {"kind", s.kind}, {"pass", s.pass}, {"samples", s.samples_total},
                          {"samples_stale", s.samples_stale}, {"faults", s.faults}};
+    if (s.samples_excluded > 0) sj["samples_excluded"] = s.samples_excluded;
     if (!s.error.empty()) sj["error"] = s.error;
     if (!s.instrument.empty()) {
       sj["estimate_vs_instrument"] = pairJson(s.est);
@@ -337,6 +494,7 @@ nlohmann::json toJson(const PlanResult& r) {
       sj["checks"].push_back({{"what", c.what}, {"value", c.value}, {c.is_min ? "min" : "max", c.limit}, {"pass", c.pass}});
     }
     sj["instrument"] = s.instrument_stats;
+    if (!s.step_metrics.is_null()) sj["metrics"] = s.step_metrics;
     j["steps"].push_back(sj);
   }
   return j;

@@ -18,14 +18,7 @@ namespace {
 namespace pp = phalanx::pen;
 using V5 = sim::PenVec5;
 
-struct Phase {
-  const char* name;
-  V5 target;         ///< hand target (centre m, angles rad)
-  double move_s;     ///< raised-cosine move from the previous target
-  double hold_s;
-  bool press;        ///< a pressing phase: metrics over the last second of the hold
-  bool release = false;  ///< hands-off: the hand lets go at the end of the move
-};
+using Phase = PenWallPhase;
 
 double smooth(double s) { return s <= 0 ? 0 : (s >= 1 ? 1 : 0.5 - 0.5 * std::cos(M_PI * s)); }
 
@@ -33,28 +26,6 @@ double smooth(double s) { return s <= 0 ? 0 : (s >= 1 ? 1 : 0.5 - 0.5 * std::cos
 // at the tip depending on the wall stiffness (the paper's Fig. 20 forces stay below 1 N; this presses harder).
 constexpr double kPush = 0.015;
 
-std::vector<Phase> schedule(const PenSceneConfig& s) {
-  // The tip of the upright pen is l6 (7 cm) below its centre (pen::endOffset).
-  const double half = -pp::endOffset(pp::kBottom, pp::defaultModel<double>().l6_m);
-  const double xw = s.box_max[0] + kPush, yf = s.box_min[1] + half - kPush, zf = s.box_max[2] + kPush;
-  const double x_in = s.box_max[0] - 0.02;
-  return {
-      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.0, 0.5, false},
-      {"wall_x", {xw, 0.0, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
-      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
-      {"floor", {0.0, yf, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
-      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
-      {"wall_z", {0.0, 0.0, zf, 0.0, 0.0}, 0.5, 1.5, true},
-      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
-      {"corner_x_floor", {xw, yf, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
-      {"corner_x_z", {xw, 0.0, zf, 0.0, 0.0}, 0.5, 1.5, true},
-      {"corner_x_z_floor", {xw, yf, zf, 0.0, 0.0}, 0.5, 1.5, true},
-      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.7, 0.5, false},
-      // Hands-off impact: swing towards the x wall and let go 2 cm before it at ≈ 0.1 m/s.
-      {"approach", {x_in - 0.03, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.2, false},
-      {"hands_off_impact", {x_in + 0.01, 0.0, 0.20, 0.0, 0.0}, 0.6, 2.0, false, true},
-  };
-}
 
 struct PhaseMetrics {
   std::vector<double> pen, force, speed;
@@ -91,8 +62,46 @@ double stddev(const std::vector<double>& v) {
   return v.empty() ? 0.0 : std::sqrt(s / static_cast<double>(v.size()));
 }
 
+// Two encoder counts of tip motion along its coarsest axis at home (Table X: 142–314 µm per count; this model's
+// shoulders move the tip 148–153 µm per count): quantisation dither within ±1 count cannot be told from rest.
+constexpr double kTwoCountsM = 2 * 153e-6;
+
+}  // namespace
+
+std::vector<PenWallPhase> wallBenchSchedule(const PenSceneConfig& s) {
+  // The tip of the upright pen is l6 (7 cm) below its centre (pen::endOffset).
+  const double half = -pp::endOffset(pp::kBottom, pp::defaultModel<double>().l6_m);
+  const double xw = s.box_max[0] + kPush, yf = s.box_min[1] + half - kPush, zf = s.box_max[2] + kPush;
+  const double x_in = s.box_max[0] - 0.02;
+  return {
+      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.0, 0.5, false},
+      {"wall_x", {xw, 0.0, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
+      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
+      {"floor", {0.0, yf, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
+      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
+      {"wall_z", {0.0, 0.0, zf, 0.0, 0.0}, 0.5, 1.5, true},
+      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.3, false},
+      {"corner_x_floor", {xw, yf, 0.20, 0.0, 0.0}, 0.5, 1.5, true},
+      {"corner_x_z", {xw, 0.0, zf, 0.0, 0.0}, 0.5, 1.5, true},
+      {"corner_x_z_floor", {xw, yf, zf, 0.0, 0.0}, 0.5, 1.5, true},
+      {"free", {0.0, 0.0, 0.20, 0.0, 0.0}, 0.7, 0.5, false},
+      // Hands-off impact: swing towards the x wall and let go 2 cm before it at ≈ 0.1 m/s.
+      {"approach", {x_in - 0.03, 0.0, 0.20, 0.0, 0.0}, 0.5, 0.2, false},
+      {"hands_off_impact", {x_in + 0.01, 0.0, 0.20, 0.0, 0.0}, 0.6, 2.0, false, true},
+  };
+}
+
+void wallBenchHandTarget(const PenWallPhase& ph, const V5& prev, double t, V5& tgt, V5& tgt_dot) {
+  const double s = ph.move_s > 0 ? smooth(t / ph.move_s) : 1.0;
+  const double sd = ph.move_s > 0 && t < ph.move_s ? 0.5 * M_PI / ph.move_s * std::sin(M_PI * t / ph.move_s) : 0.0;
+  for (std::size_t i = 0; i < 5; ++i) {
+    tgt[i] = prev[i] + (ph.target[i] - prev[i]) * s;
+    tgt_dot[i] = (ph.target[i] - prev[i]) * sd;
+  }
+}
+
 // Deepest true penetration of the tip into the box (m, ≥ 0).
-double tipPenetration(const PenSceneConfig& s, const pp::Vec3<double>& p) {
+double wallPenetration(const PenSceneConfig& s, const pp::Vec3<double>& p) {
   double d = 0.0;
   d = std::fmax(d, s.box_min[0] - p[0]);
   d = std::fmax(d, p[0] - s.box_max[0]);
@@ -103,18 +112,12 @@ double tipPenetration(const PenSceneConfig& s, const pp::Vec3<double>& p) {
 }
 
 // Potential energy the box's springs hold for an end at p (J).
-double storedEnergy(const PenSceneConfig& s, const pp::Vec3<double>& p) {
+double wallStoredEnergy(const PenSceneConfig& s, const pp::Vec3<double>& p) {
   auto e = [](double k, double d) { return d > 0.0 ? 0.5 * k * d * d : 0.0; };
   return e(s.horizontal.stiffness_N_per_m, s.box_min[0] - p[0]) + e(s.horizontal.stiffness_N_per_m, p[0] - s.box_max[0]) +
          e(s.vertical.stiffness_N_per_m, s.box_min[1] - p[1]) + e(s.horizontal.stiffness_N_per_m, s.box_min[2] - p[2]) +
          e(s.horizontal.stiffness_N_per_m, p[2] - s.box_max[2]);
 }
-
-// Two encoder counts of tip motion along its coarsest axis at home (Table X: 142–314 µm per count; this model's
-// shoulders move the tip 148–153 µm per count): quantisation dither within ±1 count cannot be told from rest.
-constexpr double kTwoCountsM = 2 * 153e-6;
-
-}  // namespace
 
 PenSceneConfig wallBenchScene(const PenWallBenchOptions& o) {
   PenSceneConfig s;
@@ -149,7 +152,7 @@ nlohmann::json benchWallRun(const PenWallBenchOptions& o) {
   }
   sim::PenPlant& plant = device.penPlant();
   const PenSceneConfig& sc = ccfg.scene;
-  const std::vector<Phase> phases = schedule(sc);
+  const std::vector<Phase> phases = wallBenchSchedule(sc);
   V5 prev = phases[0].target;
   uint16_t faults = 0;
   double wall_work_J = 0.0;  // energy the rendered walls put into the pen (< 0: dissipated)
@@ -168,13 +171,8 @@ nlohmann::json benchWallRun(const PenWallBenchOptions& o) {
     std::vector<double> late_speed;
     for (long k = 0; k < steps; ++k) {
       const double t = static_cast<double>(k) * 1e-3;
-      const double s = ph.move_s > 0 ? smooth(t / ph.move_s) : 1.0;
-      const double sd = ph.move_s > 0 && t < ph.move_s ? 0.5 * M_PI / ph.move_s * std::sin(M_PI * t / ph.move_s) : 0.0;
       V5 tgt{}, tgt_dot{};
-      for (std::size_t i = 0; i < 5; ++i) {
-        tgt[i] = prev[i] + (ph.target[i] - prev[i]) * s;
-        tgt_dot[i] = (ph.target[i] - prev[i]) * sd;
-      }
+      wallBenchHandTarget(ph, prev, t, tgt, tgt_dot);
       plant.setHandTarget(tgt, tgt_dot);
       if (ph.release && t >= ph.move_s - 0.15 && ke_release < 0.0) {
         plant.setHandReleased(true);
@@ -193,12 +191,12 @@ nlohmann::json benchWallRun(const PenWallBenchOptions& o) {
       if (tip.brake_applied) ++brake_pulses;
       if (controller.lastSplit().status == SplitStatus::kScaled) ++scaled;
       const double f = std::sqrt(pp::dot(tip.force_N, tip.force_N));
-      const double pen = tipPenetration(sc, tr.B_p_tip);
+      const double pen = wallPenetration(sc, tr.B_p_tip);
       peak_force = std::fmax(peak_force, f);
       peak_pen = std::fmax(peak_pen, pen);
       const double speed = std::sqrt(pp::dot(tr.B_v_tip, tr.B_v_tip));
       if (ph.press && t >= total - 1.0) {
-        const double stored = storedEnergy(sc, tr.B_p_tip) + storedEnergy(sc, tr.B_p_eraser);
+        const double stored = wallStoredEnergy(sc, tr.B_p_tip) + wallStoredEnergy(sc, tr.B_p_eraser);
         if (m.stored_start_J < 0.0) m.stored_start_J = stored;
         m.wall_work_J += dw;
         m.stored_end_J = stored;
@@ -255,7 +253,7 @@ nlohmann::json benchWallRun(const PenWallBenchOptions& o) {
     }
   }
   // Energy the walls still store at the end (the tip may rest in a wall): ½Kδ².
-  const double stored = storedEnergy(sc, plant.truth().B_p_tip) + storedEnergy(sc, plant.truth().B_p_eraser);
+  const double stored = wallStoredEnergy(sc, plant.truth().B_p_tip) + wallStoredEnergy(sc, plant.truth().B_p_eraser);
   out["bench"] = "pen-wall";
   out["stiffness_N_per_cm"] = o.stiffness_N_per_cm;
   out["gains"] = {{"horizontal", {{"K_N_per_cm", sc.horizontal.stiffness_N_per_m / 100},

@@ -34,11 +34,13 @@ class FdLink : public hal::ByteLink {
  protected:
   void adopt(int fd);
   std::string error_;
+  bool probe_when_idle_ = true;  ///< see read(): false for a serial tty (SerialLink), whose hang-up FIONREAD reports
 
  private:
   int fd_ = -1;
   std::vector<uint8_t> tx_ = std::vector<uint8_t>(65536);
   size_t tx_len_ = 0;
+  uint32_t empty_polls_ = 0;  ///< read() calls in a row that found no input (FIONREAD 0)
   bool hung_up_ = false;
 };
 

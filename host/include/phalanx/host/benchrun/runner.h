@@ -5,8 +5,9 @@
 /// SEA paper's metrics (seeds/001: RMSE, NRMSE, fidelity eq 15, −3 dB bandwidth eq 16–17) and judges each step
 /// against the plan's limits.
 ///
-/// Devices: sim:sea_rig (the §7.1 SEA test rig: sea_finger firmware + rig plant, joint clamped to the load cell)
-/// and sim:glove5 (fingertip force sensor on one finger). In simulation the instrument is a simulated Modbus
+/// Devices: sim:sea_rig (the §7.1 SEA test rig: sea_finger firmware + rig plant, joint clamped to the load cell),
+/// sim:glove5 (fingertip force sensor on one finger) and sim:pantograph (the haptic pen pressed into its virtual
+/// stiff box, seeds/004 §VI: the force the walls should render, the device's Jᵀτ estimate, the true force). In simulation the instrument is a simulated Modbus
 /// amplifier served from the plant's ground truth and read back through the real Modbus client, in real time.
 #include <cstdint>
 #include <functional>
@@ -31,7 +32,7 @@ struct PairLimits {
 
 struct Step {
   std::string name;
-  std::string kind;              ///< sea-rig-sine | sea-rig-chirp | glove-free-motion
+  std::string kind;              ///< sea-rig-sine | sea-rig-chirp | glove-free-motion | pen-wall
   double seconds = 8.0;
   double settle_s = 1.0;         ///< excluded from the metrics (start transient)
   double peak_Nm = 0.3;          ///< sine
@@ -40,6 +41,10 @@ struct Step {
   double f0_hz = 0.1;            ///< chirp
   double fmax_hz = 10.0;         ///< chirp: instantaneous frequency at the end
   int finger = 1;                ///< glove: 0 thumb … 4 little
+  double stiffness_N_per_cm = 3.0;  ///< pen-wall: horizontal walls (floor 0.7×), the paper's stiff box (004 §VI)
+  bool braking = true;           ///< pen-wall: braking pulse at contact onset
+  std::optional<double> penetration_mm_max;        ///< pen-wall: deepest true tip/eraser penetration
+  std::optional<double> wall_energy_generated_mJ_max;  ///< pen-wall: passivity, energy the walls generated
   double instrument_hang_at_s = -1.0;  ///< simulation fault: the amplifier stops answering at this time
   PairLimits estimate_vs_instrument;
   PairLimits setpoint_vs_instrument;
@@ -47,7 +52,7 @@ struct Step {
 
 struct Plan {
   std::string source;                 ///< file name, for messages
-  std::string device = "sim:sea_rig"; ///< sim:sea_rig | sim:glove5
+  std::string device = "sim:sea_rig"; ///< sim:sea_rig | sim:glove5 | sim:pantograph
   std::string controller = "ours";    ///< sea: ours | paper (001 plain PID)
   uint32_t seed = 1;
   bool noise = true;
@@ -81,10 +86,12 @@ struct StepResult {
   std::string error;                 ///< device/instrument problem; the step fails
   std::vector<double> t, setpoint, estimate, instrument;  ///< fresh-instrument samples after settle
   uint64_t samples_total = 0, samples_stale = 0;
+  uint64_t samples_excluded = 0;     ///< not scored by design (pen-wall: the braking pulses and 4 ms after them)
   uint16_t faults = 0;
   PairMetrics est, sp;               ///< estimate vs instrument, setpoint vs instrument
   std::vector<Check> checks;
   nlohmann::json instrument_stats;
+  nlohmann::json step_metrics;       ///< kind-specific figures (pen-wall: penetration, wall energy), SI-suffixed keys
   bool pass = false;
 };
 

@@ -1,10 +1,12 @@
 #pragma once
 /// Pen bench scenarios (`phalanx bench pen-split|pen-wall`).
 #include <cstdint>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/pen/force_split.h"
+#include "phalanx/sim/pen_plant.h"
 
 namespace phalanx::host::pen {
 
@@ -41,5 +43,24 @@ nlohmann::json benchWall(const PenWallBenchOptions& options);
 struct PenSceneConfig;
 /// The scene the wall bench renders (for tests that reuse its gains).
 PenSceneConfig wallBenchScene(const PenWallBenchOptions& options);
+
+/// One phase of the wall bench's hand schedule (shared with the bench runner's `pen-wall` step).
+struct PenWallPhase {
+  const char* name;
+  sim::PenVec5 target;   ///< hand target (centre m, angles rad)
+  double move_s;         ///< raised-cosine move from the previous target
+  double hold_s;
+  bool press;            ///< a pressing phase: metrics over the last second of the hold
+  bool release = false;  ///< hands-off: the hand lets go 0.15 s before the end of the move
+};
+/// The schedule: free, x wall, floor, far wall, three corners, then a hands-off throw at the x wall.
+std::vector<PenWallPhase> wallBenchSchedule(const PenSceneConfig& scene);
+/// Hand target and its rate at time t_s into `phase`, moving from `prev` (the previous phase's target).
+void wallBenchHandTarget(const PenWallPhase& phase, const sim::PenVec5& prev, double t_s, sim::PenVec5& target,
+                         sim::PenVec5& target_dot);
+/// Deepest true penetration of a point into the box's walls (m, ≥ 0).
+double wallPenetration(const PenSceneConfig& scene, const Vec3d& p);
+/// Potential energy the box's springs hold for an end at p (J): ½Kδ² per penetrated wall.
+double wallStoredEnergy(const PenSceneConfig& scene, const Vec3d& p);
 
 }  // namespace phalanx::host::pen
