@@ -29,7 +29,7 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 APPS = ("glove5", "sea_finger", "pantograph")
 # Default plant period of session/run (ms between plant steps, docs/firmware-mcu.md "The simulated plant on the
 # emulated board"): the glove and pen plants capped near the rate they reach, the SEA plant every millisecond.
-SESSION_PLANT_PERIOD_MS = {"glove5": 16, "sea_finger": 1, "pantograph": 8}
+SESSION_PLANT_PERIOD_MS = {"glove5": 1, "sea_finger": 1, "pantograph": 8}
 
 
 # Emulated boards: QEMU machine -> (build directory, image name prefix). Both take the link UART as the first
@@ -240,6 +240,15 @@ def session(args):
                 c.check(t_us - dl_us <= 2 * per_us, "safe within two ticks of the command deadline",
                         f"{t_us - dl_us} us")
                 c.check(faults & 0x1, "command-timeout fault latched on the device", hex(faults))
+                # How much of the session's physics the plant computed: steps per (firmware ms / plant period).
+                if "plant_steps" in kv:
+                    due = int(kv["ms"]) / args.plant_period_ms
+                    share = int(kv["plant_steps"]) / due if due > 0 else 0.0
+                    print(f"  plant: {kv['plant_steps']} steps in {kv['ms']} firmware ms at a {args.plant_period_ms} ms "
+                          f"period ({share:.3f} of real time, plant_ms={kv['plant_ms']})")
+                    if args.require_plant_realtime:
+                        c.check(share >= 0.95, "the plant kept real time (>= 95 % of its steps computed)",
+                                f"{share:.3f}")
             # Reconnect: the latched fault is visible in the telemetry fault bits before the host clears it.
             rc2, s2, err2 = run_phalanx(board.pty, 1, args.rate_hz, 30)
             print(f"reconnect: rc={rc2} faults_at_start={s2.get('faults_at_start')}")
@@ -353,6 +362,8 @@ def main():
                     help="-icount shift (2^shift ns per instruction); bench default 2, run default real time")
     ap.add_argument("--budget", type=int, default=17000, help="bench: worst-case tick instructions allowed")
     ap.add_argument("--no-kill-test", dest="kill_test", action="store_false")
+    ap.add_argument("--require-plant-realtime", action="store_true",
+                    help="session: fail unless the plant computed >= 95 %% of its steps (kept real time)")
     ap.add_argument("--host-realtime", action="store_true",
                     help="run phalanx/phalanxd in their real-time mode (SCHED_FIFO 80 + mlockall) instead of "
                          "--no-realtime; needed for a 1 kHz host loop on a loaded machine")

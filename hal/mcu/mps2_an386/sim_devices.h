@@ -18,14 +18,48 @@ inline bool spells(const char* s, int len, const char* name) {
 
 #if defined(PHALANX_MCU_APP_GLOVE5)
 #include "phalanx/sim/glove_plant.h"
+#if PHALANX_GLOVE_PLANT_F32
+#include "glove_plant_f32.h"
+#endif
 namespace phalanx::mcu::mps2 {
-using PlantType = sim::GlovePlant;
 struct PlantOptions {
   uint32_t seed = 1;
   uint8_t scenario = 2;  ///< sim::HandScenario (kGrasp, as firmware-sim's default)
   bool noise = true;
   uint32_t substep_us = 0;  ///< plant integration step (0: the plant's default, 100 µs)
 };
+#if PHALANX_GLOVE_PLANT_F32
+/// The glove plant in single precision (hal/mcu/qemu/glove_plant_f32.h: the same source as sim::GlovePlant,
+/// compiled with float, so that it keeps real time on the emulated core). Same interface as the double plant.
+class GlovePlantF32 {
+ public:
+  explicit GlovePlantF32(const phx_glove_f32::Options& o) : plant_(phx_glove_f32::construct(storage_, o)) {}
+  void step(double dt_s, sim::SimIo& io) {
+    for (int i = 0; i < phx_glove_f32::kPwm; ++i) io_.pwm_duty[i] = io.pwm_duty[static_cast<size_t>(i)];
+    io_.pwm_enabled = io.pwm_enabled;
+    io_.drive_enable = io.drive_enable;
+    io_.estop_pressed = io.estop_pressed;
+    phx_glove_f32::step(plant_, static_cast<float>(dt_s), io_);
+    for (int i = 0; i < phx_glove_f32::kAdc; ++i) io.adc[static_cast<size_t>(i)] = io_.adc[i];
+  }
+
+ private:
+  static_assert(phx_glove_f32::kPwm == sim::kMaxPwm && phx_glove_f32::kAdc == sim::kMaxAdc, "SimIo sizes");
+  alignas(phx_glove_f32::kPlantAlign) unsigned char storage_[phx_glove_f32::kPlantBytes];
+  void* plant_;
+  phx_glove_f32::Io io_{};
+};
+using PlantType = GlovePlantF32;
+inline phx_glove_f32::Options plantConfig(const PlantOptions& o) {
+  phx_glove_f32::Options c;
+  c.seed = o.seed;
+  c.noise = o.noise;
+  c.scenario = o.scenario;
+  c.substep_us = o.substep_us;
+  return c;
+}
+#else
+using PlantType = sim::GlovePlant;
 inline sim::GlovePlantConfig plantConfig(const PlantOptions& o) {
   sim::GlovePlantConfig c;
   c.seed = o.seed;
@@ -34,6 +68,7 @@ inline sim::GlovePlantConfig plantConfig(const PlantOptions& o) {
   if (o.substep_us != 0) c.params.max_substep_s = static_cast<double>(o.substep_us) * 1e-6;
   return c;
 }
+#endif
 /// "still" | "close-open" | "grasp" | "random" → scenario number, or −1.
 inline int scenarioNumber(const char* s, int len) {
   auto is = [&](const char* name) { return spells(s, len, name); };

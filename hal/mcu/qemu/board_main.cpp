@@ -275,6 +275,9 @@ void controlTick() {
         .str(" deadline_us=").u64(deadline_us)
         .str(" period_us=").u32(1000000u / kTickHz)
         .str(" faults=").hex16(core.faultBits())
+        .str(" ms=").u32(g_ms)
+        .str(" plant_ms=").u32(g_plant_ms)
+        .str(" plant_steps=").u32(g_plant_steps)
         .end();
   }
   if (core.faultBits() != faults_before) g_console.str("FAULTS ").hex16(core.faultBits()).end();

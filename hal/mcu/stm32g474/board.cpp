@@ -72,12 +72,24 @@ bool waitClear(uint32_t address, uint32_t mask, uint32_t limit = 1000000u) {
 uint32_t pwmTimer(uint8_t ch) { return ch < 4 ? kTim1 : kTim8; }
 uint32_t pwmCcr(uint8_t ch) { return pwmTimer(ch) + kTimCcr1 + 4u * (ch % 4u); }
 
-// ADC channel plan (board): pin_plan.h kAnalogInputs, split over ADC1 and ADC2 by splitAnalogInputs().
+// ADC channel plan (board): pin_plan.h kAnalogInputs, split over ADC1..ADC5 by splitAnalogInputs(); each ADC with
+// inputs gets its DMA1 channel and DMAMUX request from kAdcUnits.
 static_assert(AdcScan::kMaxChannels == kAnalogInputCount, "one analog input per ADC channel of the hal");
+static_assert(AdcScan::kAdcs == kAdcCount && AdcScan::kMaxRanks == kMaxRanksPerAdc, "AdcScan buffers");
 static_assert(splitAnalogInputs(kAnalogInputCount).ok, "every analog input fits a 16-rank sequence");
-constexpr uint32_t kAdcBase[2] = {kAdc1, kAdc2};
-constexpr uint32_t kAdcDmaChannel[2] = {1, 2};
-constexpr uint32_t kAdcDmaRequest[2] = {kDmareqAdc1, kDmareqAdc2};
+static_assert(checkBoardAnalogPlan().ok(),
+              "pin_plan.h: an analog input is not an STM32G474 ADC input on that pin, repeats one, or takes a pin "
+              "the board uses");
+static_assert(kAdcUnits[0].base == kAdc1 && kAdcUnits[1].base == kAdc2 && kAdcUnits[2].base == kAdc3 &&
+                  kAdcUnits[3].base == kAdc4 && kAdcUnits[4].base == kAdc5 &&
+                  kAdcUnits[0].common == kAdc12Common && kAdcUnits[2].common == kAdc345Common,
+              "pin_plan.h kAdcUnits and regs.h agree");
+static_assert(kUsartRxDmaChannel == 3 && kUsartTxDmaChannel == 4 && kDmareqUsart1RxPlan == kDmareqUsart1Rx &&
+                  kDmareqUsart1TxPlan == kDmareqUsart1Tx && kAdcUnits[0].dmamux_request == kDmareqAdc1 &&
+                  kAdcUnits[1].dmamux_request == kDmareqAdc2 && kAdcUnits[2].dmamux_request == kDmareqAdc3 &&
+                  kAdcUnits[3].dmamux_request == kDmareqAdc4 && kAdcUnits[4].dmamux_request == kDmareqAdc5,
+              "pin_plan.h DMA plan and regs.h agree");
+static_assert(dmaPlanDistinct(), "pin_plan.h: a DMA1 channel or DMAMUX request is used twice");
 
 void adcInit(uint32_t adc, const AdcSequence& seq, const uint8_t* plan, size_t n) {
   reg(adc + kAdcCr) &= ~kAdcCrDeeppwd;
@@ -109,8 +121,8 @@ void dmaCircular(uint32_t ch, uint32_t request, uint32_t periph, void* mem, uint
   reg(kDma1 + dmaCcr(ch)) = kDmaCcrCirc | kDmaCcrMinc | size_bits | kDmaCcrPlHigh | kDmaCcrEn;
 }
 
-constexpr uint32_t kTxDmaChannel = 4;
-constexpr uint32_t kRxDmaChannel = 3;
+constexpr uint32_t kTxDmaChannel = kUsartTxDmaChannel;
+constexpr uint32_t kRxDmaChannel = kUsartRxDmaChannel;
 
 }  // namespace
 
@@ -135,7 +147,7 @@ void clockInit() {
   reg(kRcc + kRccCfgr) &= ~kRccCfgrHpreMask;
   // Peripheral clocks used by the drivers.
   reg(kRcc + kRccAhb1enr) |= kRccAhb1Dma1 | kRccAhb1Dmamux;
-  reg(kRcc + kRccAhb2enr) |= kRccAhb2GpioAll | kRccAhb2Adc12;
+  reg(kRcc + kRccAhb2enr) |= kRccAhb2GpioAll | kRccAhb2Adc12 | kRccAhb2Adc345;
   reg(kRcc + kRccApb1enr1) |= kRccApb1Tim2 | kRccApb1Tim3 | kRccApb1Tim4 | kRccApb1Tim5 | kRccApb1Lptim1 |
                               kRccApb1Fdcan;  // LPTIM1 kernel clock: RCC_CCIPR.LPTIM1SEL reset value = PCLK1
   reg(kRcc + kRccApb2enr) |= kRccApb2Syscfg | kRccApb2Tim1 | kRccApb2Tim8 | kRccApb2Tim20 | kRccApb2Usart1;
@@ -200,21 +212,24 @@ void AdcScan::init(uint8_t channels) {
     rank_[i] = split.rank[i];
     pin(kAnalogInputs[i].pin.port, kAnalogInputs[i].pin.n, Mode::kAnalog);
   }
-  reg(kAdc12Common + kAdcCommonCcr) = 0x3u << 16;  // CKMODE = HCLK/4 = 42.5 MHz (≤ 60 MHz)
-  for (size_t a = 0; a < 2; ++a) {
+  // CKMODE = HCLK/4 = 42.5 MHz (≤ 60 MHz), synchronous to the AHB clock: RCC_CCIPR.ADC12SEL/ADC345SEL are not used.
+  reg(kAdc12Common + kAdcCommonCcr) = 0x3u << 16;
+  reg(kAdc345Common + kAdcCommonCcr) = 0x3u << 16;
+  for (size_t a = 0; a < kAdcs; ++a) {
     len_[a] = split.len[a];
     if (len_[a] == 0) continue;
-    adcInit(kAdcBase[a], adcSequence(split.seq[a], len_[a]), split.seq[a], len_[a]);
-    dmaCircular(kAdcDmaChannel[a], kAdcDmaRequest[a], kAdcBase[a] + kAdcDr, const_cast<uint16_t*>(buf_[a]),
+    const AdcUnit& u = kAdcUnits[a];
+    adcInit(u.base, adcSequence(split.seq[a], len_[a]), split.seq[a], len_[a]);
+    dmaCircular(u.dma1_channel, u.dmamux_request, u.base + kAdcDr, const_cast<uint16_t*>(buf_[a]),
                 static_cast<uint32_t>(2 * len_[a]), kDmaCcrPsize16 | kDmaCcrMsize16);
-    reg(kAdcBase[a] + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
+    reg(u.base + kAdcCr) |= kAdcCrAdstart;  // armed: converts on every TIM1 TRGO
   }
 }
 
 int32_t AdcScan::read(uint8_t ch) const {
   if (ch >= n_) return 0;
   const size_t a = adc_index_[ch];
-  const size_t w = dmaWriteIndex(2 * len_[a], reg(kDma1 + dmaCndtr(kAdcDmaChannel[a])));
+  const size_t w = dmaWriteIndex(2 * len_[a], reg(kDma1 + dmaCndtr(kAdcUnits[a].dma1_channel)));
   return buf_[a][stableScanOffset(len_[a], w) + rank_[ch]];
 }
 

@@ -1,8 +1,8 @@
 #pragma once
 /// STM32G474 drivers behind the hal interfaces, register level (regs.h). Board: the project's G474 motor board —
 /// 24 MHz crystal, up to eight PH/EN H-bridge drivers (PWM on TIM1/TIM8 channels, direction on PD0..PD7, one
-/// drive-enable line), Hall and strain-gauge amplifiers on ADC1/ADC2, up to six quadrature encoders (TIM2..TIM5,
-/// TIM20, LPTIM1), a
+/// drive-enable line), Hall, strain-gauge and current-sense amplifiers on ADC1..ADC5, up to six quadrature
+/// encoders (TIM2..TIM5, TIM20, LPTIM1), a
 /// normally-closed e-stop on PC13, the host on USART1 at 2 Mbaud (USB-serial bridge) and CAN-FD on FDCAN1.
 /// Pin choices are in pin_plan.h and docs/firmware-mcu.md; they are this project's, not checked against a schematic.
 #include <cstddef>
@@ -43,8 +43,9 @@ class BridgePwm final : public hal::PwmOutputs {
 
 class AdcScan final : public hal::AdcInputs {
  public:
-  /// Analog inputs of pin_plan.h (kAnalogInputs), split over ADC1 and ADC2, up to 16 ranks each.
+  /// Analog inputs of pin_plan.h (kAnalogInputs), split over ADC1..ADC5, up to 16 ranks each.
   static constexpr uint8_t kMaxChannels = 25;
+  static constexpr size_t kAdcs = 5;
   static constexpr size_t kMaxRanks = 16;
   /// Scans the first `channels` analog inputs; an ADC with no input assigned stays off.
   void init(uint8_t channels);
@@ -57,8 +58,8 @@ class AdcScan final : public hal::AdcInputs {
   uint8_t n_ = 0;
   uint8_t adc_index_[kMaxChannels] = {};
   uint8_t rank_[kMaxChannels] = {};
-  size_t len_[2] = {0, 0};
-  volatile uint16_t buf_[2][2 * kMaxRanks] = {};
+  size_t len_[kAdcs] = {};
+  volatile uint16_t buf_[kAdcs][2 * kMaxRanks] = {};  ///< per ADC a DMA double buffer of two scans
 };
 
 class TimerEncoders final : public hal::Encoders {

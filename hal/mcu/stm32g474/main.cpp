@@ -30,11 +30,12 @@ constexpr uint32_t kTickHz = 1000;
 constexpr uint32_t kReload = stm32g4::systickReload(kSysclkHz, kTickHz);
 static_assert(kReload == 169999u, "1 kHz SysTick at 170 MHz");
 constexpr uint32_t kCyclesPerTick = kSysclkHz / kTickHz;
-// The image's pins (its PWM + direction lines, encoders and analog inputs, plus the fixed ones) are distinct.
-// Analog inputs beyond kAnalogInputsWithOwnPin (only glove5's 25 channels reach them) repeat an ADC1/ADC2 pin by
-// construction and are not covered: they need ADC3–ADC5 (docs/firmware-mcu.md, "What is not done").
+// The image's pins (its PWM + direction lines, encoders and analog inputs, plus the fixed ones) are distinct, and
+// each of its analog channels is an STM32G474 ADC input on the pin the plan says, on no pin the image uses otherwise.
 static_assert(imagePinsDistinct(fw_mcu::kAppPwmCount, fw_mcu::kAppEncoderCount, fw_mcu::kAppAdcCount),
               "pin_plan.h: this app's channels claim a pin twice");
+static_assert(checkImageAnalogPlan(fw_mcu::kAppPwmCount, fw_mcu::kAppEncoderCount, fw_mcu::kAppAdcCount).ok(),
+              "pin_plan.h: this app's analog channels are not valid STM32G474 ADC inputs on free pins");
 static_assert(fw_mcu::kAppPwmCount <= BridgePwm::kMaxChannels && fw_mcu::kAppAdcCount <= AdcScan::kMaxChannels &&
                   fw_mcu::kAppEncoderCount <= TimerEncoders::kMaxChannels,
               "the board has fewer PWM, ADC or encoder channels than this app needs");

@@ -1,6 +1,7 @@
 #pragma once
 /// Board pin plan of the project's STM32G474 motor board: every digital pin the drivers claim, with its
-/// alternate function (AF) number from the STM32G474 datasheet's alternate-function table (DS12288, Table 13).
+/// alternate function (AF) number from the STM32G474 datasheet's alternate-function table (DS12288, Table 13), and
+/// every analog input with its ADC and channel, checked against the datasheet's ADC input table below.
 /// This is the project's reading of the datasheet, not checked against a schematic or on silicon
 /// (docs/firmware-mcu.md). Pure data plus a constexpr conflict check, compiled into the image (static_assert in
 /// board.cpp) and unit-tested on the host (tests/unit/mcu_stm32g4_encoder_test.cpp).
@@ -44,56 +45,187 @@ constexpr Pin kEstopPin = {'C', 13, kGpioIn};
 constexpr Pin kHsePins[2] = {{'F', 0, kGpioIn}, {'F', 1, kGpioIn}};  // 24 MHz crystal (OSC_IN/OSC_OUT)
 constexpr Pin kSwdPins[2] = {{'A', 13, 0}, {'A', 14, 0}};         // SWDIO/SWCLK (debug, reset state)
 
-/// Analog input i of an image (AdcScan channel i): converted by ADC1 or ADC2, regular channel `channel`
-/// (ADC12_INx pin table, DS12288 Table 13). Ordered so that the first kAnalogInputsFree entries use pins that
-/// nothing else on the board claims even with all six encoders fitted; entries up to kAnalogInputsWithOwnPin use
-/// encoder pins (free in images with fewer encoders: the image check below decides); the rest have no pin of
-/// their own on ADC1/ADC2 (they repeat a pin of an earlier entry): an image needing them (glove5, 25 channels)
-/// needs ADC3–ADC5, which this port does not drive yet (docs/firmware-mcu.md).
+/// One regular input channel of ADC1..ADC5 that is bonded to a GPIO pin: ADC `adc`, input ADCx_IN`channel`.
+struct AdcPinChannel {
+  uint8_t adc = 0;      ///< 1..5
+  uint8_t channel = 0;  ///< ADCx_INchannel
+  Pin pin{};
+};
+/// Every GPIO-connected regular input of the STM32G474's five ADCs (DS12288 Table 13 "STM32G474xx pin
+/// definitions", additional functions ADC12_INx / ADC1_INx / ADC2_INx / ADC3_INx / ADC345_INx / ADC45_INx,
+/// with RM0440 §21.4.x "ADC connectivity"). Several pins are shared: ADC12_IN1/2/6–9/14 (PA0, PA1, PC0–PC3, PB11)
+/// reach ADC1 and ADC2 through the same channel number; ADC345_IN6–11/14–16 (PE8, PD10–PD14, PE10–PE12) reach
+/// ADC3, ADC4 and ADC5 (ADC45_IN12/13, PD8/PD9: ADC4 and ADC5); and PB0, PB1, PB12, PB14, PB15 reach ADC1/ADC2
+/// under one number and ADC3/ADC4 under another. Channels without a pin (internal: OPAMP outputs, temperature
+/// sensor, V_BAT/3, V_REFINT, DAC) are not listed. Port D and E pins 7–15 exist on the 100-pin and larger
+/// packages only; the board already needs such a package (PD0–PD7 direction lines, TIM4/TIM20 encoder pins).
+constexpr AdcPinChannel kDeviceAdcInputs[] = {
+    // ADC1
+    {1, 1, {'A', 0, kGpioIn}}, {1, 2, {'A', 1, kGpioIn}}, {1, 3, {'A', 2, kGpioIn}}, {1, 4, {'A', 3, kGpioIn}},
+    {1, 5, {'B', 14, kGpioIn}}, {1, 6, {'C', 0, kGpioIn}}, {1, 7, {'C', 1, kGpioIn}}, {1, 8, {'C', 2, kGpioIn}},
+    {1, 9, {'C', 3, kGpioIn}}, {1, 10, {'F', 0, kGpioIn}}, {1, 11, {'B', 12, kGpioIn}}, {1, 12, {'B', 1, kGpioIn}},
+    {1, 14, {'B', 11, kGpioIn}}, {1, 15, {'B', 0, kGpioIn}},
+    // ADC2
+    {2, 1, {'A', 0, kGpioIn}}, {2, 2, {'A', 1, kGpioIn}}, {2, 3, {'A', 6, kGpioIn}}, {2, 4, {'A', 7, kGpioIn}},
+    {2, 5, {'C', 4, kGpioIn}}, {2, 6, {'C', 0, kGpioIn}}, {2, 7, {'C', 1, kGpioIn}}, {2, 8, {'C', 2, kGpioIn}},
+    {2, 9, {'C', 3, kGpioIn}}, {2, 10, {'F', 1, kGpioIn}}, {2, 11, {'C', 5, kGpioIn}}, {2, 12, {'B', 2, kGpioIn}},
+    {2, 13, {'A', 5, kGpioIn}}, {2, 14, {'B', 11, kGpioIn}}, {2, 15, {'B', 15, kGpioIn}}, {2, 17, {'A', 4, kGpioIn}},
+    // ADC3
+    {3, 1, {'B', 1, kGpioIn}}, {3, 2, {'E', 9, kGpioIn}}, {3, 3, {'E', 13, kGpioIn}}, {3, 4, {'E', 7, kGpioIn}},
+    {3, 5, {'B', 13, kGpioIn}}, {3, 6, {'E', 8, kGpioIn}}, {3, 7, {'D', 10, kGpioIn}}, {3, 8, {'D', 11, kGpioIn}},
+    {3, 9, {'D', 12, kGpioIn}}, {3, 10, {'D', 13, kGpioIn}}, {3, 11, {'D', 14, kGpioIn}}, {3, 12, {'B', 0, kGpioIn}},
+    {3, 14, {'E', 10, kGpioIn}}, {3, 15, {'E', 11, kGpioIn}}, {3, 16, {'E', 12, kGpioIn}},
+    // ADC4
+    {4, 1, {'E', 14, kGpioIn}}, {4, 2, {'E', 15, kGpioIn}}, {4, 3, {'B', 12, kGpioIn}}, {4, 4, {'B', 14, kGpioIn}},
+    {4, 5, {'B', 15, kGpioIn}}, {4, 6, {'E', 8, kGpioIn}}, {4, 7, {'D', 10, kGpioIn}}, {4, 8, {'D', 11, kGpioIn}},
+    {4, 9, {'D', 12, kGpioIn}}, {4, 10, {'D', 13, kGpioIn}}, {4, 11, {'D', 14, kGpioIn}}, {4, 12, {'D', 8, kGpioIn}},
+    {4, 13, {'D', 9, kGpioIn}}, {4, 14, {'E', 10, kGpioIn}}, {4, 15, {'E', 11, kGpioIn}}, {4, 16, {'E', 12, kGpioIn}},
+    // ADC5
+    {5, 1, {'A', 8, kGpioIn}}, {5, 2, {'A', 9, kGpioIn}}, {5, 6, {'E', 8, kGpioIn}}, {5, 7, {'D', 10, kGpioIn}},
+    {5, 8, {'D', 11, kGpioIn}}, {5, 9, {'D', 12, kGpioIn}}, {5, 10, {'D', 13, kGpioIn}}, {5, 11, {'D', 14, kGpioIn}},
+    {5, 12, {'D', 8, kGpioIn}}, {5, 13, {'D', 9, kGpioIn}}, {5, 14, {'E', 10, kGpioIn}}, {5, 15, {'E', 11, kGpioIn}},
+    {5, 16, {'E', 12, kGpioIn}},
+};
+constexpr size_t kDeviceAdcInputCount = sizeof(kDeviceAdcInputs) / sizeof(kDeviceAdcInputs[0]);
+
+/// The ADCs of the STM32G474 and the DMA channel that empties each one's regular data register. ADC1/ADC2 share
+/// the common block ADC12_COMMON (0x5000_0300, clock RCC_AHB2ENR.ADC12EN), ADC3/ADC4/ADC5 the block ADC345_COMMON
+/// (0x5000_0700, ADC345EN); all five sit on AHB2 (RM0440 §2.2.2 memory map). DMAMUX request inputs: RM0440
+/// Table 91 (ADC1 5, ADC2 36, ADC3 37, ADC4 38, ADC5 39). DMA1 channels 3/4 are the USART1 RX/TX (below).
+struct AdcUnit {
+  uint32_t base = 0;
+  uint32_t common = 0;         ///< ADC12_COMMON or ADC345_COMMON
+  uint8_t dma1_channel = 0;    ///< DMA1 channel 1..8 (DMAMUX channel = this − 1)
+  uint8_t dmamux_request = 0;
+};
+constexpr size_t kAdcCount = 5;
+constexpr uint32_t kAdc12CommonBase = 0x50000300u, kAdc345CommonBase = 0x50000700u;
+constexpr AdcUnit kAdcUnits[kAdcCount] = {
+    {0x50000000u, kAdc12CommonBase, 1, 5},  {0x50000100u, kAdc12CommonBase, 2, 36},
+    {0x50000400u, kAdc345CommonBase, 5, 37}, {0x50000500u, kAdc345CommonBase, 6, 38},
+    {0x50000600u, kAdc345CommonBase, 7, 39},
+};
+constexpr uint8_t kUsartRxDmaChannel = 3, kUsartTxDmaChannel = 4;
+constexpr uint8_t kDmareqUsart1RxPlan = 24, kDmareqUsart1TxPlan = 25;  ///< RM0440 Table 91
+constexpr size_t kMaxRanksPerAdc = 16;  ///< ADC_SQR1.L: up to 16 regular conversions
+
+/// DMA bookkeeping of the board: every DMA1 channel (1..8) serves one peripheral, and no DMAMUX request is routed
+/// to two channels (an ADC's and the USART's requests included).
+constexpr bool dmaPlanDistinct() {
+  uint8_t ch[kAdcCount + 2] = {}, req[kAdcCount + 2] = {};
+  for (size_t a = 0; a < kAdcCount; ++a) {
+    ch[a] = kAdcUnits[a].dma1_channel;
+    req[a] = kAdcUnits[a].dmamux_request;
+  }
+  ch[kAdcCount] = kUsartRxDmaChannel;
+  ch[kAdcCount + 1] = kUsartTxDmaChannel;
+  req[kAdcCount] = kDmareqUsart1RxPlan;
+  req[kAdcCount + 1] = kDmareqUsart1TxPlan;
+  for (size_t i = 0; i < kAdcCount + 2; ++i) {
+    if (ch[i] < 1u || ch[i] > 8u || req[i] == 0u) return false;
+    for (size_t j = 0; j < i; ++j) {
+      if (ch[i] == ch[j] || req[i] == req[j]) return false;
+    }
+  }
+  return true;
+}
+
+/// Analog input i of an image (AdcScan channel i = the app's ADC channel i): converted by ADC `adc`, regular input
+/// `channel`, on `pin`. Every entry is on a pin that nothing else on the board claims (no PWM, direction, encoder,
+/// link, CAN, drive-enable, e-stop, crystal or debug pin), so any prefix of the table fits any image;
+/// checkAnalogPlan() proves it (static_assert in main.cpp, tests/unit/mcu_stm32g474_pin_plan_test.cpp).
+/// Images take the first n entries: sea_finger 9, pantograph 6, glove5 all 25 (15 Hall, 5 strain gauges, 5 motor
+/// current-sense amplifiers: glove/board.h channel map). Entries 0–13 are on ADC1/ADC2 (alternating, so both
+/// convert in parallel); 14–24 on ADC3/ADC4/ADC5 (round robin), on port E/D/B pins of those ADCs that the board
+/// leaves free (PD12/PD13, also ADC345 inputs, are TIM4's encoder pins and stay digital).
 struct AnalogInput {
-  uint8_t adc = 0;      ///< 1 or 2
+  uint8_t adc = 0;      ///< 1..5
   uint8_t channel = 0;  ///< ADCx_INchannel
   Pin pin{};
 };
 constexpr size_t kAnalogInputCount = 25;
-constexpr size_t kAnalogInputsFree = 14;
-constexpr size_t kAnalogInputsWithOwnPin = 20;
 constexpr AnalogInput kAnalogInputs[kAnalogInputCount] = {
-    // Pins of their own, whatever the image (alternating ADCs so both convert in parallel).
+    // ADC1 / ADC2 (unchanged from the first version of the port: sea_finger and pantograph use these only).
     {1, 3, {'A', 2, kGpioIn}}, {2, 13, {'A', 5, kGpioIn}}, {1, 4, {'A', 3, kGpioIn}}, {2, 17, {'A', 4, kGpioIn}},
     {1, 5, {'B', 14, kGpioIn}}, {2, 5, {'C', 4, kGpioIn}}, {1, 12, {'B', 1, kGpioIn}}, {2, 11, {'C', 5, kGpioIn}},
     {1, 15, {'B', 0, kGpioIn}}, {2, 12, {'B', 2, kGpioIn}}, {1, 7, {'C', 1, kGpioIn}}, {2, 15, {'B', 15, kGpioIn}},
     {1, 9, {'C', 3, kGpioIn}}, {1, 14, {'B', 11, kGpioIn}},
-    // Encoder pins: TIM5 (encoder 3), TIM3 (encoder 1), LPTIM1 (encoder 5).
-    {1, 1, {'A', 0, kGpioIn}}, {1, 2, {'A', 1, kGpioIn}}, {2, 3, {'A', 6, kGpioIn}}, {2, 4, {'A', 7, kGpioIn}},
-    {1, 6, {'C', 0, kGpioIn}}, {1, 8, {'C', 2, kGpioIn}},
-    // No pin of their own on ADC1/ADC2 (ADC12 channels 1, 2, 6, 7, 8 repeat PA0, PA1, PC0, PC1, PC2 on ADC2).
-    {2, 1, {'A', 0, kGpioIn}}, {2, 2, {'A', 1, kGpioIn}}, {2, 6, {'C', 0, kGpioIn}}, {2, 7, {'C', 1, kGpioIn}},
-    {2, 8, {'C', 2, kGpioIn}},
+    // ADC3 / ADC4 / ADC5. glove5: 14 = little-finger α3 Hall, 15–19 the strain gauges, 20–24 the current sense.
+    {3, 4, {'E', 7, kGpioIn}}, {4, 1, {'E', 14, kGpioIn}}, {5, 6, {'E', 8, kGpioIn}},
+    {3, 2, {'E', 9, kGpioIn}}, {4, 2, {'E', 15, kGpioIn}}, {5, 14, {'E', 10, kGpioIn}},
+    {3, 3, {'E', 13, kGpioIn}}, {4, 12, {'D', 8, kGpioIn}}, {5, 15, {'E', 11, kGpioIn}},
+    {3, 5, {'B', 13, kGpioIn}}, {4, 13, {'D', 9, kGpioIn}},
 };
 
-/// How the first n analog inputs split over the two ADCs: each ADC's regular sequence (in rank order) and,
-/// per input, its ADC and rank. ok = false if n is out of range or an ADC would need more than 16 ranks.
+/// The datasheet entry of (adc, channel), or nullptr if that ADC has no such GPIO-connected input.
+constexpr const AdcPinChannel* deviceAdcInput(uint8_t adc, uint8_t channel) {
+  for (const AdcPinChannel& d : kDeviceAdcInputs) {
+    if (d.adc == adc && d.channel == channel) return &d;
+  }
+  return nullptr;
+}
+
+/// What is wrong with an analog channel plan (first problem found, in this order per entry).
+enum class AnalogPlanError : uint8_t {
+  kOk = 0,
+  kNoSuchInput,      ///< (adc, channel) is not a GPIO-connected input of the STM32G474
+  kWrongPin,         ///< the pair exists but is bonded to another pin than the plan says
+  kPinTwice,         ///< two logical channels on the same pin (e.g. ADC12_IN1 on ADC1 and ADC2: one PA0)
+  kPairTwice,        ///< two logical channels on the same (ADC, channel)
+  kPinTaken,         ///< the pin is claimed by another function of the image (PWM, encoder, link, …)
+  kTooManyRanks,     ///< an ADC would need more than 16 regular conversions
+};
+struct AnalogPlanCheck {
+  AnalogPlanError error = AnalogPlanError::kOk;
+  size_t index = 0;  ///< the offending logical channel
+  constexpr bool ok() const { return error == AnalogPlanError::kOk; }
+};
+constexpr bool samePin(const Pin& a, const Pin& b) { return a.port == b.port && a.n == b.n; }
+/// Checks logical channels plan[0..n) against the datasheet table and against `taken` (the image's other pins).
+constexpr AnalogPlanCheck checkAnalogPlan(const AnalogInput* plan, size_t n, const Pin* taken, size_t n_taken) {
+  size_t ranks[kAdcCount] = {};
+  for (size_t i = 0; i < n; ++i) {
+    const AnalogInput& in = plan[i];
+    const AdcPinChannel* d = deviceAdcInput(in.adc, in.channel);
+    if (d == nullptr) return {AnalogPlanError::kNoSuchInput, i};
+    if (!samePin(d->pin, in.pin)) return {AnalogPlanError::kWrongPin, i};
+    for (size_t j = 0; j < i; ++j) {
+      if (samePin(plan[j].pin, in.pin)) return {AnalogPlanError::kPinTwice, i};
+      if (plan[j].adc == in.adc && plan[j].channel == in.channel) return {AnalogPlanError::kPairTwice, i};
+    }
+    for (size_t t = 0; t < n_taken; ++t) {
+      if (samePin(taken[t], in.pin)) return {AnalogPlanError::kPinTaken, i};
+    }
+    if (++ranks[in.adc - 1u] > kMaxRanksPerAdc) return {AnalogPlanError::kTooManyRanks, i};
+  }
+  return {};
+}
+
+/// How the first n analog inputs split over the five ADCs: each ADC's regular sequence (in rank order) and, per
+/// input, its ADC and rank. ok = false if n is out of range, an entry names no ADC 1..5, or an ADC would need
+/// more than 16 ranks.
 struct AnalogSplit {
   bool ok = false;
-  uint8_t seq[2][16] = {};  ///< ADC1, ADC2 channel numbers by rank
-  size_t len[2] = {0, 0};
-  uint8_t adc_index[kAnalogInputCount] = {};  ///< 0: ADC1, 1: ADC2
+  uint8_t seq[kAdcCount][kMaxRanksPerAdc] = {};  ///< channel numbers by rank, per ADC (index 0 = ADC1)
+  size_t len[kAdcCount] = {};
+  uint8_t adc_index[kAnalogInputCount] = {};  ///< 0..4 = ADC1..ADC5
   uint8_t rank[kAnalogInputCount] = {};
 };
-constexpr AnalogSplit splitAnalogInputs(size_t n) {
+constexpr AnalogSplit splitAnalogInputs(const AnalogInput* plan, size_t n) {
   AnalogSplit s{};
   if (n > kAnalogInputCount) return s;
   for (size_t i = 0; i < n; ++i) {
-    const size_t a = kAnalogInputs[i].adc == 1 ? 0u : 1u;
-    if (s.len[a] == 16) return s;
+    if (plan[i].adc < 1u || plan[i].adc > kAdcCount) return s;
+    const size_t a = plan[i].adc - 1u;
+    if (s.len[a] == kMaxRanksPerAdc) return s;
     s.adc_index[i] = static_cast<uint8_t>(a);
     s.rank[i] = static_cast<uint8_t>(s.len[a]);
-    s.seq[a][s.len[a]++] = kAnalogInputs[i].channel;
+    s.seq[a][s.len[a]++] = plan[i].channel;
   }
   s.ok = true;
   return s;
 }
+constexpr AnalogSplit splitAnalogInputs(size_t n) { return splitAnalogInputs(kAnalogInputs, n); }
 
 /// Index of the first pin in `pins` that repeats an earlier one (same port and number), or n if none.
 constexpr size_t firstRepeatedPin(const Pin* pins, size_t n) {
@@ -130,8 +262,7 @@ constexpr PinList boardPins() {
 }
 
 /// The pins one image claims: its PWM channels and their direction lines, its encoders, the first `analog` analog
-/// inputs (at most kAnalogInputsWithOwnPin of them: beyond, pins repeat by construction, see kAnalogInputs), the
-/// link, CAN, drive enable, e-stop, crystal and debug pins. No repeat in the result = no pin conflict.
+/// inputs, the link, CAN, drive enable, e-stop, crystal and debug pins. No repeat in the result = no pin conflict.
 struct ImagePins {
   Pin pins[kBoardPinCount + kAnalogInputCount] = {};
   size_t n = 0;
@@ -147,7 +278,7 @@ constexpr ImagePins imagePins(size_t pwm, size_t encoders, size_t analog) {
     add(kEncoderPins[i][0]);
     add(kEncoderPins[i][1]);
   }
-  for (size_t i = 0; i < analog && i < kAnalogInputsWithOwnPin; ++i) add(kAnalogInputs[i].pin);
+  for (size_t i = 0; i < analog && i < kAnalogInputCount; ++i) add(kAnalogInputs[i].pin);
   for (const Pin& p : kUsartPins) add(p);
   for (const Pin& p : kFdcanPins) add(p);
   add(kDriveEnablePin);
@@ -159,6 +290,19 @@ constexpr ImagePins imagePins(size_t pwm, size_t encoders, size_t analog) {
 constexpr bool imagePinsDistinct(size_t pwm, size_t encoders, size_t analog) {
   const ImagePins l = imagePins(pwm, encoders, analog);
   return firstRepeatedPin(l.pins, l.n) == l.n;
+}
+
+/// An image's analog channel plan (its first `analog` inputs) checked against the datasheet and against every
+/// other pin the image claims (imagePins without the analog inputs).
+constexpr AnalogPlanCheck checkImageAnalogPlan(size_t pwm, size_t encoders, size_t analog) {
+  if (analog > kAnalogInputCount) return {AnalogPlanError::kNoSuchInput, kAnalogInputCount};
+  const ImagePins others = imagePins(pwm, encoders, 0);
+  return checkAnalogPlan(kAnalogInputs, analog, others.pins, others.n);
+}
+/// The whole table against every pin the board claims for its largest image (8 PWM, 6 encoders).
+constexpr AnalogPlanCheck checkBoardAnalogPlan() {
+  const PinList board = boardPins();
+  return checkAnalogPlan(kAnalogInputs, kAnalogInputCount, board.pins, board.n);
 }
 
 }  // namespace phalanx::mcu::g474

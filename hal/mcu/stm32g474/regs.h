@@ -28,6 +28,7 @@ constexpr uint32_t kRcc = 0x40021000u;
 constexpr uint32_t kFlash = 0x40022000u;
 constexpr uint32_t kGpioA = 0x48000000u;  ///< GPIOB = A + 0x400, … GPIOG = A + 0x1800
 constexpr uint32_t kAdc1 = 0x50000000u, kAdc2 = 0x50000100u, kAdc12Common = 0x50000300u;
+constexpr uint32_t kAdc3 = 0x50000400u, kAdc4 = 0x50000500u, kAdc5 = 0x50000600u, kAdc345Common = 0x50000700u;
 constexpr uint32_t gpio(char port) { return kGpioA + 0x400u * static_cast<uint32_t>(port - 'A'); }
 
 // ---- RCC (§7.4) ----
@@ -37,7 +38,7 @@ constexpr uint32_t kRccCrHseon = 1u << 16, kRccCrHserdy = 1u << 17, kRccCrPllon 
 constexpr uint32_t kRccCfgrSwPll = 0x3u, kRccCfgrSwsMask = 0x3u << 2, kRccCfgrSwsPll = 0x3u << 2;
 constexpr uint32_t kRccCfgrHpreDiv2 = 0x8u << 4, kRccCfgrHpreMask = 0xFu << 4;
 constexpr uint32_t kRccAhb1Dma1 = 1u << 0, kRccAhb1Dmamux = 1u << 2, kRccAhb1Flash = 1u << 8;
-constexpr uint32_t kRccAhb2GpioAll = 0x7Fu, kRccAhb2Adc12 = 1u << 13;
+constexpr uint32_t kRccAhb2GpioAll = 0x7Fu, kRccAhb2Adc12 = 1u << 13, kRccAhb2Adc345 = 1u << 14;
 constexpr uint32_t kRccApb1Tim2 = 1u << 0, kRccApb1Tim3 = 1u << 1, kRccApb1Tim4 = 1u << 2, kRccApb1Tim5 = 1u << 3;
 constexpr uint32_t kRccApb1Fdcan = 1u << 25, kRccApb1Pwr = 1u << 28, kRccApb1Lptim1 = 1u << 31;
 constexpr uint32_t kRccApb2Syscfg = 1u << 0, kRccApb2Tim1 = 1u << 11, kRccApb2Tim8 = 1u << 13, kRccApb2Usart1 = 1u << 14;
@@ -75,7 +76,8 @@ constexpr uint32_t kAdcCrAden = 1u << 0, kAdcCrAdstart = 1u << 2, kAdcCrAdvregen
 constexpr uint32_t kAdcCrDeeppwd = 1u << 29, kAdcCrAdcal = 1u << 31;
 constexpr uint32_t kAdcIsrAdrdy = 1u << 0;
 constexpr uint32_t kAdcCfgrDmaen = 1u << 0, kAdcCfgrDmacfg = 1u << 1, kAdcCfgrExtenRising = 0x1u << 10;
-constexpr uint32_t kAdcExtselTim1Trgo = 9u;  ///< ADC12 regular trigger adc_ext_trg9 = TIM1_TRGO (Table 163)
+/// Regular trigger adc_ext_trg9 = TIM1_TRGO, the same EXTSEL on ADC1/2 (RM0440 Table 163) and ADC3/4/5 (Table 165).
+constexpr uint32_t kAdcExtselTim1Trgo = 9u;
 
 // ---- DMA1 + DMAMUX (§12, §13) ----
 constexpr uint32_t dmaCcr(uint32_t ch) { return 0x08u + 0x14u * (ch - 1u); }  ///< ch 1..8
@@ -89,6 +91,7 @@ constexpr uint32_t kDmaCcrPlHigh = 0x2u << 12;
 constexpr uint32_t dmamuxCcr(uint32_t dma1_channel) { return 4u * (dma1_channel - 1u); }  ///< DMA1 ch1 → DMAMUX ch0
 // DMAMUX request inputs (RM0440 Table 91).
 constexpr uint32_t kDmareqAdc1 = 5, kDmareqAdc2 = 36, kDmareqUsart1Rx = 24, kDmareqUsart1Tx = 25;
+constexpr uint32_t kDmareqAdc3 = 37, kDmareqAdc4 = 38, kDmareqAdc5 = 39;
 
 // ---- USART (§37.8) ----
 constexpr uint32_t kUsartCr1 = 0x00, kUsartCr3 = 0x08, kUsartBrr = 0x0C, kUsartIsr = 0x1C, kUsartIcr = 0x20;
