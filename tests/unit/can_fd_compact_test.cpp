@@ -166,6 +166,7 @@ TEST(CanFdCompact, SenderRefusesWhatTheEncodingCannotCarryNamingTheField) {
   const Case cases[] = {
       {"flags", [](std::vector<uint8_t>& p) { p[5] = 1; }},
       {"channel_count", [](std::vector<uint8_t>& p) { p[6] = 4; }},
+      {"reserved", [](std::vector<uint8_t>& p) { p[7] = 1; }},
       {"timeout_ms", [](std::vector<uint8_t>& p) { p[2] = 0x00, p[3] = 0x04; }},  // 1024
       {"mode", [](std::vector<uint8_t>& p) { p[4] = 4; }},
       {"gain scale", [](std::vector<uint8_t>& p) { p[40 + 2 * 3] = 0xD1, p[41 + 2 * 3] = 0x07; }},  // 2001

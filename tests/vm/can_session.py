@@ -100,7 +100,8 @@ def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_
         while time.monotonic() - t0 < at:
             time.sleep(0.01)
         act()
-    out, _ = d.communicate(timeout=seconds + 60)
+    # phalanxd runs seconds × RATE cycles: at the few hundred Hz a loaded VM keeps, that takes several times longer.
+    out, _ = d.communicate(timeout=seconds + 180)
     fw.terminate()
     fw.wait(timeout=10)
     dump.terminate()
@@ -183,13 +184,13 @@ def measured_load(dump_path, data_bps):
     return json.loads(r.stdout)
 
 
-def quiet(mode, device="glove5"):
+def quiet(mode, device="glove5", seconds=5):
     name = "quiet-" + mode + ("" if device == "glove5" else "-" + device)
     # The compact sessions must also end with no fault latched. The emulated VM on a loaded machine stalls for tens
     # of milliseconds (round trip p99 85 ms measured) and a 20 ms command timeout then latches command-timeout,
     # which says nothing about the link: these sessions carry a 500 ms timeout (the link checks are unchanged).
     extra_host = ["--command-timeout-ms", "500"] if mode == "fd-compact" else []
-    s, fw, dump, load_out = session(name, "vcan0", mode, 5, monitor_classic_load=(mode == "classic"), device=device,
+    s, fw, dump, load_out = session(name, "vcan0", mode, seconds, monitor_classic_load=(mode == "classic"), device=device,
                                     extra_host=extra_host)
     tel, cmd, rx = s["telemetry"], s["commands"], s["host_rx_errors"]
     rt = s["round_trip"]
@@ -198,7 +199,7 @@ def quiet(mode, device="glove5"):
               mode, s["cycles"], tel["received"], tel["lost"], cmd["sent"], cmd["unsent_link_full"],
               cmd["lost_seen_by_device"], cmd["rejected_by_device"], rx, rt["p50_us"], rt["p99_us"], s["overruns"],
               json.dumps(s["can"])), flush=True)
-    check(s["cycles"] >= 4.9 * RATE, "%s: only %d cycles" % (mode, s["cycles"]))
+    check(s["cycles"] >= (seconds - 0.1) * RATE, "%s: only %d cycles" % (mode, s["cycles"]))
     check(tel["lost"] == 0, "%s: %d telemetry frames lost" % (mode, tel["lost"]))
     check(tel["received"] >= 0.2 * s["cycles"], "%s: only %d telemetry frames" % (mode, tel["received"]))
     check(cmd["unsent_link_full"] == 0, "%s: %d commands not sent" % (mode, cmd["unsent_link_full"]))
@@ -351,7 +352,7 @@ def inject_compact():
 
 
 SCENARIOS = {"fd": lambda: quiet("fd"), "classic": lambda: quiet("classic"),
-             "fd-compact": lambda: [quiet("fd-compact", d) for d in ("glove5", "sea_finger", "pantograph")],
+             "fd-compact": lambda: [quiet("fd-compact", d, 3) for d in ("glove5", "sea_finger", "pantograph")],
              "inject-compact": inject_compact, "inject": inject, "busoff": busoff, "linkdown": linkdown}
 
 if __name__ == "__main__":

@@ -170,6 +170,7 @@ bool Mapper::encodeCompact(uint8_t msg_id, const uint8_t* payload, CanFrame& f, 
     const uint16_t timeout = get16(payload + 2);
     const uint8_t mode = payload[4];
     if (payload[5] != 0) return refuse("flags != 0 (CAN-FD compact carries none)");
+    if (payload[7] != 0) return refuse("reserved byte != 0 (CAN-FD compact carries none)");
     if (payload[6] != n) return refuse("channel_count differs from the device's setpoint count");
     if (timeout > kCompactMaxTimeoutMs) return refuse("timeout_ms > 1023 (CAN-FD compact: 10 bits)");
     if (mode > 3) return refuse("mode > 3 (CAN-FD compact: 2 bits)");
