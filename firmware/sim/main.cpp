@@ -4,7 +4,7 @@
 // With --ffs DIR it is a USB device through FunctionFS (vendor interface, bulk endpoints; docs/usb.md), with
 // --tty PATH it talks over an existing serial device (the USB gadget's CDC-ACM port /dev/ttyGS0), reopened after a
 // hang-up (USB unplug).
-// Prints "PTY <path>" (or "CAN <if> node <n> <fd|classic>", "USB <dir>", "TTY <path>") on stdout once the link
+// Prints "PTY <path>" (or "CAN <if> node <n> <fd|fd-compact|classic>", "USB <dir>", "TTY <path>") on stdout once the link
 // is up; logs events and safe-state entries on stderr.
 #include <signal.h>
 #include <sys/prctl.h>
@@ -58,8 +58,9 @@ int main(int argc, char** argv) {
   std::string can_mode = "fd";
   cli.add_option("--can", can_if, "talk over this SocketCAN interface instead of a pseudo-terminal");
   cli.add_option("--node", can_node, "CAN node id")->check(CLI::Range(1u, 63u));
-  cli.add_option("--can-mode", can_mode, "fd (one message per CAN-FD frame) | classic (compact 8-byte frames)")
-      ->check(CLI::IsMember({"fd", "classic"}));
+  cli.add_option("--can-mode", can_mode, "fd (one message per CAN-FD frame) | fd-compact (short CAN-FD command and telemetry "
+                 "frames, docs/protocol.md) | classic (compact 8-byte frames)")
+      ->check(CLI::IsMember({"fd", "fd-compact", "classic"}));
   std::string ffs_dir;
   std::string tty_path;
   cli.add_option("--ffs", ffs_dir, "be a USB device: a mounted FunctionFS instance (e.g. /dev/ffs-phalanx)");
@@ -107,7 +108,9 @@ int main(int argc, char** argv) {
     linux_hal::CanLink::Options o;
     o.ifname = can_if;
     o.node = static_cast<uint8_t>(can_node);
-    o.flavor = can_mode == "classic" ? protocol::can::Flavor::kClassic : protocol::can::Flavor::kFd;
+    o.flavor = can_mode == "classic"      ? protocol::can::Flavor::kClassic
+               : can_mode == "fd-compact" ? protocol::can::Flavor::kFdCompact
+                                          : protocol::can::Flavor::kFd;
     o.role = protocol::can::Role::kDevice;
     if (const std::string err = can.open(o); !err.empty()) {
       std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());

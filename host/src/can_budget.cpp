@@ -72,6 +72,10 @@ nlohmann::json canBudget(double rate_hz, double nominal_bps) {
         {"classic_sample_rate_hz", rate_hz * prof.groups_per_tick / groups},
         {"fd_same_rate", flavourLoad(*l, Flavor::kFd, rate_hz, nominal_bps, nominal_bps)},
         {"fd_5x_data_rate", flavourLoad(*l, Flavor::kFd, rate_hz, nominal_bps, 5.0 * nominal_bps)},
+        {"fd_compact_same_rate", flavourLoad(*l, Flavor::kFdCompact, rate_hz, nominal_bps, nominal_bps)},
+        {"fd_compact_5x_data_rate", flavourLoad(*l, Flavor::kFdCompact, rate_hz, nominal_bps, 5.0 * nominal_bps)},
+        // Compact FD: each tick carries a window of K of the S samples, rotating by K.
+        {"fd_compact_sample_rate_hz", rate_hz * compactWindow(l->sample_count) / l->sample_count},
     };
   }
   return {{"rate_hz", rate_hz}, {"nominal_bps", nominal_bps}, {"devices", out}};

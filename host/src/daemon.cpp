@@ -312,10 +312,12 @@ std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options&
     const std::string mode = rest.substr(at + 1);
     if (mode == "fd") {
       out.flavor = protocol::can::Flavor::kFd;
+    } else if (mode == "fd-compact") {
+      out.flavor = protocol::can::Flavor::kFdCompact;
     } else if (mode == "classic") {
       out.flavor = protocol::can::Flavor::kClassic;
     } else {
-      return "device: '" + spec + "': CAN mode '" + mode + "' is not fd or classic";
+      return "device: '" + spec + "': CAN mode '" + mode + "' is not fd, fd-compact or classic";
     }
     rest = rest.substr(0, at);
   }
@@ -361,7 +363,7 @@ std::string validateGpio(const GpioOptions& g) {
 std::string validate(const RunOptions& opt) {
   if (opt.device.rfind("sim:", 0) != 0 && opt.device.rfind("serial:", 0) != 0 && opt.device.rfind("can:", 0) != 0 &&
       opt.device.rfind("usb:", 0) != 0) {
-    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud], can:can0[:node][@fd|@classic] or usb:VID:PID[:serial])";
+    return "device: '" + opt.device + "' is not a device (use sim:glove5, sim:sea_finger, sim:sea_rig, sim:pantograph, serial:/dev/ttyACM0[@baud], can:can0[:node][@fd|@fd-compact|@classic] or usb:VID:PID[:serial])";
   }
   if (opt.device.rfind("usb:", 0) == 0) {
     linux_hal::UsbLink::Options o;
@@ -486,7 +488,9 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
     path = o.ifname;
     summary["link"] = {{"interface", o.ifname},
                        {"node", o.node},
-                       {"flavor", o.flavor == protocol::can::Flavor::kFd ? "fd" : "classic"}};
+                       {"flavor", o.flavor == protocol::can::Flavor::kFd          ? "fd"
+                                  : o.flavor == protocol::can::Flavor::kFdCompact ? "fd-compact"
+                                                                                  : "classic"}};
   } else {
     if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
     summary["link"] = path;
@@ -933,6 +937,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                       {"tx_dropped_queue_full", c.tx_dropped_full},
                       {"tx_dropped_bus_off", c.tx_dropped_bus_off},
                       {"tx_not_representable", c.tx_not_representable},
+                      {"tx_refusal", can.lastRefusal() != nullptr ? can.lastRefusal() : ""},
                       {"tx_link_down", c.tx_link_down},
                       {"rx_frames", c.rx_frames},
                       {"rx_kernel_dropped", c.rx_kernel_dropped},

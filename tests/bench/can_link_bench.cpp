@@ -67,7 +67,7 @@ void hostTick(benchmark::State& state, can::Flavor flavor) {
     raw[i].len = tel[i].len;
     std::memcpy(raw[i].data, tel[i].data, tel[i].len);
   }
-  const size_t mtu = flavor == can::Flavor::kFd ? CANFD_MTU : CAN_MTU;
+  const size_t mtu = can::isFd(flavor) ? CANFD_MTU : CAN_MTU;
   Command c = glove5Command();
   uint8_t cp[Command::kWireSize];
   uint8_t id;
@@ -90,8 +90,10 @@ void hostTick(benchmark::State& state, can::Flavor flavor) {
 
 void BM_HostTickFd(benchmark::State& state) { hostTick(state, can::Flavor::kFd); }
 void BM_HostTickClassic(benchmark::State& state) { hostTick(state, can::Flavor::kClassic); }
+void BM_HostTickFdCompact(benchmark::State& state) { hostTick(state, can::Flavor::kFdCompact); }
 BENCHMARK(BM_HostTickFd)->Iterations(kIterations);
 BENCHMARK(BM_HostTickClassic)->Iterations(kIterations);
+BENCHMARK(BM_HostTickFdCompact)->Iterations(kIterations);
 
 // The mapping alone (no system calls): command encode on the host + telemetry decode on the host.
 void mapping(benchmark::State& state, can::Flavor flavor) {
@@ -117,7 +119,9 @@ void mapping(benchmark::State& state, can::Flavor flavor) {
 }
 void BM_MappingFd(benchmark::State& state) { mapping(state, can::Flavor::kFd); }
 void BM_MappingClassic(benchmark::State& state) { mapping(state, can::Flavor::kClassic); }
+void BM_MappingFdCompact(benchmark::State& state) { mapping(state, can::Flavor::kFdCompact); }
 BENCHMARK(BM_MappingFd)->Iterations(kIterations);
 BENCHMARK(BM_MappingClassic)->Iterations(kIterations);
+BENCHMARK(BM_MappingFdCompact)->Iterations(kIterations);
 
 }  // namespace

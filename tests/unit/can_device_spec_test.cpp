@@ -1,4 +1,4 @@
-// phalanxd's CAN device spec: can:<interface>[:<node>][@fd|@classic], validated before anything is opened.
+// phalanxd's CAN device spec: can:<interface>[:<node>][@fd|@fd-compact|@classic], validated before anything is opened.
 #include <gtest/gtest.h>
 
 #include "phalanx/host/daemon.h"
@@ -25,6 +25,8 @@ TEST(CanDeviceSpec, ReadsNodeAndFlavour) {
   EXPECT_EQ(o.flavor, can::Flavor::kClassic);
   EXPECT_EQ(parseCanDevice("can:vcan1@fd", o), "");
   EXPECT_EQ(o.flavor, can::Flavor::kFd);
+  EXPECT_EQ(parseCanDevice("can:vcan1:2@fd-compact", o), "");
+  EXPECT_EQ(o.flavor, can::Flavor::kFdCompact);
 }
 
 TEST(CanDeviceSpec, RejectsBadNodesModesAndNamesNamingTheProblem) {

@@ -71,7 +71,7 @@ void injectError(int fd, uint32_t err_bits) {
 }  // namespace
 
 TEST(CanLink, MessagesCrossWholeInBothFlavours) {
-  for (auto flavor : {can::Flavor::kFd, can::Flavor::kClassic}) {
+  for (auto flavor : {can::Flavor::kFd, can::Flavor::kFdCompact, can::Flavor::kClassic}) {
     Pair p(flavor);
     p.host.setDevice(DeviceType::kSeaFinger, 1000);
     p.dev.setDevice(DeviceType::kSeaFinger, 1000);

@@ -85,6 +85,21 @@ float setpointValue(int16_t code, SampleKind kind) {
   return code == kClassicNotFinite ? NAN : decodeSample(code, kind);
 }
 
+/// Compact CAN-FD setpoint: as classic, and a value beyond the device's limit is sent saturated (±32767 LSB, also
+/// beyond the limit) so that rounding can never turn a setpoint the device must reject into one it accepts.
+int16_t compactSetpointCode(float value, const DeviceLayout& layout, SampleKind kind) {
+  if (!std::isfinite(value)) return kClassicNotFinite;
+  if (std::fabs(value) > layout.setpoint_limit) return value > 0.0f ? 32767 : -32767;
+  return encodeSample(value, kind);
+}
+
+bool zeroPadded(const CanFrame& f, size_t used) {
+  for (size_t i = used; i < f.len; ++i) {
+    if (f.data[i] != 0) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 void Mapper::setDevice(DeviceType type, uint16_t tick_rate_hz) {
@@ -92,11 +107,19 @@ void Mapper::setDevice(DeviceType type, uint16_t tick_rate_hz) {
   profile_ = classicProfile(type);
   period_us_ = tick_rate_hz > 0 ? 1000000u / tick_rate_hz : 1000u;
   next_group_ = 0;
+  next_first_ = 0;
+}
+
+void Mapper::resetTelemetryClock() {
+  have_tel_seq_ = false;
+  tel_ticks_ = 0;
+  for (int16_t& v : held_) v = 0;
 }
 
 uint32_t Mapper::derivedTimeUs() const { return static_cast<uint32_t>(tel_ticks_ * period_us_); }
 
 size_t Mapper::encode(uint8_t msg_id, const uint8_t* payload, size_t len, CanFrame* out, EncodeStatus& status) {
+  refusal_ = nullptr;
   Function fn = Function::kHello;
   if (!functionFor(msg_id, fn) || len != wireSize(msg_id)) {
     status = EncodeStatus::kUnknownMessage;
@@ -107,6 +130,10 @@ size_t Mapper::encode(uint8_t msg_id, const uint8_t* payload, size_t len, CanFra
     return 0;
   }
   if (flavor_ == Flavor::kClassic) return encodeClassic(msg_id, payload, len, out, status);
+  if (flavor_ == Flavor::kFdCompact && (msg_id == static_cast<uint8_t>(MsgId::kCommand) ||
+                                        msg_id == static_cast<uint8_t>(MsgId::kTelemetry))) {
+    return encodeCompact(msg_id, payload, out[0], status) ? 1 : 0;
+  }
 
   // CAN-FD: the whole payload; host → device frames append CRC-16(msg_id | payload) little-endian; zero padding
   // up to the next CAN-FD length.
@@ -123,6 +150,75 @@ size_t Mapper::encode(uint8_t msg_id, const uint8_t* payload, size_t len, CanFra
   f.len = fdLength(used);
   status = EncodeStatus::kOk;
   return 1;
+}
+
+bool Mapper::encodeCompact(uint8_t msg_id, const uint8_t* payload, CanFrame& f, EncodeStatus& status) {
+  if (layout_ == nullptr) {
+    status = EncodeStatus::kNoDevice;
+    return false;
+  }
+  auto refuse = [&](const char* why) {
+    refusal_ = why;
+    status = EncodeStatus::kNotRepresentable;
+    return false;
+  };
+  f = CanFrame{};
+  f.fd = true;
+  if (msg_id == static_cast<uint8_t>(MsgId::kCommand)) {
+    // seq u16 | timeout_ms (bits 0-9) + mode (bits 10-11) u16 | setpoint i16[n] | gain code u8[n] | CRC-16.
+    const uint8_t n = layout_->setpoint_count;
+    const uint16_t timeout = get16(payload + 2);
+    const uint8_t mode = payload[4];
+    if (payload[5] != 0) return refuse("flags != 0 (CAN-FD compact carries none)");
+    if (payload[7] != 0) return refuse("reserved byte != 0 (CAN-FD compact carries none)");
+    if (payload[6] != n) return refuse("channel_count differs from the device's setpoint count");
+    if (timeout > kCompactMaxTimeoutMs) return refuse("timeout_ms > 1023 (CAN-FD compact: 10 bits)");
+    if (mode > 3) return refuse("mode > 3 (CAN-FD compact: 2 bits)");
+    uint8_t gain_code[kMaxSetpoints] = {};
+    for (uint8_t i = 0; i < n; ++i) {
+      const uint16_t g = get16(payload + 40 + 2 * i);
+      if (g > kCompactMaxGainCode * kCompactGainStepPermille) return refuse("gain scale > 2000 permille");
+      // Round to the nearest 8 ‰ (0, 1000 and 2000 exact); ≤ 2000 stays ≤ 2000.
+      gain_code[i] = static_cast<uint8_t>((g + kCompactGainStepPermille / 2) / kCompactGainStepPermille);
+    }
+    put16(f.data, get16(payload));
+    put16(f.data + 2, static_cast<uint16_t>(timeout | (mode << 10)));
+    for (uint8_t i = 0; i < n; ++i) {
+      const uint32_t bits = get32(payload + 8 + 4 * i);
+      float v;
+      std::memcpy(&v, &bits, sizeof v);
+      put16(f.data + 4 + 2 * i, static_cast<uint16_t>(compactSetpointCode(v, *layout_, profile_.setpoint_kind)));
+      f.data[4 + 2 * n + i] = gain_code[i];
+    }
+    const size_t body = kCompactCommandHeader + 3u * n;
+    put16(f.data + body, messageCrc(msg_id, f.data, body));
+    f.id = canId(Function::kCommand, node_);
+    f.len = fdLength(body + 2);
+  } else {
+    // seq u16 | cmd_seq_echo u16 | fault_bits u16 | mode (bits 0-1) + state_flags (bits 2-5) u8 | cmd_lost u8 |
+    // rx_errors u8 | first u8 | sample i16[K]: samples first .. first+K-1 (mod S), the window rotating by K.
+    const uint8_t mode = payload[8], flags = payload[9];
+    if (mode > 3) return refuse("telemetry mode > 3 (CAN-FD compact: 2 bits)");
+    if (flags > 0x0F) return refuse("telemetry state_flags above bit 3 (CAN-FD compact: 4 bits)");
+    const uint8_t s = layout_->sample_count;
+    const uint8_t k = compactWindow(s);
+    const uint8_t first = next_first_ < s ? next_first_ : 0;
+    next_first_ = static_cast<uint8_t>(s > 0 ? (first + k) % s : 0);
+    std::memcpy(f.data, payload + 4, 4);       // seq, cmd_seq_echo
+    std::memcpy(f.data + 4, payload + 10, 2);  // fault_bits
+    f.data[6] = static_cast<uint8_t>(mode | (flags << 2));
+    f.data[7] = payload[12];  // cmd_lost
+    f.data[8] = payload[13];  // rx_errors
+    f.data[9] = first;
+    for (uint8_t i = 0; i < k; ++i) {
+      const uint8_t idx = static_cast<uint8_t>((first + i) % s);
+      std::memcpy(f.data + kCompactTelemetryHeader + 2 * i, payload + 14 + 2 * idx, 2);
+    }
+    f.id = canId(Function::kTelemetry, node_);
+    f.len = fdLength(compactTelemetryBytes(s));
+  }
+  status = EncodeStatus::kOk;
+  return true;
 }
 
 size_t Mapper::encodeClassic(uint8_t msg_id, const uint8_t* payload, size_t len, CanFrame* out, EncodeStatus& status) {
@@ -154,6 +250,10 @@ size_t Mapper::encodeClassic(uint8_t msg_id, const uint8_t* payload, size_t len,
       bool nominal = true;
       for (uint8_t i = 0; i < n; ++i) nominal = nominal && c.gain_scale_permille[i] == 1000;
       if (c.flags != 0 || c.channel_count != n || c.timeout_ms > kClassicMaxTimeoutMs || !nominal) {
+        refusal_ = c.flags != 0                  ? "flags != 0 (classic CAN carries none)"
+                   : c.channel_count != n        ? "channel_count differs from the device's setpoint count"
+                   : c.timeout_ms > kClassicMaxTimeoutMs ? "timeout_ms > 255 (classic CAN: one byte)"
+                                                 : "gain scale != 1000 permille (classic CAN carries none)";
         status = EncodeStatus::kNotRepresentable;
         return 0;
       }
@@ -234,11 +334,11 @@ bool Mapper::decode(const CanFrame& f, uint8_t& msg_id, uint8_t* payload, size_t
     ++stats_.bad_id;
     return false;
   }
-  if (f.fd != (flavor_ == Flavor::kFd)) {
+  if (f.fd != isFd(flavor_)) {
     ++stats_.bad_length;
     return false;
   }
-  return flavor_ == Flavor::kFd ? decodeFd(f, fn, msg_id, payload, len) : decodeClassic(f, fn, msg_id, payload, len);
+  return isFd(flavor_) ? decodeFd(f, fn, msg_id, payload, len) : decodeClassic(f, fn, msg_id, payload, len);
 }
 
 bool Mapper::decodeFd(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8_t* payload, size_t& len) {
@@ -246,6 +346,21 @@ bool Mapper::decodeFd(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8_t* p
   if (msg == 0) {
     ++stats_.bad_id;
     return false;
+  }
+  if (flavor_ == Flavor::kFdCompact &&
+      (msg == static_cast<uint8_t>(MsgId::kCommand) || msg == static_cast<uint8_t>(MsgId::kTelemetry))) {
+    if (layout_ == nullptr) {  // the host learns the device from the HelloAck: nothing to decode before it
+      ++stats_.bad_id;
+      return false;
+    }
+    const bool ok = msg == static_cast<uint8_t>(MsgId::kCommand) ? decodeCompactCommand(f, payload)
+                                                                  : decodeCompactTelemetry(f, payload);
+    if (!ok) return false;
+    msg_id = msg;
+    len = wireSize(msg);
+    ++stats_.frames_ok;
+    ++stats_.messages_ok;
+    return true;
   }
   const size_t n = wireSize(msg);
   const bool with_crc = hostSends(msg);
@@ -266,13 +381,81 @@ bool Mapper::decodeFd(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8_t* p
   }
   if (msg == static_cast<uint8_t>(MsgId::kHelloAck) && role_ == Role::kHost) {
     HelloAck a;
-    if (decodePayload(f.data, n, a) && a.status == HandshakeStatus::kOk) setDevice(a.device_type, a.tick_rate_hz);
+    if (decodePayload(f.data, n, a) && a.status == HandshakeStatus::kOk) {
+      setDevice(a.device_type, a.tick_rate_hz);
+      resetTelemetryClock();
+    }
   }
   std::memcpy(payload, f.data, n);
   msg_id = msg;
   len = n;
   ++stats_.frames_ok;
   ++stats_.messages_ok;
+  return true;
+}
+
+bool Mapper::decodeCompactCommand(const CanFrame& f, uint8_t* payload) {
+  const uint8_t n = layout_->setpoint_count;
+  const size_t body = kCompactCommandHeader + 3u * n;
+  if (f.len != fdLength(body + 2) || !zeroPadded(f, body + 2)) {
+    ++stats_.bad_length;
+    return false;
+  }
+  if (get16(f.data + body) != messageCrc(static_cast<uint8_t>(MsgId::kCommand), f.data, body)) {
+    ++stats_.crc;
+    return false;
+  }
+  const uint16_t word = get16(f.data + 2);
+  if ((word & 0xF000u) != 0) {  // reserved bits 12-15
+    ++stats_.bad_length;
+    return false;
+  }
+  for (uint8_t i = 0; i < n; ++i) {
+    if (f.data[4 + 2 * n + i] > kCompactMaxGainCode) {
+      ++stats_.bad_length;
+      return false;
+    }
+  }
+  Command c;
+  c.seq = get16(f.data);
+  c.timeout_ms = static_cast<uint16_t>(word & 0x03FFu);
+  c.mode = static_cast<Mode>((word >> 10) & 0x03u);
+  c.channel_count = n;
+  for (uint8_t i = 0; i < n; ++i) {
+    c.setpoint[i] = setpointValue(static_cast<int16_t>(get16(f.data + 4 + 2 * i)), profile_.setpoint_kind);
+    c.gain_scale_permille[i] = static_cast<uint16_t>(f.data[4 + 2 * n + i] * kCompactGainStepPermille);
+  }
+  for (uint8_t i = n; i < kMaxSetpoints; ++i) c.gain_scale_permille[i] = 1000;
+  encodePayload(c, payload);
+  return true;
+}
+
+bool Mapper::decodeCompactTelemetry(const CanFrame& f, uint8_t* payload) {
+  const uint8_t s = layout_->sample_count;
+  const uint8_t k = compactWindow(s);
+  const size_t used = compactTelemetryBytes(s);
+  if (f.len != fdLength(used) || !zeroPadded(f, used) || (f.data[6] & 0xC0u) != 0 || f.data[9] >= s) {
+    ++stats_.bad_length;
+    return false;
+  }
+  const uint16_t seq = get16(f.data);
+  tel_ticks_ += have_tel_seq_ ? static_cast<uint16_t>(seq - last_tel_seq_) : 0u;
+  have_tel_seq_ = true;
+  last_tel_seq_ = seq;
+  for (uint8_t i = 0; i < k; ++i) {
+    held_[(f.data[9] + i) % s] = static_cast<int16_t>(get16(f.data + kCompactTelemetryHeader + 2 * i));
+  }
+  Telemetry t;
+  t.time_us = derivedTimeUs();
+  t.seq = seq;
+  t.cmd_seq_echo = get16(f.data + 2);
+  t.fault_bits = get16(f.data + 4);
+  t.mode = static_cast<Mode>(f.data[6] & 0x03u);
+  t.state_flags = static_cast<uint8_t>(f.data[6] >> 2);
+  t.cmd_lost = f.data[7];
+  t.rx_errors = f.data[8];
+  for (uint8_t i = 0; i < kMaxSamples; ++i) t.sample[i] = held_[i];
+  encodePayload(t, payload);
   return true;
 }
 

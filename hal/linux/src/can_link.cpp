@@ -66,7 +66,7 @@ std::string CanLink::open(const Options& opt) {
   std::strncpy(ifr.ifr_name, opt.ifname.c_str(), sizeof ifr.ifr_name - 1);
   if (ioctl(fd, SIOCGIFINDEX, &ifr) != 0) return fail("no CAN interface '" + opt.ifname + "'", fd);
   const int ifindex = ifr.ifr_ifindex;
-  if (opt.flavor == Flavor::kFd) {
+  if (protocol::can::isFd(opt.flavor)) {
     if (ioctl(fd, SIOCGIFMTU, &ifr) != 0) return fail("SIOCGIFMTU " + opt.ifname, fd);
     if (ifr.ifr_mtu != CANFD_MTU) {
       ::close(fd);
@@ -124,6 +124,7 @@ bool CanLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
   protocol::can::EncodeStatus status;
   const size_t n = mapper_.encode(msg_id, payload, len, frames, status);
   if (n == 0) {
+    if (status == protocol::can::EncodeStatus::kNotRepresentable) last_refusal_ = mapper_.refusal();
     ++stats_.tx_not_representable;
     return false;
   }

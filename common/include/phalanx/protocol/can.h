@@ -1,7 +1,9 @@
 #pragma once
 /// The protocol's CAN mapping (docs/protocol.md, "CAN and CAN-FD"): 11-bit identifiers carrying a function code
 /// and the node id, CAN-FD frames carrying one whole message each (with an end-to-end CRC on every host → device
-/// frame), and classic CAN compact encodings with a documented split for what does not fit 8 bytes.
+/// frame), a compact CAN-FD mapping (int16 setpoints and a rotating window of samples in one short frame per
+/// direction per tick: the 1 kHz bus-load budget), and classic CAN compact encodings with a documented split for
+/// what does not fit 8 bytes.
 /// Freestanding (no heap, no exceptions): the SocketCAN transport (hal/linux) and MCU FDCAN ports share it.
 #include <cstddef>
 #include <cstdint>
@@ -15,7 +17,10 @@ namespace phalanx::protocol::can {
 constexpr uint8_t kMinNode = 1;
 constexpr uint8_t kMaxNode = 63;
 
-enum class Flavor : uint8_t { kClassic = 0, kFd = 1 };
+/// kFd: one whole protocol message per CAN-FD frame. kFdCompact: CAN-FD frames, Command and Telemetry in the
+/// compact encodings of docs/protocol.md ("CAN-FD compact"), every other message whole as in kFd.
+enum class Flavor : uint8_t { kClassic = 0, kFd = 1, kFdCompact = 2 };
+constexpr bool isFd(Flavor f) { return f != Flavor::kClassic; }
 /// Which end of the link an endpoint is: it accepts only frames of the other direction.
 enum class Role : uint8_t { kHost = 0, kDevice = 1 };
 
@@ -64,6 +69,20 @@ constexpr uint8_t fdLength(size_t n) {
                    : 64;
 }
 
+/// CAN-FD compact (docs/protocol.md, "CAN-FD compact"). Command: seq u16 | timeout_ms (bits 0-9) + mode (bits
+/// 10-11) u16 | setpoint i16[n] | gain code u8[n] | CRC-16. Telemetry: seq u16 | cmd_seq_echo u16 | fault_bits u16
+/// | mode + state_flags u8 | cmd_lost u8 | rx_errors u8 | first u8 | sample i16[K] (samples first..first+K-1 mod S).
+constexpr uint16_t kCompactMaxTimeoutMs = 1023;   ///< 10-bit field; the device itself requires 1..1000
+constexpr uint16_t kCompactGainStepPermille = 8;  ///< gain code LSB: 1000 ‰ = 125, 2000 ‰ = 250 (both exact)
+constexpr uint8_t kCompactMaxGainCode = 250;      ///< 2000 ‰, the device's limit; codes above are rejected
+constexpr size_t kCompactCommandHeader = 4;
+constexpr size_t kCompactTelemetryHeader = 10;
+/// Samples per compact telemetry frame: the 32-byte frame the 20 % budget allows (10 + 2·11 = 32 bytes).
+constexpr uint8_t kCompactWindow = 11;
+constexpr size_t compactCommandBytes(uint8_t setpoints) { return kCompactCommandHeader + 3u * setpoints + 2u; }
+constexpr uint8_t compactWindow(uint8_t samples) { return samples < kCompactWindow ? samples : kCompactWindow; }
+constexpr size_t compactTelemetryBytes(uint8_t samples) { return kCompactTelemetryHeader + 2u * compactWindow(samples); }
+
 /// Most frames one message maps to (classic telemetry: two sample groups + status).
 constexpr size_t kMaxFramesPerMessage = 3;
 
@@ -91,7 +110,7 @@ struct RxStats {
   uint32_t frames_ok = 0;      ///< frames accepted (classic: parts included)
   uint32_t messages_ok = 0;    ///< whole messages delivered
   uint32_t bad_id = 0;         ///< unknown function, other node, wrong direction, extended or remote frame
-  uint32_t bad_length = 0;     ///< length (or padding, or FD/classic format) differs from the mapping
+  uint32_t bad_length = 0;     ///< length, padding, FD/classic format, reserved bits or an undefined field code
   uint32_t crc = 0;            ///< end-to-end CRC failed (CAN-FD host → device frames)
   uint32_t sequence = 0;       ///< classic: a part out of order, or a message left incomplete
   uint32_t total_rejected() const { return bad_id + bad_length + crc + sequence; }
@@ -101,7 +120,7 @@ enum class EncodeStatus : uint8_t {
   kOk = 0,
   kUnknownMessage = 1,    ///< not a protocol message ID, or the payload length differs from its wire size
   kWrongDirection = 2,    ///< this endpoint does not send that message
-  kNotRepresentable = 3,  ///< classic: flags ≠ 0, gain scale ≠ 1000, timeout > 255 ms or wrong channel count
+  kNotRepresentable = 3,  ///< a field the compact encoding cannot carry: Mapper::refusal() names it
   kNoDevice = 4,          ///< classic command/telemetry before the device type is known
 };
 
@@ -122,6 +141,8 @@ class Mapper {
   /// len hold it, checked against the wire size. Rejected frames are counted in stats().
   bool decode(const CanFrame& frame, uint8_t& msg_id, uint8_t* payload, size_t& len);
   const RxStats& stats() const { return stats_; }
+  /// Why the last encode() returned kNotRepresentable (a static string naming the field), nullptr if none was.
+  const char* refusal() const { return refusal_; }
   Flavor flavor() const { return flavor_; }
   uint8_t node() const { return node_; }
 
@@ -129,6 +150,10 @@ class Mapper {
   bool decodeFd(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8_t* payload, size_t& len);
   bool decodeClassic(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8_t* payload, size_t& len);
   size_t encodeClassic(uint8_t msg_id, const uint8_t* payload, size_t len, CanFrame* out, EncodeStatus& status);
+  bool encodeCompact(uint8_t msg_id, const uint8_t* payload, CanFrame& f, EncodeStatus& status);
+  bool decodeCompactCommand(const CanFrame& f, uint8_t* payload);
+  bool decodeCompactTelemetry(const CanFrame& f, uint8_t* payload);
+  void resetTelemetryClock();
   uint32_t derivedTimeUs() const;
 
   Flavor flavor_;
@@ -138,9 +163,12 @@ class Mapper {
   ClassicProfile profile_{SampleKind::kForce, 0};
   uint32_t period_us_ = 1000;
   RxStats stats_;
-  // Classic encoder: next telemetry group to send.
+  const char* refusal_ = nullptr;
+  // Classic encoder: next telemetry group to send. Compact encoder: first sample of the next window.
   uint8_t next_group_ = 0;
-  // Classic decoder: command part 0 awaiting part 1, HelloAck part 0 awaiting part 1, held telemetry samples.
+  uint8_t next_first_ = 0;
+  // Classic decoder: command part 0 awaiting part 1, HelloAck part 0 awaiting part 1, held telemetry samples
+  // (also the compact decoder's held samples and derived telemetry clock).
   bool cmd_pending_ = false;
   uint8_t cmd_part0_[8] = {};
   bool ack_pending_ = false;

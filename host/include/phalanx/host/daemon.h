@@ -54,7 +54,7 @@ struct GpioOptions {
 };
 
 struct RunOptions {
-  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud], can:<if>[:node][@fd|@classic] or usb:VID:PID[:serial]
+  std::string device = "sim:glove5";  ///< sim:<glove5|sea_finger|pantograph>, serial:<path>[@baud], can:<if>[:node][@fd|@fd-compact|@classic] or usb:VID:PID[:serial]
   double seconds = 0.0;               ///< 0: until SIGINT/SIGTERM
   unsigned rate_hz = 1000;
   unsigned command_timeout_ms = 20;   ///< each command's own timeout: the device goes safe if the next is late
@@ -84,7 +84,7 @@ struct RunOptions {
 /// Validate the GPIO options (line specs, distinct lines, ranges); empty string or the problem, naming the option.
 std::string validateGpio(const GpioOptions& g);
 
-/// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@classic]" (defaults: node 1, fd).
+/// Parse a CAN device spec "can:<interface>[:<node 1..63>][@fd|@fd-compact|@classic]" (defaults: node 1, fd).
 /// Returns an empty string or what is wrong with it.
 std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options& out);
 

@@ -21,7 +21,7 @@ struct CanLinkStats {
   uint64_t tx_messages = 0;          ///< messages queued whole
   uint64_t tx_dropped_full = 0;      ///< messages refused: user-space queue full
   uint64_t tx_dropped_bus_off = 0;   ///< messages refused while bus-off or down
-  uint64_t tx_not_representable = 0; ///< messages this flavour cannot carry (classic limits)
+  uint64_t tx_not_representable = 0; ///< messages this flavour cannot carry (compact limits)
   uint64_t tx_superseded = 0;        ///< queued messages replaced by a newer one of the same kind before going out
   uint64_t tx_would_block = 0;       ///< writes the kernel deferred (EAGAIN / ENOBUFS: TX queue full)
   uint64_t tx_link_down = 0;         ///< writes refused with ENETDOWN
@@ -69,6 +69,8 @@ class CanLink : public hal::PacketLink {
   CanBusState state() const { return state_; }
   const CanLinkStats& stats() const { return stats_; }
   const protocol::can::RxStats& mapperStats() const { return mapper_.stats(); }
+  /// Why the last message counted in tx_not_representable was refused (nullptr if none was).
+  const char* lastRefusal() const { return last_refusal_; }
   size_t queued() const { return q_len_; }
   const std::string& error() const { return error_; }
   int fd() const { return fd_; }
@@ -95,7 +97,8 @@ class CanLink : public hal::PacketLink {
   Entry q_[kTxQueueFrames] = {};
   size_t q_len_ = 0;
   uint32_t next_serial_ = 1;
-  uint32_t started_serial_ = 0;  ///< serial of the message whose first frame went out last
+  uint32_t started_serial_ = 0;
+  const char* last_refusal_ = nullptr;  ///< serial of the message whose first frame went out last
 };
 
 }  // namespace phalanx::linux_hal
