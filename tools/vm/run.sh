@@ -37,7 +37,7 @@ LOG="$ROOT/build/vm/logs/$NAME.log"
 # clocksource=tsc: under TCG the kernel distrusts the TSC and falls back to the HPET, whose every read is an
 # emulated MMIO access with no vDSO; QEMU derives the guest TSC from the host clock, so it is safe here. Measured
 # on this machine: a 2 s firmware-sim run took 10.9 s of wall time with the HPET, 7.8 s with the TSC (host loaded).
-# VM_KERNEL_ARGS adds kernel arguments.
+# VM_KERNEL_ARGS adds kernel arguments; VM_QEMU_CPU replaces -cpu max (measurements only: docs/vm-lane.md).
 # Host CPU share (docs/vm-lane.md "Why the VM missed 1 kHz"): with autogroup scheduling (Debian's default) the host
 # splits its CPUs between sessions first, so on a machine shared by several jobs QEMU's threads got one session's
 # share however many of them were busy, and the guest's 1 kHz timers fired late or not at all. QEMU therefore runs
