@@ -12,7 +12,7 @@ PACKAGES=(
   zlib1g-dev
   nlohmann-json3-dev libceres-dev libusb-1.0-0-dev libgpiod-dev gpiod libmodbus-dev mbpoll libnlopt-dev rt-tests
   clang libclang-rt-14-dev valgrind
-  qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils
+  qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils rt-tests
   linux-source-6.1 linux-headers-amd64
   libcpp-httplib-dev chromium
 )

@@ -25,6 +25,47 @@
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
+
+/// Tick timing of this process (docs/vm-lane.md "Why the VM missed 1 kHz"): how late each tick woke after its
+/// deadline, and how long its own work took. 10 µs buckets up to 10 ms; later values land in the last bucket.
+class TickTimes {
+ public:
+  void add(uint64_t late_ns, uint64_t busy_ns) {
+    ++late_[bucket(late_ns)];
+    ++busy_[bucket(busy_ns)];
+    ++count_;
+    if (late_ns > max_late_ns_) max_late_ns_ = late_ns;
+    if (busy_ns > max_busy_ns_) max_busy_ns_ = busy_ns;
+  }
+  void print() const {
+    std::fprintf(stderr,
+                 "firmware-sim: tick timing (us) wake_late p50=%u p99=%u max=%llu; work p50=%u p99=%u max=%llu\n",
+                 percentile(late_, 0.5), percentile(late_, 0.99), static_cast<unsigned long long>(max_late_ns_ / 1000),
+                 percentile(busy_, 0.5), percentile(busy_, 0.99), static_cast<unsigned long long>(max_busy_ns_ / 1000));
+  }
+
+ private:
+  static constexpr unsigned kBuckets = 1001;  // 10 µs each: 0 .. 10 ms, the last one open-ended
+  static unsigned bucket(uint64_t ns) {
+    const uint64_t b = ns / 10000;
+    return b < kBuckets - 1 ? static_cast<unsigned>(b) : kBuckets - 1;
+  }
+  unsigned percentile(const uint32_t (&h)[kBuckets], double p) const {
+    if (count_ == 0) return 0;
+    const auto want = static_cast<uint64_t>(p * static_cast<double>(count_));
+    uint64_t seen = 0;
+    for (unsigned i = 0; i < kBuckets; ++i) {
+      seen += h[i];
+      if (seen > want) return (i + 1) * 10;  // upper edge of the bucket
+    }
+    return kBuckets * 10;
+  }
+  uint32_t late_[kBuckets] = {};
+  uint32_t busy_[kBuckets] = {};
+  uint64_t count_ = 0;
+  uint64_t max_late_ns_ = 0;
+  uint64_t max_busy_ns_ = 0;
+};
 void onSignal(int) { g_stop = 1; }
 
 class LogObserver : public phalanx::fw::CoreObserver {
@@ -151,8 +192,10 @@ int main(int argc, char** argv) {
   bool ffs_online = false;
   uint64_t tty_reopen_at = 0;
   const auto max_ticks = static_cast<uint64_t>(seconds * tick_hz);
+  static TickTimes tick_times;  // static: 8 KB, off the stack
   for (uint64_t n = 0; g_stop == 0 && (max_ticks == 0 || n < max_ticks); ++n) {
     overruns += timer.wait();
+    const uint64_t woke_ns = linux_hal::monotonicNs();
     for (unsigned i = 0; i < substeps; ++i) dev->plant().step(sub_dt_s, board.io());
     board.clock().advanceUs(period_us);
     const uint64_t deadline_us = core.commandDeadlineUs();
@@ -195,6 +238,7 @@ int main(int argc, char** argv) {
                    core.faultBits());
     }
     was_active = active;
+    tick_times.add(woke_ns - timer.lastDeadlineNs(), linux_hal::monotonicNs() - woke_ns);
   }
   board.board().pwm->disableAll();
   dev->app().safe();
@@ -204,6 +248,7 @@ int main(int argc, char** argv) {
                core.counters().ticks, static_cast<unsigned long long>(overruns), core.counters().commands_applied,
                core.counters().commands_rejected, core.counters().cmd_lost, core.rxStats().crc_errors,
                core.rxStats().framing_errors, core.counters().tx_dropped, core.faultBits());
+  tick_times.print();
   if (use_ffs) {
     const auto& f = ffs.stats();
     const auto& r = ffs.rxStats();

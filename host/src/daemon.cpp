@@ -653,6 +653,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   uint64_t cycles = 0;
   uint64_t cycles_without_telemetry = 0;
   uint64_t host_refused = 0;
+  uint64_t commands_unsent_link_lost = 0;  // sends that found the link lost (hot-unplug), within commands_unsent
   uint16_t faults_seen = 0;
   const auto max_cycles = static_cast<uint64_t>(std::llround(opt.seconds * opt.rate_hz));
   linux_hal::PeriodicTimer timer(period_ns);
@@ -824,7 +825,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
       cmd.mode = protocol::Mode::kSafe;
       for (auto& s : cmd.setpoint) s = 0.0f;
     }
-    session.sendCommand(cmd, linux_hal::monotonicNs());
+    if (!session.sendCommand(cmd, linux_hal::monotonicNs()) && can_reconnect && daemon_link.lost()) {
+      // The link went away inside this very send (USB: the submit found the device unplugged): part of the
+      // outage that the next cycle's recovery step reports, not a full link.
+      ++commands_unsent_link_lost;
+    }
     if (is_can && can.state() != can_state) {
       std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(can_state),
                    linux_hal::canBusStateName(can.state()), t_s);
@@ -891,7 +896,8 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                           {"lost", s.telemetry_lost},
                           {"cycles_without_new_telemetry", cycles_without_telemetry}};
   summary["commands"] = {{"sent", s.commands_sent},
-                         {"unsent_link_full", s.commands_unsent},
+                         {"unsent_link_full", s.commands_unsent - commands_unsent_link_lost},
+                         {"unsent_link_lost", commands_unsent_link_lost},
                          {"refused_by_host_limits", host_refused},
                          {"lost_seen_by_device", s.device_cmd_lost},
                          {"rejected_by_device", s.device_rx_errors}};

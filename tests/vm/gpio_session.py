@@ -23,6 +23,8 @@ import subprocess
 import sys
 import time
 
+import vmlib
+
 BIN = "build/host/bin"
 IP = "/usr/sbin/ip"
 BUS = "vcan7"
@@ -113,6 +115,7 @@ def pct(values, q):
 
 def main():
     os.makedirs(OUT, exist_ok=True)
+    vmlib.raise_socket_buffers()
     check(os.path.isdir(CFG), "no %s: gpio-sim.ko is not loaded (tools/vm/gpio-sim.sh builds it; run.sh's output says why not)" % CFG)
     estop = SimChip("phx_estop", 1, "phx-estop")
     io = SimChip("phx_io", 3, "phx-io")
@@ -251,6 +254,7 @@ def main():
         ticks, [round(x) for x in e2d], [round(x) for x in d2s]), flush=True)
     print("loop: %d cycles in %.1f s (%.0f Hz kept of %d), round trip p50 %.0f us" % (
         s["cycles"], s["seconds"], s["cycles"] / s["seconds"], RATE, s["round_trip"]["p50_us"]), flush=True)
+    print(vmlib.timing_line("gpio", s, RATE, fw_text)[0], flush=True)
     # Two firmware ticks is the target. The count starts at the newest telemetry the daemon had when it read the
     # e-stop, so ticks the device ran while the emulator held the daemon's vCPU between that poll and the read are
     # charged to the e-stop path (an upper bound). Under TCG on a loaded host that happens (measured: one stop in

@@ -37,6 +37,7 @@ uint32_t PeriodicTimer::wait() {
   ts.tv_nsec = static_cast<long>(next_ns_ % 1000000000ull);
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
+  last_deadline_ns_ = next_ns_;
   next_ns_ += period_ns_;
   const uint64_t now = monotonicNs();
   uint32_t missed = 0;

@@ -23,10 +23,14 @@ class PeriodicTimer {
   /// Sleep until the next period; returns how many whole periods were missed (0 normally).
   uint32_t wait();
   uint64_t period_ns() const { return period_ns_; }
+  /// The deadline the last wait() slept until (CLOCK_MONOTONIC ns): wake lateness = monotonicNs() after wait()
+  /// minus this.
+  uint64_t lastDeadlineNs() const { return last_deadline_ns_; }
 
  private:
   uint64_t period_ns_;
   uint64_t next_ns_;
+  uint64_t last_deadline_ns_ = 0;
 };
 
 }  // namespace phalanx::linux_hal
