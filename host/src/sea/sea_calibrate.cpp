@@ -22,32 +22,37 @@ namespace {
 /// the recording: its closure error is a residual too, scaled so 0.1 mm weighs like one sensor σ (0.05°).
 constexpr double kClosureWeight = 0.05 * M_PI / 180.0 / 1e-4;  // rad per metre of closure error
 
-/// Sensitivity of the predicted redundant angle to the model's two measured inputs: the residual of a sample has
-/// variance σ²(1 + g1² + g6²) when θ1r, θ6r and θ7r carry the same sensor noise σ ("effective variance").
-double effectiveVarianceFactor(const SubjectParams& p, const FixedGeometry& fixed, const CalibrationSample& s) {
-  constexpr double h = 1e-5;
-  const double g1 = (ps::predictRedundant(p, fixed, s.theta1r_rad + h, s.theta6r_rad) -
-                     ps::predictRedundant(p, fixed, s.theta1r_rad - h, s.theta6r_rad)) / (2 * h);
-  const double g6 = (ps::predictRedundant(p, fixed, s.theta1r_rad, s.theta6r_rad + h) -
-                     ps::predictRedundant(p, fixed, s.theta1r_rad, s.theta6r_rad - h)) / (2 * h);
-  const double v = 1.0 + g1 * g1 + g6 * g6;
-  return std::isfinite(v) ? v : 1.0;
-}
-
-/// y_k − y_m,k(P) (eq 12), wrapped to (−π, π]; with `effective_variance` divided by the sample's effective
-/// standard deviation at P; plus the chain-closure residual.
+/// y_k − y_m,k(P) (eq 12), wrapped to (−π, π], plus the chain-closure residual: the multistart's cheap objective.
 struct RedundantResidual {
   CalibrationSample s;
   FixedGeometry fixed;
-  bool effective_variance = false;
   bool operator()(const double* p, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
     double closure_m = 0.0;
     const double y_m = ps::predictRedundant(sp, fixed, s.theta1r_rad, s.theta6r_rad, &closure_m);
-    const double w = effective_variance ? 1.0 / std::sqrt(effectiveVarianceFactor(sp, fixed, s)) : 1.0;
-    r[0] = w * std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[0] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
     r[1] = kClosureWeight * closure_m;
     return std::isfinite(r[0]) && std::isfinite(r[1]);
+  }
+};
+
+/// Errors in variables done exactly (orthogonal distance regression): every sample gets latent true inputs
+/// z = (θ1, θ6), and its residuals are the three sensor errors θ1r − θ1, θ6r − θ6, θ7r − y_m(P, θ1, θ6), all of
+/// the same σ; plus the chain-closure residual at z. Minimising over P and all z is the Gaussian maximum
+/// likelihood of eq 12's model when all three sensors are noisy, without linearising the prediction (near a
+/// PIP dead point y_m has a vertical tangent and the effective-variance weights fail).
+struct OdrResidual {
+  CalibrationSample s;
+  FixedGeometry fixed;
+  bool operator()(const double* p, const double* z, double* r) const {
+    const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
+    double closure_m = 0.0;
+    const double y_m = ps::predictRedundant(sp, fixed, z[0], z[1], &closure_m);
+    r[0] = s.theta1r_rad - z[0];
+    r[1] = s.theta6r_rad - z[1];
+    r[2] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[3] = kClosureWeight * closure_m;
+    return std::isfinite(r[2]) && std::isfinite(r[3]);
   }
 };
 
@@ -85,6 +90,8 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   if (opt.stride < 1) return "stride must be ≥ 1";
   if (opt.max_iterations < 1) return "max_iterations must be ≥ 1";
   if (opt.smooth_samples < 1) return "smooth_samples must be ≥ 1";
+  if (opt.restarts < 0 || opt.valley_steps < 0) return "restarts and valley_steps must be ≥ 0";
+  if (opt.polished < 1 || opt.refined < 1) return "polished and refined must be ≥ 1";
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
   }
@@ -127,7 +134,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
 
   // Eq 12 from one redundant angle has local minima (docs/sea-model.md §Parameter estimation): a multistart.
   // Phase 1: P0 and `restarts` points of a Halton sequence over the box, each solved on a thinned subset
-  // (≈ 200 samples); phase 2 (below): the best four refined on all samples.
+  // (≈ 200 samples); then the valley scan and phase 2 (below).
   std::vector<std::array<double, ps::kNumSubjectParams>> starts{p0};
   static constexpr unsigned kPrimes[ps::kNumSubjectParams] = {2, 3, 5, 7, 11, 13, 17};
   for (int k = 1; k <= opt.restarts; ++k) {
@@ -147,24 +154,24 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   const std::size_t thin_stride = std::max<std::size_t>(1, samples.size() / 200);
   for (std::size_t i = 0; i < samples.size(); i += thin_stride) thin.push_back(samples[i]);
 
-  // Phase 1 uses forward differences and no weights (it only has to land in the right basin), phase 2 central
-  // differences and effective-variance weights.
-  auto solve = [&](const std::vector<CalibrationSample>& data, std::array<double, ps::kNumSubjectParams>& p,
-                   int max_iterations, bool central, ceres::Solver::Summary& summary) {
+  // Phase 1 and the valley scan fit eq 12 as printed (θ1r, θ6r taken as exact), forward differences, on the thinned
+  // samples: they only have to land in the right basin.
+  using Params = std::array<double, ps::kNumSubjectParams>;
+  // `frozen` ≥ 0 holds that parameter at its start value (the valley scan below).
+  auto solve = [&](const std::vector<CalibrationSample>& data, Params& p, int max_iterations,
+                   ceres::Solver::Summary& summary, int frozen = -1) {
     ceres::Problem problem;
     for (const CalibrationSample& s : data) {
-      auto* res = new RedundantResidual{s, opt.fixed, central};
-      if (central) {
-        problem.AddResidualBlock(
-            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::CENTRAL, 2, ps::kNumSubjectParams>(res),
-            nullptr, p.data());
-      } else {
-        problem.AddResidualBlock(
-            new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(res),
-            nullptr, p.data());
-      }
+      problem.AddResidualBlock(
+          new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(
+              new RedundantResidual{s, opt.fixed}),
+          nullptr, p.data());
+    }
+    if (frozen >= 0) {
+      problem.SetManifold(p.data(), new ceres::SubsetManifold(ps::kNumSubjectParams, {frozen}));
     }
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
+      if (static_cast<int>(i) == frozen) continue;
       problem.SetParameterLowerBound(p.data(), static_cast<int>(i), lo[i]);
       problem.SetParameterUpperBound(p.data(), static_cast<int>(i), hi[i]);
     }
@@ -179,50 +186,108 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
     so.num_threads = 1;
     ceres::Solve(so, &problem, &summary);
   };
-
-  std::vector<std::pair<double, std::array<double, ps::kNumSubjectParams>>> phase1;
+  // Eq 12 with errors in variables (OdrResidual): returns the final cost ½Σr², P updated.
+  auto solveOdr = [&](const std::vector<CalibrationSample>& data, Params& p, int max_iterations,
+                      ceres::Solver::Summary& summary) {
+    std::vector<std::array<double, 2>> z(data.size());
+    ceres::Problem problem;
+    for (std::size_t k = 0; k < data.size(); ++k) {
+      z[k] = {data[k].theta1r_rad, data[k].theta6r_rad};
+      problem.AddResidualBlock(
+          new ceres::NumericDiffCostFunction<OdrResidual, ceres::CENTRAL, 4, ps::kNumSubjectParams, 2>(
+              new OdrResidual{data[k], opt.fixed}),
+          nullptr, p.data(), z[k].data());
+    }
+    for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
+      problem.SetParameterLowerBound(p.data(), static_cast<int>(i), lo[i]);
+      problem.SetParameterUpperBound(p.data(), static_cast<int>(i), hi[i]);
+    }
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_SCHUR;
+    so.max_num_iterations = max_iterations;
+    so.function_tolerance = 1e-10;
+    so.gradient_tolerance = 1e-14;
+    so.parameter_tolerance = 1e-9;  // relative: ≈ 0.04 µm on a 40 mm length
+    so.logging_type = ceres::SILENT;
+    so.minimizer_progress_to_stdout = false;
+    so.num_threads = 1;
+    ceres::Solve(so, &problem, &summary);
+    return summary.final_cost;
+  };
+  // restarts = 0 and valley_steps = 0: a local refinement from P0 only (phase 2 alone).
+  const bool local_only = opt.restarts == 0 && opt.valley_steps == 0;
+  std::vector<std::pair<double, Params>> phase1;
   for (auto p : starts) {
     ceres::Solver::Summary summary;
-    solve(thin, p, std::min(opt.max_iterations, 40), false, summary);
+    if (!local_only) solve(thin, p, std::min(opt.max_iterations, 40), summary);
     phase1.push_back({summary.final_cost, p});
   }
   std::sort(phase1.begin(), phase1.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
-  // Phase 2: the best four refined on all samples, each residual divided by its effective standard deviation:
-  // the inputs θ1r, θ6r are as noisy as θ7r, and near some configurations the prediction amplifies their noise
-  // tenfold; unweighted, those samples bias the weak direction x_A, y_A, l_BC by millimetres. The weighted cost
-  // leaves out the log-variance term of the likelihood, so candidates are compared by the Gaussian negative
-  // log-likelihood with σ profiled out: n/2·log(Σ r_k²/v_k / n) + ½ Σ log v_k.
-  constexpr std::size_t kRefined = 4;
-  double best_nll = std::numeric_limits<double>::infinity();
-  std::array<double, ps::kNumSubjectParams> best = p0;
-  ceres::Solver::Summary best_summary;
-  for (std::size_t k = 0; k < std::min<std::size_t>(kRefined, phase1.size()); ++k) {
-    std::array<double, ps::kNumSubjectParams> p = phase1[k].second;
-    ceres::Solver::Summary summary;
-    solve(samples, p, opt.max_iterations, true, summary);
-    const SubjectParams sp = ps::fromArray(p);
-    double wss = 0.0;
-    double log_det = 0.0;
-    for (const CalibrationSample& s : samples) {
-      double r[2];
-      if (!RedundantResidual{s, opt.fixed, true}(p.data(), r)) {
-        wss = std::numeric_limits<double>::infinity();
-        break;
+  // Valley scan. Eq 12 sees the MCP chain only through x3(θ1r) over a ≈ 36° arc, so (x_A, y_A, l_BC) has one
+  // weakly observed direction, dominated by l_BC (docs/sea-model.md §Identifiability), and along it the cost is
+  // rugged: samples near a chain's dead point open and close as P moves, and the solver stalls on either side of
+  // the minimum. Starting from the best phase-1 point, l_BC is stepped across its bounds (held fixed, the other
+  // six solved on the thinned data, each step starting from the previous one: continuation along the valley).
+  std::vector<std::pair<double, Params>> candidates = phase1;
+  if (opt.valley_steps > 0 && !phase1.empty()) {
+    constexpr int kScan = 2;  // l_BC
+    const Params seed = phase1.front().second;
+    const double step = (hi[kScan] - lo[kScan]) / opt.valley_steps;
+    for (int dir : {+1, -1}) {
+      Params p = seed;
+      for (int k = 1; k <= opt.valley_steps; ++k) {
+        const double v = seed[kScan] + dir * k * step;
+        if (v < lo[kScan] || v > hi[kScan]) break;
+        p[kScan] = v;
+        ceres::Solver::Summary summary;
+        solve(thin, p, std::min(opt.max_iterations, 40), summary, kScan);
+        candidates.push_back({summary.final_cost, p});
       }
-      wss += r[0] * r[0] + r[1] * r[1];
-      log_det += std::log(effectiveVarianceFactor(sp, opt.fixed, s));
     }
-    const double n = static_cast<double>(samples.size());
-    const double nll = 0.5 * n * std::log(std::max(wss / n, 1e-300)) + 0.5 * log_det;
-    if (nll < best_nll) {
-      best_nll = nll;
+  }
+
+  // Phase 2: the `polished` cheapest candidates refitted with errors in variables (OdrResidual) on the thinned
+  // samples and ranked by that cost; the best `refined` distinct ones (≥ 0.3 mm apart) refitted on all samples;
+  // the lowest cost wins. (Replaces effective-variance weights 1/√(1 + g1² + g6²): minimised directly they were
+  // gamed — a wrong P that puts recorded samples near a dead point, where g → ∞, down-weights them and won
+  // with a higher unweighted residual; docs/sea-model.md.)
+  std::sort(candidates.begin(), candidates.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  if (candidates.size() > static_cast<std::size_t>(opt.polished)) candidates.resize(static_cast<std::size_t>(opt.polished));
+  std::vector<std::pair<double, Params>> ranked;
+  for (const auto& candidate : candidates) {
+    Params c = candidate.second;
+    ceres::Solver::Summary summary;
+    const double cost = solveOdr(thin, c, std::min(opt.max_iterations, 30), summary);
+    ranked.push_back({cost, c});
+  }
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Params> chosen;
+  for (const auto& c : ranked) {
+    if (chosen.size() >= static_cast<std::size_t>(opt.refined)) break;
+    bool distinct = true;
+    for (const Params& q : chosen) {
+      double d = 0.0;
+      for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) d = std::fmax(d, std::fabs(c.second[i] - q[i]));
+      distinct = distinct && d > 3e-4;
+    }
+    if (distinct) chosen.push_back(c.second);
+  }
+  double best_cost = std::numeric_limits<double>::infinity();
+  Params best = p0;
+  ceres::Solver::Summary best_summary;
+  for (Params p : chosen) {
+    ceres::Solver::Summary summary;
+    const double cost = solveOdr(samples, p, opt.max_iterations, summary);
+    if (cost < best_cost) {
+      best_cost = cost;
       best = p;
       best_summary = summary;
     }
   }
 
   result.estimate = ps::fromArray(best);
+  result.errors_in_variables_rms_rad = std::sqrt(2.0 * best_cost / (3.0 * static_cast<double>(samples.size())));
   const Stats before = residualStats(samples, opt.initial, opt.fixed);
   const Stats after = residualStats(samples, result.estimate, opt.fixed);
   result.initial_rms_rad = before.rms;
@@ -379,6 +444,7 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   c["rms_residual_rad"] = r.final_rms_rad;
   c["max_abs_residual_rad"] = r.max_abs_residual_rad;
   c["initial_rms_residual_rad"] = r.initial_rms_rad;
+  c["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
   c["converged"] = r.converged;
   root["calibration"] = c;
   YAML::Emitter out;
@@ -443,6 +509,7 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   out["rms_residual_rad"] = r.final_rms_rad;
   out["max_abs_residual_rad"] = r.max_abs_residual_rad;
   out["initial_rms_residual_rad"] = r.initial_rms_rad;
+  out["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
   out["least_squares_samples"] = r.least_squares_samples;
   out["converged"] = r.converged;
   out["iterations"] = r.iterations;

@@ -37,6 +37,13 @@ struct CalibrationOptions {
   /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
   /// local minima (docs/sea-model.md §Parameter estimation).
   int restarts = 24;
+  /// Valley scan: l_BC stepped across its bounds in this many steps from the best multistart point (0 = none).
+  int valley_steps = 20;
+  /// Multistart and valley-scan points (lowest eq 12 cost first) polished by the errors-in-variables fit on the
+  /// thinned samples.
+  int polished = 12;
+  /// Distinct polished candidates refined by the errors-in-variables fit on all samples.
+  int refined = 2;
 };
 
 struct CalibrationResult {
@@ -44,6 +51,10 @@ struct CalibrationResult {
   double initial_rms_rad = 0.0;   ///< RMS of y_k − y_m,k at P0
   double final_rms_rad = 0.0;     ///< … at P̂
   double max_abs_residual_rad = 0.0;
+  /// The minimised objective: RMS over the 3·N sensor errors (θ1r, θ6r, θ7r against the fitted true angles, plus
+  /// the chain-closure term) of the errors-in-variables fit at P̂. Its noise floor is ≈ σ/√3 for sensor noise σ
+  /// (the fitted inputs absorb two of every three errors' degrees of freedom).
+  double errors_in_variables_rms_rad = 0.0;
   int iterations = 0;
   bool converged = false;
   std::size_t samples_used = 0;
@@ -52,8 +63,13 @@ struct CalibrationResult {
   std::string solver_report;      ///< Ceres' one-line summary
 };
 
-/// Eq 12: P̂ = argmin Σ (y_k − y_m,k(P))² subject to LB ≤ P ≤ UB. Returns an empty string or the problem
-/// (fewer than 20 samples, non-finite values, inconsistent bounds).
+/// Eq 12: P̂ = argmin Σ (y_k − y_m,k(P))² subject to LB ≤ P ≤ UB, with the model's inputs θ1r, θ6r treated as
+/// measurements too (errors in variables: each sample's true inputs are fitted with P, docs/sea-model.md
+/// §Parameter estimation). Search: multistart (P0 + `restarts` Halton points) and a valley scan over l_BC on
+/// ≈ 200 thinned samples with eq 12 as printed; the `polished` cheapest points refitted with errors in variables
+/// on the thinned samples; the `refined` best of those on all samples. With restarts = valley_steps = 0 only the
+/// last step runs, from P0. Returns an empty string or the problem (fewer than 20 samples, non-finite values,
+/// inconsistent bounds).
 std::string calibrate(const std::vector<CalibrationSample>& samples, const CalibrationOptions& options,
                       CalibrationResult& result);
 
