@@ -7,10 +7,7 @@
 using phalanx::host::RunOptions;
 
 namespace {
-std::string repoPath(const std::string& rel) {
-  const std::string here = __FILE__;  // <repo>/tests/unit/modbus_config_test.cpp
-  return here.substr(0, here.rfind("/tests/unit/")) + "/" + rel;
-}
+std::string repoPath(const std::string& rel) { return std::string(PHALANX_SOURCE_DIR) + "/" + rel; }
 }  // namespace
 
 TEST(ModbusConfig, OffAndLoopbackReadOnlyByDefault) {

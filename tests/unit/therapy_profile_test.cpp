@@ -95,9 +95,7 @@ TEST(Profile, EveryInvalidProfileIsRefusedNamingWhatWasWrong) {
 
 TEST(Profile, TheShippedDemoProfileIsValid) {
   Profile p;
-  const std::string here = __FILE__;
-  const std::string root = here.substr(0, here.rfind("/tests/"));
-  EXPECT_EQ(loadProfileFile(root + "/config/profiles/demo-001.yaml", p), "");
+  EXPECT_EQ(loadProfileFile(std::string(PHALANX_SOURCE_DIR) + "/config/profiles/demo-001.yaml", p), "");
 }
 
 TEST(PatientLimits, ClampEffortAndNeverPushAJointFurtherOutOfItsRange) {
