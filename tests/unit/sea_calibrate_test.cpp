@@ -40,6 +40,13 @@ std::vector<CalibrationSample> recording(const ps::Model<double>& truth, double 
   return out;
 }
 
+/// The recommended sweep's recording length in rows at 1 kHz: SEA_SWEEP_SECONDS (default 30 s).
+int sweepRows(int default_rows) {
+  const char* env = std::getenv("SEA_SWEEP_SECONDS");
+  const double s = env != nullptr ? std::atof(env) : 0.0;
+  return s > 0.0 ? static_cast<int>(s * 1000.0) : default_rows;
+}
+
 /// A random subject uniform in the inner 80 % of the Table 4 box.
 ps::Model<double> randomSubject(std::mt19937& rng) {
   const auto lo = ps::toArray(ps::table4Lower<double>());
@@ -212,7 +219,7 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
     if (!sweepWants(trial)) continue;
     ++run;
     const auto p = ps::toArray(truth.subject);
-    const auto samples = recording(truth, 0.05 * kDeg, 100u + static_cast<unsigned>(trial), 30000, 0.001);
+    const auto samples = recording(truth, 0.05 * kDeg, 100u + static_cast<unsigned>(trial), sweepRows(30000), 0.001);
     CalibrationOptions opt;
     opt.smooth_samples = 51;
     opt.stride = 10;
