@@ -258,6 +258,17 @@ def quiet(mode, device=DEVICE, seconds=5):
                                          "1/5 Mbit/s" if fd else "1 Mbit/s", extra), flush=True)
 
 
+def inject_session(name, bus, mode, frames):
+    """A 3 s session with `frames` sent by cansend at 1.5 s; returns (summary, host rx_rejected, device rx counts)."""
+    acts = [(1.5, lambda f=f: cansend(bus, f)) for f in frames]
+    s, fw, _, _ = session(name, bus, mode, 3, actions=acts)
+    host = s["can"]["rx_rejected"]
+    dev = {k: fw_counter(fw, "rx_" + k) for k in ("bad_id", "bad_length", "crc", "sequence")}
+    print("%s: host rejected %s, device rejected %s, rejected_by_device (telemetry) %d, telemetry lost %d" % (
+        name, host, dev, s["commands"]["rejected_by_device"], s["telemetry"]["lost"]), flush=True)
+    return s, host, dev
+
+
 def inject():
     bus = "vcan0"
     zeros = "00" * 64
@@ -270,12 +281,7 @@ def inject():
         "042##1" + zeros,           # addressed to node 2: filtered by the kernel, never seen
         "12345678#00",              # extended identifier, low bits = node 56: filtered
     ]
-    acts = [(1.5, lambda f=f: cansend(bus, f)) for f in frames]
-    s, fw, _, _ = session("inject-fd", bus, "fd", 3, actions=acts)
-    host = s["can"]["rx_rejected"]
-    dev = {k: fw_counter(fw, "rx_" + k) for k in ("bad_id", "bad_length", "crc", "sequence")}
-    print("inject: host rejected %s, device rejected %s, rejected_by_device (telemetry) %d, telemetry lost %d" % (
-        host, dev, s["commands"]["rejected_by_device"], s["telemetry"]["lost"]), flush=True)
+    s, host, dev = inject_session("inject-fd", bus, "fd", frames)
     check(dev == {"bad_id": 2, "bad_length": 1, "crc": 1, "sequence": 0}, "device counts %s" % dev)
     check(host == {"bad_id": 3, "bad_length": 1, "crc": 0, "sequence": 0}, "host counts %s" % host)
     check(s["commands"]["rejected_by_device"] == 4, "telemetry rx_errors reported %d" % s["commands"]["rejected_by_device"])
@@ -342,12 +348,7 @@ def inject_compact():
         "101##1" + "00" * 9 + "19" + "00" * 22,  # Telemetry whose window starts at sample 25 of 25: host bad_length
         "101##1" + "00" * 64,              # Telemetry 64 bytes instead of 32: host bad_length
     ]
-    acts = [(1.5, lambda f=f: cansend(bus, f)) for f in frames]
-    s, fw, _, _ = session("inject-fd-compact", bus, "fd-compact", 3, actions=acts)
-    host = s["can"]["rx_rejected"]
-    dev = {k: fw_counter(fw, "rx_" + k) for k in ("bad_id", "bad_length", "crc", "sequence")}
-    print("inject-compact: host rejected %s, device rejected %s, rejected_by_device (telemetry) %d, telemetry lost %d" % (
-        host, dev, s["commands"]["rejected_by_device"], s["telemetry"]["lost"]), flush=True)
+    s, host, dev = inject_session("inject-fd-compact", bus, "fd-compact", frames)
     # Device: the unknown function and the two telemetry frames are bad_id there (wrong direction).
     check(dev == {"bad_id": 3, "bad_length": 1, "crc": 1, "sequence": 0}, "device counts %s" % dev)
     # Host: the unknown function and the two commands (wrong direction) are bad_id, the two telemetry bad_length.
