@@ -16,11 +16,12 @@ LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, cons
 
 std::string LockstepRig::handshake() {
   session_.sendHello(1, device_.app().layout().type);
-  for (int i = 0; i < 10 && session_.handshake() == HandshakeResult::kPending; ++i) step();
+  const unsigned every = opt_.host_every_ticks > 0 ? opt_.host_every_ticks : 1u;
+  for (unsigned i = 0; i < 10 * every && session_.handshake() == HandshakeResult::kPending; ++i) step();
   if (session_.handshake() != HandshakeResult::kOk) return session_.handshakeError();
   for (const auto& [id, value] : controller_.startupParams()) {
     session_.sendParamSet(id, value);
-    step();
+    for (unsigned i = 0; i < every; ++i) step();
     if (!session_.lastParamValid() || session_.lastParam().status != protocol::ParamStatus::kOk) {
       return "device refused start-up parameter " + std::to_string(id);
     }
@@ -37,10 +38,12 @@ void LockstepRig::step() {
   if (io_hook_) io_hook_(board_.io());
   board_.clock().advanceUs(period_us);
   core_.tick();
+  const unsigned every = opt_.host_every_ticks > 0 ? opt_.host_every_ticks : 1u;
+  if (++ticks_ % every != 0) return;
   const uint64_t now_ns = board_.clock().nowUs() * 1000u;
   session_.poll(now_ns);
   if (!started_ || !host_connected_ || !session_.hasTelemetry()) return;
-  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us) * 1e-6, cmd_);
+  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us * every) * 1e-6, cmd_);
   cmd_.channel_count = device_.app().layout().setpoint_count;
   session_.sendCommand(cmd_, now_ns);
 }

@@ -25,8 +25,8 @@ sim::GlovePlantConfig plantConfig(sim::HandScenario scenario) {
 
 /// The simulated glove, the host's glove controller (rendering or transparent) and the lockstep rig joining them.
 struct GloveRig {
-  GloveRig(const sim::GlovePlantConfig& plant, bool transparent)
-      : device(plant), controller(controllerConfig(transparent)), rig(device, controller) {}
+  GloveRig(const sim::GlovePlantConfig& plant, bool transparent, const host::LockstepOptions& options = {})
+      : device(plant), controller(controllerConfig(transparent)), rig(device, controller, options) {}
   static GloveControllerConfig controllerConfig(bool transparent) {
     GloveControllerConfig c;
     c.transparent = transparent;
@@ -84,6 +84,29 @@ TEST(GloveGrasp, RenderedForceIsWithinTenPercentOfKxAtSteadyContact) {
     if (!finger.contains("truth")) continue;
     EXPECT_LE(finger["truth"]["motor_current_rms_A"].get<double>(), 2.0) << name;
   }
+}
+
+// A 100 Hz host (the emulated boards' sessions, a loaded PC) with the 1 kHz firmware, the hand still and resting in
+// the rigid ball: rendered at 2000 N/m the setpoint k·x jumped between 0 and 7–10 N from one host period to the
+// next and the loop latched current-limit (6 of 6 daemon sessions). The controller limits k·T
+// (GloveControllerConfig::max_stiffness_period_N_s_per_m): 200 N/m at 100 Hz.
+TEST(GloveGrasp, AHundredHertzHostRendersTheRigidBallWithoutOscillating) {
+  host::LockstepOptions slow_host;
+  slow_host.host_every_ticks = 10;
+  slow_host.command_timeout_ms = 200;
+  GloveRig g(plantConfig(sim::HandScenario::kStill), false, slow_host);
+  ASSERT_EQ(g.rig.handshake(), "");
+  constexpr int kTicks = 10000;  // 10 s
+  double i2[5] = {};
+  for (int i = 0; i < kTicks; ++i) {
+    g.rig.step();
+    for (int f = 0; f < 5; ++f) i2[f] += g.device.glovePlant().motorCurrent_A(f) * g.device.glovePlant().motorCurrent_A(f);
+  }
+  EXPECT_EQ(g.rig.core().faultBits(), 0u);
+  double contact_s = 0.0;
+  for (int f = 0; f < 5; ++f) contact_s = std::fmax(contact_s, g.controller.stats(f).contact_s);
+  EXPECT_GT(contact_s, 8.0) << "a finger must rest in the ball for this to test anything";
+  for (int f = 0; f < 5; ++f) EXPECT_LT(std::sqrt(i2[f] / kTicks), 1.0) << "motor current RMS, finger " << f;
 }
 
 TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {

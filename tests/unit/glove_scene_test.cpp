@@ -197,6 +197,36 @@ TEST(GloveScene, ForceIsClampedToTheTenNewtonActuatorLimit) {
   EXPECT_NEAR(out[kIndex].penetration_m, 0.02, 1e-12);
 }
 
+TEST(GloveScene, AStiffnessLimitCapsEveryObjectsKButNotItsDamping) {
+  GloveScene scene;
+  RenderOutput base{};
+  const RenderInput in = inputAt(scene.hand(), kFlexedTheta);  // still: ẋ = 0
+  scene.render(in, base);
+  const V n = unit({0.2, 1.0, 0.1});
+  const V p = base[kIndex].H_p_tip_m;
+  ASSERT_TRUE(scene.addObject(plane(add(p, scale(0.002, n)), n)));                  // 2000 N/m, 2 mm deep
+  ASSERT_TRUE(scene.addObject(softBall(sub(p, scale(0.035 - 0.001, n)), 0.035)));  // 200 N/m, 1 mm deep
+  EXPECT_EQ(scene.renderedStiffness(0), kWallMaterial.stiffness_N_per_m);
+  RenderOutput out{};
+  scene.render(in, out);
+  EXPECT_NEAR(out[kIndex].normal_force_N, 2000.0 * 0.002 + 200.0 * 0.001, 1e-6);
+
+  ASSERT_TRUE(scene.setStiffnessLimit(500.0));
+  EXPECT_EQ(scene.renderedStiffness(0), 500.0);
+  EXPECT_EQ(scene.renderedStiffness(1), kSoftMaterial.stiffness_N_per_m);  // already below the limit
+  scene.render(in, out);
+  EXPECT_NEAR(out[kIndex].normal_force_N, 500.0 * 0.002 + 200.0 * 0.001, 1e-6);
+  EXPECT_EQ(scene.object(0).material.stiffness_N_per_m, kWallMaterial.stiffness_N_per_m);  // the object is unchanged
+
+  // Bad limits are refused and leave the limit as it was; 0 removes it.
+  EXPECT_FALSE(scene.setStiffnessLimit(-1.0));
+  EXPECT_FALSE(scene.setStiffnessLimit(std::numeric_limits<double>::quiet_NaN()));
+  EXPECT_FALSE(scene.setStiffnessLimit(std::numeric_limits<double>::infinity()));
+  EXPECT_EQ(scene.renderedStiffness(0), 500.0);
+  ASSERT_TRUE(scene.setStiffnessLimit(0.0));
+  EXPECT_EQ(scene.renderedStiffness(0), kWallMaterial.stiffness_N_per_m);
+}
+
 TEST(GloveScene, AFingertipWithdrawingFasterThanTheSpringNeverGetsPulled) {
   GloveScene empty;
   const V alpha_dot{2.0, -1.0, 1.5};

@@ -259,9 +259,11 @@ def quiet(mode, device=DEVICE, seconds=5):
 
 
 def inject_session(name, bus, mode, frames):
-    """A 3 s session with `frames` sent by cansend at 1.5 s; returns (summary, host rx_rejected, device rx counts)."""
+    """A 3 s session with `frames` sent by cansend at 1.5 s; returns (summary, host rx_rejected, device rx counts).
+    Always glove5, whatever PHALANX_VM_DEVICE says: the frames' lengths are glove5's (a right-length compact
+    command for glove5 is a wrong-length one for the other devices)."""
     acts = [(1.5, lambda f=f: cansend(bus, f)) for f in frames]
-    s, fw, _, _ = session(name, bus, mode, 3, actions=acts)
+    s, fw, _, _ = session(name, bus, mode, 3, actions=acts, device="glove5")
     host = s["can"]["rx_rejected"]
     dev = {k: fw_counter(fw, "rx_" + k) for k in ("bad_id", "bad_length", "crc", "sequence")}
     print("%s: host rejected %s, device rejected %s, rejected_by_device (telemetry) %d, telemetry lost %d" % (

@@ -50,6 +50,9 @@ void GloveController::update(const TelemetryFrame& tel, double, double dt_s, pro
   if (!primed_ || dt_dev > 0.0) last_device_time_us_ = tel.device_time_us;
   primed_ = true;
 
+  if (config_.max_stiffness_period_N_s_per_m > 0.0 && dt_s > 0.0) {
+    scene_.setStiffnessLimit(config_.max_stiffness_period_N_s_per_m / dt_s);
+  }
   scene_.render(in_, out_);
   cmd.mode = config_.transparent ? protocol::Mode::kTransparent : protocol::Mode::kSetpoint;
   for (size_t f = 0; f < kNumFingers; ++f) {

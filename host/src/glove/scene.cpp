@@ -169,7 +169,7 @@ void GloveScene::renderFinger(std::size_t i, const FingerInput& in, FingerOutput
     if (!(sd < 0.0)) continue;
     const double x = -sd;
     const double x_dot = -dot(n, out.H_v_tip_m_per_s);
-    const double f = o.material.stiffness_N_per_m * x + o.material.damping_N_s_per_m * x_dot;
+    const double f = renderedStiffness(k) * x + o.material.damping_N_s_per_m * x_dot;
     if (x > deepest) {
       deepest = x;
       out.contact_object = static_cast<int>(k);
@@ -214,6 +214,17 @@ void GloveScene::renderFinger(std::size_t i, const FingerInput& in, FingerOutput
     const pg::Sliding sliding = shortening ? pg::Sliding::kTowardSpool : pg::Sliding::kTowardTip;
     pg::spoolTensionFor(capstan_[i], out.tendon, sliding, d.alpha_rad, out.tip_tension_N, out.spool_tension_N);
   }
+}
+
+bool GloveScene::setStiffnessLimit(double k_max_N_per_m) {
+  if (!std::isfinite(k_max_N_per_m) || k_max_N_per_m < 0.0) return false;
+  stiffness_limit_N_per_m_ = k_max_N_per_m;
+  return true;
+}
+
+double GloveScene::renderedStiffness(std::size_t i) const {
+  const double k = objects_[i].material.stiffness_N_per_m;
+  return stiffness_limit_N_per_m_ > 0.0 ? std::fmin(k, stiffness_limit_N_per_m_) : k;
 }
 
 void loadDemoScene(GloveScene& scene, DemoScene which) {

@@ -16,7 +16,10 @@
 namespace phalanx::host {
 
 struct LockstepOptions {
-  uint16_t tick_hz = 1000;        ///< firmware tick and host cycle rate
+  uint16_t tick_hz = 1000;        ///< firmware tick rate
+  /// The host polls, runs its controller and sends a command every this many ticks (≥ 1): a host slower than
+  /// its device, as a 100 Hz host with a 1 kHz board.
+  unsigned host_every_ticks = 1;
   unsigned substeps = 10;         ///< plant integration steps per tick
   uint16_t command_timeout_ms = 20;
 };
@@ -55,6 +58,7 @@ class LockstepRig {
   HostSession session_;
   protocol::Command cmd_{};
   bool host_connected_ = true;
+  uint64_t ticks_ = 0;
   bool started_ = false;  ///< commands flow only once handshake() finished the start-up sequence
   std::function<void(sim::SimIo&)> io_hook_;
 };

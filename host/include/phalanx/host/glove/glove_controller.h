@@ -24,6 +24,13 @@ struct GloveControllerConfig {
   /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 75 N/m keeps the grasp error ≤ 3.4 % at
   /// 0.5–1.5 A RMS with the firmware's kp = 1.5 (an effective 0.056 m/s per N on the rigid ball; glove-firmware.md).
   double contact_gain_ref_N_per_m = 75.0;
+  /// Largest rendered stiffness × host period (N·s/m): every object is rendered with k ≤ this / T. The setpoint
+  /// k·x is sampled once per host period T and the 1 kHz firmware realises it within the period; too stiff for the
+  /// period, the rendering jumps in and out of contact (100 Hz host, hand still and resting in the rigid ball:
+  /// current-limit in 6 of 6 sessions at 2000 N/m, 1 of 4 at 500 N/m, 0 of 6 at 200 N/m; glove-firmware.md).
+  /// 2 N·s/m is the product the rigid ball (2000 N/m) is validated at, 1 kHz, where it changes nothing. The
+  /// contact gain stays that of the object's own k. 0 disables the limit.
+  double max_stiffness_period_N_s_per_m = 2.0;
 };
 
 /// Per-finger session figures, for the summary.

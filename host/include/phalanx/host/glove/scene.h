@@ -161,6 +161,13 @@ class GloveScene {
   std::size_t objectCount() const { return object_count_; }
   const VirtualObject& object(std::size_t i) const { return objects_[i]; }
 
+  /// Stiffness limit applied to every object's k in render() (N/m; 0 = none): the host renders at its own period
+  /// T, and the rendering loop is stable only up to a k·T product (GloveControllerConfig). A negative or
+  /// non-finite value is refused (false) and leaves the limit as it was.
+  bool setStiffnessLimit(double k_max_N_per_m);
+  /// Object i's stiffness as rendered: min(k, limit).
+  double renderedStiffness(std::size_t i) const;
+
   /// One host cycle for all five fingers: θ from α, Jacobians, fingertip pose/velocity in {H}, contact
   /// forces (eq 1), pad-normal setpoints, τ_α = (J_α^u)ᵀ F (eq 18), capstan feed-forward (eq 15–16).
   /// No allocation.
@@ -182,6 +189,7 @@ class GloveScene {
   std::array<phalanx::glove::Data<double>, kNumFingers> data_{};
   std::array<VirtualObject, kMaxObjects> objects_{};
   std::size_t object_count_ = 0;
+  double stiffness_limit_N_per_m_ = 0.0;
 };
 
 /// The daemon's named scenes (`glove.scene`: none | rigid-ball | soft-ball | wall).
