@@ -231,6 +231,8 @@ def session(args):
             # command timeout after the last of them, so allow for the queue to drain.
             m = board.wait_for(r"^SAFE .*", 15, start=mark)
             c.check(m is not None, "firmware reported its outputs safe after the daemon was killed")
+            if m is None:  # what the board said while phalanxd drove it (a fault latched before the kill?)
+                print("\n".join("  board: " + l for l in board.text().splitlines()[start_mark:][-12:]))
             if m:
                 kv = parse_kv(m.group(0))
                 t_us, dl_us, per_us = int(kv["t_us"]), int(kv["deadline_us"]), int(kv["period_us"])
