@@ -586,16 +586,20 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
 
   // A model from a geometry file must match the geometry the firmware was built with (fingerprint parameter):
   // the host never silently runs one geometry against firmware made for another (docs/design-tools.md).
-  for (const Controller::RequiredParam& rp : controller->requiredParams()) {
-    session.sendParamGet(rp.id);
+  // ParamGet and wait (bounded like the handshake) for its answer; true when it came.
+  const auto getParam = [&](uint16_t id) {
+    session.sendParamGet(id);
     flushLink();
     const uint64_t t0 = linux_hal::monotonicNs();
-    while (!(session.lastParamValid() && session.lastParam().param_id == rp.id) &&
+    while (!(session.lastParamValid() && session.lastParam().param_id == id) &&
            static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
       usleep(500);
       session.poll(linux_hal::monotonicNs());
     }
-    if (!(session.lastParamValid() && session.lastParam().param_id == rp.id)) {
+    return session.lastParamValid() && session.lastParam().param_id == id;
+  };
+  for (const Controller::RequiredParam& rp : controller->requiredParams()) {
+    if (!getParam(rp.id)) {
       return fail(rp.what + ": the device did not answer the geometry fingerprint query: refused", 2);
     }
     if (session.lastParam().status != protocol::ParamStatus::kOk) {
@@ -634,6 +638,14 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   }
   usleep(static_cast<useconds_t>(controller->startupSettleS() * 1e6));
   session.poll(linux_hal::monotonicNs());
+  summary["startup_warnings"] = nlohmann::json::array();
+  for (const uint16_t id : controller->startupReadback()) {
+    if (!getParam(id) || session.lastParam().status != protocol::ParamStatus::kOk) continue;
+    const std::string warning = controller->startupWarning(id, session.lastParam().value);
+    if (warning.empty()) continue;
+    std::fprintf(stderr, "phalanxd: WARNING: %s\n", warning.c_str());
+    summary["startup_warnings"].push_back(warning);
+  }
 
   // Optional Modbus TCP server (docs/modbus.md): its own thread; the loop only publishes and polls, wait-free.
   std::unique_ptr<modbus::Server> mb_server;

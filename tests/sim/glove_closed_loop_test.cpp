@@ -109,6 +109,36 @@ TEST(GloveGrasp, AHundredHertzHostRendersTheRigidBallWithoutOscillating) {
   for (int f = 0; f < 5; ++f) EXPECT_LT(std::sqrt(i2[f] / kTicks), 1.0) << "motor current RMS, finger " << f;
 }
 
+// A tare with a hand pressing the pad (the hand squeezing when a session starts or a link comes back) would zero
+// that force, and the glove would later push it into the relaxed finger. The firmware keeps such a finger's zero.
+TEST(GloveTare, AFingerPressingThePadKeepsItsZeroAndTheRelaxedOnesAreTared) {
+  auto cfg = plantConfig(sim::HandScenario::kPush);
+  cfg.push_force_N = 3.0;
+  cfg.push_ramp_s = 0.3;
+  GloveRig g(cfg, true);
+  auto& rig = g.rig;
+  auto& app = g.device.gloveApp();
+  ASSERT_EQ(rig.handshake(), "");  // tare at t ≈ 0, before the push ramps up
+  float tare = 1.0f;
+  ASSERT_EQ(app.getParam(apps::glove5_param::kTare, tare), protocol::ParamStatus::kOk);
+  EXPECT_EQ(tare, 0.0f) << "the start-up tare of a relaxed hand is accepted";
+  rig.setHostConnected(false);  // the link is lost: the device goes safe, the worm holds, the finger presses
+  rig.run(1.5);
+  ASSERT_FALSE(rig.board().io().pwm_enabled);
+  int pressing = 0;
+  for (int f = 0; f < 5; ++f) pressing |= (g.device.glovePlant().padForce_N(f) > 2.0 ? 1 : 0) << f;
+  ASSERT_NE(pressing, 0) << "some finger must press the pad for this to test anything";
+  rig.session().sendParamSet(apps::glove5_param::kTare, 1.0f);  // what a reconnecting host sends
+  rig.setHostConnected(true);
+  for (int i = 0; i < 100; ++i) rig.step();
+  ASSERT_EQ(app.getParam(apps::glove5_param::kTare, tare), protocol::ParamStatus::kOk);
+  EXPECT_EQ(-tare, static_cast<float>(pressing)) << "exactly the pressing fingers are refused";
+  for (int f = 0; f < 5; ++f) {
+    // Every finger's force still reads the true pad force (the pressing ones with their old zero).
+    EXPECT_NEAR(app.finger(f).force_N, g.device.glovePlant().padForce_N(f), 0.5) << "finger " << f;
+  }
+}
+
 TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {
   auto cfg = plantConfig(sim::HandScenario::kPush);
   cfg.push_force_N = 33.0;

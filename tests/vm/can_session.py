@@ -84,7 +84,7 @@ def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_
     fw_err = open(os.path.join(OUT, "%s.firmware.log" % name), "w+")
     # SCHED_FIFO inside the guest (phalanxd sets its own): candump and this script must not delay a tick.
     fw = subprocess.Popen(["chrt", "-f", "70", BIN + "/firmware-sim", "--device", device, "--can", bus, "--node", str(NODE),
-                           "--can-mode", mode, "--scenario", "grasp", "--substeps", "2", "--tick-hz", str(RATE)] + list(extra_dev),
+                           "--can-mode", mode, "--scenario", "still", "--substeps", "2", "--tick-hz", str(RATE)] + list(extra_dev),
                           stdout=subprocess.PIPE, stderr=fw_err, text=True)
     line = fw.stdout.readline()
     check(line.startswith("CAN %s node %d %s" % (bus, NODE, mode)), "firmware-sim did not report its CAN link: %r" % line)

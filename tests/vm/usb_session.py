@@ -126,7 +126,7 @@ def wait_for(pred, what, timeout=30.0):
 
 def start_sim(name, args):
     log = open(os.path.join(OUT, "%s.firmware.log" % name), "w+")
-    p = subprocess.Popen(CHRT(70) + [BIN + "/firmware-sim", "--device", DEVICE, "--scenario", "grasp",
+    p = subprocess.Popen(CHRT(70) + [BIN + "/firmware-sim", "--device", DEVICE, "--scenario", "still",
                           "--substeps", "2", "--tick-hz", str(RATE)] + args, stdout=subprocess.PIPE, stderr=log, text=True)
     line = p.stdout.readline()
     return p, log, line

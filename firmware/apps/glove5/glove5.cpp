@@ -87,9 +87,15 @@ uint16_t Glove5App::sense(float dt_s) {
   primed_ = true;
 
   if (tare_ticks_left_ > 0 && --tare_ticks_left_ == 0) {
+    tare_refused_mask_ = 0;
     for (int f = 0; f < kGloveFingers; ++f) {
-      cal_.strain_zero_counts[f] = tare_sum_[f] / static_cast<float>(kTareTicks);
+      const float zero = tare_sum_[f] / static_cast<float>(kTareTicks);
       tare_sum_[f] = 0.0f;
+      if (std::fabs(zero - cal_.strain_zero_counts[f]) > kTareMaxShift_N * cal_.strain_counts_per_N[f]) {
+        tare_refused_mask_ = static_cast<uint8_t>(tare_refused_mask_ | (1u << f));  // loaded pad: keep the zero
+      } else {
+        cal_.strain_zero_counts[f] = zero;
+      }
     }
   }
   return faults;
@@ -167,7 +173,9 @@ protocol::ParamStatus Glove5App::getParam(uint16_t id, float& value) const {
     case glove5_param::kForceKi: value = cfg_.force_pid.ki; return protocol::ParamStatus::kOk;
     case glove5_param::kForceKd: value = cfg_.force_pid.kd; return protocol::ParamStatus::kOk;
     case glove5_param::kFeedForwardScale: value = cfg_.ff_scale; return protocol::ParamStatus::kOk;
-    case glove5_param::kTare: value = static_cast<float>(tare_ticks_left_); return protocol::ParamStatus::kOk;
+    case glove5_param::kTare:
+      value = tare_ticks_left_ > 0 ? static_cast<float>(tare_ticks_left_) : -static_cast<float>(tare_refused_mask_);
+      return protocol::ParamStatus::kOk;
     default: return protocol::ParamStatus::kUnknownParam;
   }
 }

@@ -12,7 +12,6 @@
 namespace phalanx::host::glove {
 namespace {
 
-constexpr const char* kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};
 constexpr size_t kForce0 = 15;
 
 struct Trace {

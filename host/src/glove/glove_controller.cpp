@@ -18,6 +18,20 @@ GloveController::GloveController(const GloveControllerConfig& config) : config_(
   loadDemoScene(scene_, config.scene);
 }
 
+std::string GloveController::startupWarning(uint16_t id, float value) const {
+  if (id != 0x0110 || !(value < 0.0f)) return {};
+  const auto mask = static_cast<unsigned>(std::lround(-value));
+  std::string fingers;
+  for (std::size_t f = 0; f < kNumFingers; ++f) {
+    if ((mask & (1u << f)) == 0) continue;
+    if (!fingers.empty()) fingers += ", ";
+    fingers += kFingerNames[f];
+  }
+  return "strain-gauge tare refused for " + fingers +
+         ": the pad was pressed (more than 1 N from its zero) at start-up; the previous zero is kept. Relax the hand "
+         "and start again to re-zero.";
+}
+
 std::vector<Controller::RequiredParam> GloveController::requiredParams() const {
   std::vector<RequiredParam> r;
   for (std::size_t f = 0; f < kNumFingers; ++f) {
@@ -80,12 +94,11 @@ void GloveController::update(const TelemetryFrame& tel, double, double dt_s, pro
 }
 
 void GloveController::summarize(nlohmann::json& out) const {
-  static const char* kNames[] = {"thumb", "index", "middle", "ring", "little"};
   static const char* kScenes[] = {"none", "rigid-ball", "soft-ball", "wall"};
   out["scene"] = config_.transparent ? "none (transparent)" : kScenes[static_cast<int>(config_.scene)];
   for (size_t f = 0; f < kNumFingers; ++f) {
     const FingerStats& s = stats_[f];
-    out["fingers"][kNames[f]] = {
+    out["fingers"][kFingerNames[f]] = {
         {"peak_force_N", s.peak_force_N},
         {"peak_setpoint_N", s.peak_setpoint_N},
         {"contact_s", s.contact_s},

@@ -37,6 +37,10 @@ class Controller {
     std::string what;
   };
   virtual std::vector<RequiredParam> requiredParams() const { return {}; }
+  /// Parameters read back once start-up has settled, and what their values mean: a warning for the operator, or
+  /// "" when the value is as expected (e.g. the glove's tare refused for a pressed pad).
+  virtual std::vector<uint16_t> startupReadback() const { return {}; }
+  virtual std::string startupWarning(uint16_t /*id*/, float /*value*/) const { return {}; }
 };
 
 /// Zero force/torque on every channel: the device follows the user.

@@ -74,12 +74,21 @@ struct Glove5Config {
 };
 
 /// Device parameters (ParamGet/ParamSet, only settable while outputs are safe).
+/// Largest zero shift a tare accepts (N): 2× the per-part offset's 3σ (0.45 N) plus the gauge's drift (σ 0.05 N)
+/// (docs/glove-plant.md); a hand pressing the pad (≥ 1 N) is refused.
+inline constexpr float kTareMaxShift_N = 1.0f;
+
 namespace glove5_param {
 constexpr uint16_t kForceKp = 0x0100;
 constexpr uint16_t kForceKi = 0x0101;
 constexpr uint16_t kForceKd = 0x0102;
 constexpr uint16_t kFeedForwardScale = 0x0103;
-constexpr uint16_t kTare = 0x0110;  ///< write 1: re-zero every strain gauge over the next 64 ticks (finger relaxed)
+/// Write 1: re-zero every strain gauge over the next 64 ticks (hand relaxed). A finger whose new zero lies more than
+/// kTareMaxShift_N from its current zero keeps the current one: its pad is loaded (a hand squeezing at a session
+/// start or a reconnect), and a zero taken there would make the glove push that force into the relaxed finger
+/// later. Read: ticks left while running; then 0 (all fingers re-zeroed) or −mask of the refused fingers
+/// (bit = FingerId).
+constexpr uint16_t kTare = 0x0110;
 /// Read-only, 0x0200 + finger (FingerId order): fingerprint (geometry_fingerprint.h) of the mechanism geometry in
 /// the calibration (tendon moment arms, joint windows). The host refuses a geometry file that does not match it.
 constexpr uint16_t kGeometryFingerprintBase = 0x0200;
@@ -128,6 +137,7 @@ class Glove5App : public fw::DeviceApp {
   uint16_t overcurrent_ticks_[kGloveFingers] = {};
   uint16_t tare_ticks_left_ = 0;
   float tare_sum_[kGloveFingers] = {};
+  uint8_t tare_refused_mask_ = 0;  ///< fingers whose last tare was refused (loaded pad)
 };
 
 }  // namespace phalanx::apps

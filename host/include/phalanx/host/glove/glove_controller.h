@@ -55,6 +55,9 @@ class GloveController : public Controller {
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{0x0110, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }
   std::vector<RequiredParam> requiredParams() const override;
+  /// The tare's outcome (glove5 parameter 0x0110): refused for fingers whose pads were pressed at start-up.
+  std::vector<uint16_t> startupReadback() const override { return {0x0110}; }
+  std::string startupWarning(uint16_t id, float value) const override;
   const HandModel& hand() const { return scene_.hand(); }
 
   const RenderOutput& lastRender() const { return out_; }

@@ -32,6 +32,8 @@ using Vec3d = std::array<double, 3>;
 using Mat3d = phalanx::glove::Mat3<double>;
 using phalanx::glove::FingerId;
 inline constexpr std::size_t kNumFingers = phalanx::glove::kNumFingers;
+/// Finger names in FingerId order (summaries, messages).
+inline constexpr const char* kFingerNames[kNumFingers] = {"thumb", "index", "middle", "ring", "little"};
 
 /// Maximum active fingertip force of the glove actuators (N), paper §2.2.
 inline constexpr double kMaxActiveForce_N = 10.0;
