@@ -480,6 +480,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   linux_hal::SerialLink link;
   linux_hal::CanLink can;
   linux_hal::UsbLink usb;
+  bool can_classic = false;  // classic CAN carries no gain scales (checked against the controller below)
   if (is_usb) {
     linux_hal::UsbLink::Options o;
     linux_hal::parseUsbDevice(opt.device, o);  // validated above
@@ -490,6 +491,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   } else if (is_can) {
     linux_hal::CanLink::Options o;
     parseCanDevice(opt.device, o);  // validated above
+    can_classic = o.flavor == protocol::can::Flavor::kClassic;
     if (std::string err = can.open(o); !err.empty()) return fail(err, 3);
     path = o.ifname;
     summary["link"] = {{"interface", o.ifname},
@@ -553,6 +555,12 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   if (!controller) controller = makeController(layout, opt, ctl_error);
   if (!controller) return fail(ctl_error, 2);
   summary["controller"] = controller->name();
+  if (can_classic && controller->usesGainScale()) {
+    return fail(std::string("controller '") + controller->name() +
+                    "' sends per-finger gain scales in contact, which classic CAN does not carry (docs/protocol.md): "
+                    "use @fd or @fd-compact, or --mode transparent",
+                2);
+  }
 
   Recorder recorder;
   if (!opt.record_csv.empty()) {

@@ -40,6 +40,9 @@ class Controller {
   /// Parameters read back once start-up has settled, and what their values mean: a warning for the operator, or
   /// "" when the value is as expected (e.g. the glove's tare refused for a pressed pad).
   virtual std::vector<uint16_t> startupReadback() const { return {}; }
+  /// True when commands may carry a gain scale other than 1000 ‰ (the glove's contact gain), which the classic
+  /// CAN mapping cannot carry (docs/protocol.md): the daemon then refuses a classic CAN link at start.
+  virtual bool usesGainScale() const { return false; }
   virtual std::string startupWarning(uint16_t /*id*/, float /*value*/) const { return {}; }
 };
 

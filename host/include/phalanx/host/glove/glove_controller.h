@@ -57,6 +57,7 @@ class GloveController : public Controller {
   std::vector<RequiredParam> requiredParams() const override;
   /// The tare's outcome (glove5 parameter 0x0110): refused for fingers whose pads were pressed at start-up.
   std::vector<uint16_t> startupReadback() const override { return {0x0110}; }
+  bool usesGainScale() const override { return !config_.transparent && config_.contact_gain_ref_N_per_m > 0.0; }
   std::string startupWarning(uint16_t id, float value) const override;
   const HandModel& hand() const { return scene_.hand(); }
 
