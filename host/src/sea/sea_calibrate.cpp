@@ -78,6 +78,25 @@ Stats residualStats(const std::vector<CalibrationSample>& samples, const Subject
   return st;
 }
 
+/// Weight of the centred quadratic Savitzky–Golay filter over 2h+1 rows at offset d ∈ [−h, h]:
+/// (3(3h²+3h−1) − 15 d²) / ((2h−1)(2h+1)(2h+3)).
+double sgWeight(std::size_t h, double d) {
+  const double m = static_cast<double>(h);
+  return (3.0 * (3 * m * m + 3 * m - 1) - 15.0 * d * d) / ((2 * m - 1) * (2 * m + 1) * (2 * m + 3));
+}
+
+/// The quadratic Savitzky–Golay value of row i over rows i−h … i+h (h ≥ 2, all inside `rows`).
+CalibrationSample savitzkyGolay(const std::vector<CalibrationSample>& rows, std::size_t i, std::size_t h) {
+  CalibrationSample acc{0.0, 0.0, 0.0};
+  for (std::size_t j = i - h; j <= i + h; ++j) {
+    const double w = sgWeight(h, static_cast<double>(j) - static_cast<double>(i));
+    acc.theta1r_rad += w * rows[j].theta1r_rad;
+    acc.theta6r_rad += w * rows[j].theta6r_rad;
+    acc.theta7r_rad += w * rows[j].theta7r_rad;
+  }
+  return acc;
+}
+
 bool finite(const CalibrationSample& s) {
   return std::isfinite(s.theta1r_rad) && std::isfinite(s.theta6r_rad) && std::isfinite(s.theta7r_rad);
 }
@@ -92,6 +111,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   if (opt.smooth_samples < 1) return "smooth_samples must be ≥ 1";
   if (opt.restarts < 0 || opt.valley_steps < 0) return "restarts and valley_steps must be ≥ 0";
   if (opt.polished < 1 || opt.refined < 1) return "polished and refined must be ≥ 1";
+  if (!(opt.robust_sigmas >= 0.0)) return "robust_sigmas must be ≥ 0";
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
   }
@@ -104,20 +124,37 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
     for (std::size_t i = 0; i < all.size(); ++i) {
       const std::size_t h = std::min({half, i, all.size() - 1 - i});
       if (h < 2) continue;  // a parabola through ≤ 3 points is the data itself
-      // Weights of the quadratic SG filter for offset j ∈ [−h, h]: (3(3h²+3h−1) − 15 j²) / ((2h−1)(2h+1)(2h+3)).
-      const double m = static_cast<double>(h);
-      const double den = (2 * m - 1) * (2 * m + 1) * (2 * m + 3);
-      CalibrationSample acc{0.0, 0.0, 0.0};
-      for (std::size_t j = i - h; j <= i + h; ++j) {
-        const double d = static_cast<double>(j) - static_cast<double>(i);
-        const double w = (3.0 * (3 * m * m + 3 * m - 1) - 15.0 * d * d) / den;
-        acc.theta1r_rad += w * all[j].theta1r_rad;
-        acc.theta6r_rad += w * all[j].theta6r_rad;
-        acc.theta7r_rad += w * all[j].theta7r_rad;
-      }
-      smooth[i] = acc;
+      smooth[i] = savitzkyGolay(all, i, h);
     }
   }
+  // Sensor noise σ of the fitted samples, from the data alone (no model): the raw rows minus their quadratic
+  // Savitzky–Golay fit over the smoothing window (11 rows when not smoothing) have variance σ_raw²(1 − w0), w0 the
+  // filter's centre weight (= Σ w², the variance ratio of the filter); the smoothed samples have σ_raw·√w0.
+  double noise_rad = 0.0;
+  {
+    const std::size_t half = static_cast<std::size_t>((opt.smooth_samples > 1 ? opt.smooth_samples : 11) / 2);
+    const double w0 = sgWeight(half, 0);
+    double sq = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = half; i + half < all.size(); ++i) {
+      const CalibrationSample fit = savitzkyGolay(all, i, half);
+      for (const double e : {all[i].theta1r_rad - fit.theta1r_rad, all[i].theta6r_rad - fit.theta6r_rad,
+                             all[i].theta7r_rad - fit.theta7r_rad}) {
+        sq += e * e;
+        ++n;
+      }
+    }
+    const double sigma_raw = n > 0 ? std::sqrt(sq / static_cast<double>(n) / (1.0 - w0)) : 0.0;
+    noise_rad = opt.smooth_samples > 1 ? sigma_raw * std::sqrt(w0) : sigma_raw;
+  }
+  // Both objectives use a Huber loss with its corner at robust_sigmas·σ (0 = plain least squares): the Gaussian
+  // model of eq 12 fails near a PIP dead point, where the model curve y_m(θ6r) ends with a vertical tangent and a
+  // few recorded samples sit 5–15 σ off any P near the truth; squared, they outweighed the rest and moved the
+  // optimum 1–1.5 mm along the weak direction (docs/sea-model.md §Robust loss).
+  const double huber_rad = opt.robust_sigmas > 0.0 ? opt.robust_sigmas * noise_rad : 0.0;
+  auto robustLoss = [huber_rad]() -> ceres::LossFunction* {
+    return huber_rad > 0.0 ? new ceres::HuberLoss(huber_rad) : nullptr;
+  };
   std::vector<CalibrationSample> samples;
   samples.reserve(all.size() / static_cast<std::size_t>(opt.stride) + 1);
   for (std::size_t i = 0; i < smooth.size(); i += static_cast<std::size_t>(opt.stride)) samples.push_back(smooth[i]);
@@ -165,7 +202,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(
               new RedundantResidual{s, opt.fixed}),
-          nullptr, p.data());
+          robustLoss(), p.data());
     }
     if (frozen >= 0) {
       problem.SetManifold(p.data(), new ceres::SubsetManifold(ps::kNumSubjectParams, {frozen}));
@@ -196,7 +233,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<OdrResidual, ceres::CENTRAL, 4, ps::kNumSubjectParams, 2>(
               new OdrResidual{data[k], opt.fixed}),
-          nullptr, p.data(), z[k].data());
+          robustLoss(), p.data(), z[k].data());
     }
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
       problem.SetParameterLowerBound(p.data(), static_cast<int>(i), lo[i]);
@@ -288,6 +325,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
 
   result.estimate = ps::fromArray(best);
   result.errors_in_variables_rms_rad = std::sqrt(2.0 * best_cost / (3.0 * static_cast<double>(samples.size())));
+  result.noise_rad = noise_rad;
   const Stats before = residualStats(samples, opt.initial, opt.fixed);
   const Stats after = residualStats(samples, result.estimate, opt.fixed);
   result.initial_rms_rad = before.rms;
@@ -445,6 +483,7 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   c["max_abs_residual_rad"] = r.max_abs_residual_rad;
   c["initial_rms_residual_rad"] = r.initial_rms_rad;
   c["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
+  c["noise_rad"] = r.noise_rad;
   c["converged"] = r.converged;
   root["calibration"] = c;
   YAML::Emitter out;
@@ -510,6 +549,7 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   out["max_abs_residual_rad"] = r.max_abs_residual_rad;
   out["initial_rms_residual_rad"] = r.initial_rms_rad;
   out["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
+  out["noise_rad"] = r.noise_rad;
   out["least_squares_samples"] = r.least_squares_samples;
   out["converged"] = r.converged;
   out["iterations"] = r.iterations;
@@ -528,6 +568,7 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   std::printf("  redundant-sensor residual: RMS %.4f deg (initial %.3f deg), max %.4f deg; %s\n",
               r.final_rms_rad * 57.2957795, r.initial_rms_rad * 57.2957795, r.max_abs_residual_rad * 57.2957795,
               r.converged ? "converged" : "NOT converged");
+  std::printf("  sensor noise estimated from the recording: %.4f deg per fitted sample\n", r.noise_rad * 57.2957795);
   if (r.least_squares_samples > 0) {
     std::printf("  warning: %zu samples needed the least-squares fallback at the estimate\n", r.least_squares_samples);
   }
