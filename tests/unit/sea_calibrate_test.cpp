@@ -161,6 +161,8 @@ TEST(SeaCalibrate, RecoversAPerturbedSubjectFromNoisyDataToTheNoiseFloor) {
   ASSERT_EQ(calibrate(samples, local, from_truth), "");
   EXPECT_LE(r.errors_in_variables_rms_rad, from_truth.errors_in_variables_rms_rad * (1.0 + 1e-6));
   EXPECT_LT(r.errors_in_variables_rms_rad, 0.8 * 0.05 * kDeg);  // floor ≈ σ/√3
+  EXPECT_GT(r.fit_to_noise, 0.8);  // the model explains the recording to its (estimated) noise
+  EXPECT_LT(r.fit_to_noise, 1.2);
   const double truth_rms = redundantResidualRms(samples, truth.subject, truth.fixed);
   EXPECT_LT(truth_rms, 4 * 0.05 * kDeg);
   EXPECT_GT(r.initial_rms_rad, 10 * r.final_rms_rad);
@@ -282,8 +284,8 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
     std::printf("subject %2d  error mm:", trial);
     for (std::size_t i = 0; i < 7; ++i) std::printf(" %+5.2f", (pe[i] - p[i]) * 1e3);
     // eiv: the minimised errors-in-variables objective (RMS rad); lower is a better fit of the data.
-    std::printf(" | worst %.2f mm, eiv %.4e, noise %.2e, open chains %zu, %.1f s | from truth: worst %.2f mm, eiv %.4e",
-                worstOf(r) * 1e3, r.errors_in_variables_rms_rad, r.noise_rad, r.least_squares_samples, secs,
+    std::printf(" | worst %.2f mm, eiv %.4e, fit/noise %.2f, open chains %zu, %.1f s | from truth: worst %.2f mm, eiv %.4e",
+                worstOf(r) * 1e3, r.errors_in_variables_rms_rad, r.fit_to_noise, r.least_squares_samples, secs,
                 worstOf(rt) * 1e3, rt.errors_in_variables_rms_rad);
     if (const int other = otherBranchRows(truth, std::min(10000, sweepRows(30000))); other > 0) {
       std::printf(" | recording crosses the PIP dead point: %d of the 10000 rows of one 10 s period on the other branch",

@@ -326,6 +326,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   result.estimate = ps::fromArray(best);
   result.errors_in_variables_rms_rad = std::sqrt(2.0 * best_cost / (3.0 * static_cast<double>(samples.size())));
   result.noise_rad = noise_rad;
+  result.fit_to_noise = noise_rad > 0.0 ? result.errors_in_variables_rms_rad / (noise_rad / std::sqrt(3.0)) : 0.0;
   const Stats before = residualStats(samples, opt.initial, opt.fixed);
   const Stats after = residualStats(samples, result.estimate, opt.fixed);
   result.initial_rms_rad = before.rms;
@@ -484,6 +485,7 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   c["initial_rms_residual_rad"] = r.initial_rms_rad;
   c["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
   c["noise_rad"] = r.noise_rad;
+  c["fit_to_noise"] = r.fit_to_noise;
   c["converged"] = r.converged;
   root["calibration"] = c;
   YAML::Emitter out;
@@ -550,6 +552,7 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   out["initial_rms_residual_rad"] = r.initial_rms_rad;
   out["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
   out["noise_rad"] = r.noise_rad;
+  out["fit_to_noise"] = r.fit_to_noise;
   out["least_squares_samples"] = r.least_squares_samples;
   out["converged"] = r.converged;
   out["iterations"] = r.iterations;
@@ -568,7 +571,12 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   std::printf("  redundant-sensor residual: RMS %.4f deg (initial %.3f deg), max %.4f deg; %s\n",
               r.final_rms_rad * 57.2957795, r.initial_rms_rad * 57.2957795, r.max_abs_residual_rad * 57.2957795,
               r.converged ? "converged" : "NOT converged");
-  std::printf("  sensor noise estimated from the recording: %.4f deg per fitted sample\n", r.noise_rad * 57.2957795);
+  std::printf("  sensor noise estimated from the recording: %.4f deg per fitted sample; fit/noise %.2f\n",
+              r.noise_rad * 57.2957795, r.fit_to_noise);
+  if (r.fit_to_noise > 1.5) {
+    std::printf("  warning: the recording does not fit the model to its noise (fit/noise > 1.5): did the mechanism pass "
+                "a PIP dead point, or is a sensor offset? The estimate is not trustworthy\n");
+  }
   if (r.least_squares_samples > 0) {
     std::printf("  warning: %zu samples needed the least-squares fallback at the estimate\n", r.least_squares_samples);
   }

@@ -64,6 +64,11 @@ struct CalibrationResult {
   /// Sensor noise σ of the fitted (smoothed) samples, estimated from the recording (raw rows minus their
   /// Savitzky–Golay fit); the Huber corner is robust_sigmas·noise_rad.
   double noise_rad = 0.0;
+  /// Goodness of fit: errors_in_variables_rms_rad / (noise_rad/√3), ≈ 1 when the model explains the recording to
+  /// its noise (1.00–1.05 over the sweeps). Well above 1 (the tool warns above 1.5) the recording does not fit
+  /// the model: e.g. the mechanism passed through a PIP dead point onto the other assembly branch, or a sensor is
+  /// miscalibrated; the estimate is then not trustworthy.
+  double fit_to_noise = 0.0;
   int iterations = 0;
   bool converged = false;
   std::size_t samples_used = 0;
