@@ -61,7 +61,7 @@ int otherBranchRows(const ps::Model<double>& truth, int rows) {
   return n;
 }
 
-/// The recommended sweep's recording length in rows at 1 kHz: SEA_SWEEP_SECONDS (default 30 s).
+/// The recommended sweep's recording length in rows at 1 kHz: SEA_SWEEP_SECONDS (default: the recommended 60 s).
 int sweepRows(int default_rows) {
   const char* env = std::getenv("SEA_SWEEP_SECONDS");
   const double s = env != nullptr ? std::atof(env) : 0.0;
@@ -249,9 +249,11 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsSweep) {
   std::printf("%d/%d subjects with all seven parameters within 1 mm\n", within_1mm, run);
 }
 
-/// The recommended procedure over the same random subjects (not run by ctest; about 5 s per subject idle):
+/// The recommended procedure over the same random subjects (not run by ctest; 4–60 s per subject, minutes):
 ///   sea_calibrate_test --gtest_also_run_disabled_tests --gtest_filter='*DISABLED_RandomSubjectsRecommended*'
-/// 30 s range-of-motion recording at 1 kHz, 0.05° noise on all three sensors, `--smooth 51 --stride 10`. Each
+/// 60 s range-of-motion recording at 1 kHz (SEA_SWEEP_SECONDS), 0.05° noise on all three sensors, `--smooth 51
+/// --stride 10`; SEA_SWEEP_SEED draws another set of subjects, SEA_SWEEP_ROBUST_SIGMAS overrides the Huber corner
+/// (CalibrationOptions::robust_sigmas) for comparisons. Each
 /// subject is also fitted from its true parameters ("from truth"): when both fits agree, the remaining error is
 /// the data's, not the search's.
 TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
@@ -264,7 +266,7 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
     if (!sweepWants(trial)) continue;
     ++run;
     const auto p = ps::toArray(truth.subject);
-    const auto samples = recording(truth, 0.05 * kDeg, sweepNoiseSeed(trial), sweepRows(30000), 0.001);
+    const auto samples = recording(truth, 0.05 * kDeg, sweepNoiseSeed(trial), sweepRows(60000), 0.001);
     CalibrationOptions opt;
     opt.smooth_samples = 51;
     opt.stride = 10;
@@ -287,7 +289,7 @@ TEST(SeaCalibrate, DISABLED_RandomSubjectsRecommendedProcedureSweep) {
     std::printf(" | worst %.2f mm, eiv %.4e, fit/noise %.2f, open chains %zu, %.1f s | from truth: worst %.2f mm, eiv %.4e",
                 worstOf(r) * 1e3, r.errors_in_variables_rms_rad, r.fit_to_noise, r.least_squares_samples, secs,
                 worstOf(rt) * 1e3, rt.errors_in_variables_rms_rad);
-    if (const int other = otherBranchRows(truth, std::min(10000, sweepRows(30000))); other > 0) {
+    if (const int other = otherBranchRows(truth, std::min(10000, sweepRows(60000))); other > 0) {
       std::printf(" | recording crosses the PIP dead point: %d of the 10000 rows of one 10 s period on the other branch",
                   other);
     }

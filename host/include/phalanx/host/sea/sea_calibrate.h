@@ -31,7 +31,7 @@ struct CalibrationOptions {
   /// Centred quadratic Savitzky–Golay smoothing over this many consecutive rows, applied to all three channels
   /// before the fit (1 = none). The fit's inputs θ1r, θ6r are noisy too (errors in variables); a recording at
   /// 1 kHz of a ≤ 1 Hz motion can be smoothed over ~51 rows before the fit (docs/sea-model.md §Parameter
-  /// estimation: 30 s, `--smooth 51 --stride 10`). Only for white sensor noise; a recording of already-filtered
+  /// estimation: 60 s, `--smooth 51 --stride 10`). Only for white sensor noise; a recording of already-filtered
   /// sensors gains less.
   int smooth_samples = 1;
   /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
@@ -81,8 +81,9 @@ struct CalibrationResult {
 /// measurements too (errors in variables: each sample's true inputs are fitted with P, docs/sea-model.md
 /// §Parameter estimation). Search: multistart (P0 + `restarts` Halton points) and a valley scan over l_BC on
 /// ≈ 200 thinned samples with eq 12 as printed; the `polished` cheapest points refitted with errors in variables
-/// on the thinned samples; the `refined` best of those on all samples. With restarts = valley_steps = 0 only the
-/// last step runs, from P0. Returns an empty string or the problem (fewer than 20 samples, non-finite values,
+/// on the thinned samples; the `refined` best of those on all samples. Both objectives use a Huber loss at
+/// robust_sigmas·σ, σ estimated from the recording. With restarts = valley_steps = 0 only the last step runs,
+/// from P0. Returns an empty string or the problem (fewer than 20 samples, non-finite values,
 /// inconsistent bounds).
 std::string calibrate(const std::vector<CalibrationSample>& samples, const CalibrationOptions& options,
                       CalibrationResult& result);
