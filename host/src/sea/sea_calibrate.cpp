@@ -22,15 +22,33 @@ namespace {
 /// the recording: its closure error is a residual too, scaled so 0.1 mm weighs like one sensor σ (0.05°).
 constexpr double kClosureWeight = 0.05 * M_PI / 180.0 / 1e-4;  // rad per metre of closure error
 
+/// θ7r − y_m(P, θ1, θ6) wrapped to (−π, π], and the chain closure error. With `both_branches` y_m is taken on
+/// whichever assembly branch of the PIP four-bar is nearer to θ7r: the (θ6r, θ7r) locus of the mechanism is the
+/// whole coupler curve, and a recording whose motion passes through the dead point (F, H, C collinear) continues
+/// on the other branch (docs/sea-model.md §Both branches).
+double redundantError(const SubjectParams& sp, const FixedGeometry& fixed, double theta1, double theta6,
+                      double theta7r, bool both_branches, double& closure_m) {
+  const double e = std::remainder(theta7r - ps::predictRedundant(sp, fixed, theta1, theta6, &closure_m), 2.0 * M_PI);
+  if (!both_branches) return e;
+  double closure_other = 0.0;
+  const double e_other =
+      std::remainder(theta7r - ps::predictRedundant(sp, fixed, theta1, theta6, &closure_other, true), 2.0 * M_PI);
+  if (std::fabs(e_other) < std::fabs(e)) {
+    closure_m = closure_other;
+    return e_other;
+  }
+  return e;
+}
+
 /// y_k − y_m,k(P) (eq 12), wrapped to (−π, π], plus the chain-closure residual: the multistart's cheap objective.
 struct RedundantResidual {
   CalibrationSample s;
   FixedGeometry fixed;
+  bool both_branches;
   bool operator()(const double* p, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
     double closure_m = 0.0;
-    const double y_m = ps::predictRedundant(sp, fixed, s.theta1r_rad, s.theta6r_rad, &closure_m);
-    r[0] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[0] = redundantError(sp, fixed, s.theta1r_rad, s.theta6r_rad, s.theta7r_rad, both_branches, closure_m);
     r[1] = kClosureWeight * closure_m;
     return std::isfinite(r[0]) && std::isfinite(r[1]);
   }
@@ -44,13 +62,13 @@ struct RedundantResidual {
 struct OdrResidual {
   CalibrationSample s;
   FixedGeometry fixed;
+  bool both_branches;
   bool operator()(const double* p, const double* z, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
     double closure_m = 0.0;
-    const double y_m = ps::predictRedundant(sp, fixed, z[0], z[1], &closure_m);
     r[0] = s.theta1r_rad - z[0];
     r[1] = s.theta6r_rad - z[1];
-    r[2] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[2] = redundantError(sp, fixed, z[0], z[1], s.theta7r_rad, both_branches, closure_m);
     r[3] = kClosureWeight * closure_m;
     return std::isfinite(r[2]) && std::isfinite(r[3]);
   }
@@ -201,7 +219,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
     for (const CalibrationSample& s : data) {
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(
-              new RedundantResidual{s, opt.fixed}),
+              new RedundantResidual{s, opt.fixed, opt.both_branches}),
           robustLoss(), p.data());
     }
     if (frozen >= 0) {
@@ -232,7 +250,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
       z[k] = {data[k].theta1r_rad, data[k].theta6r_rad};
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<OdrResidual, ceres::CENTRAL, 4, ps::kNumSubjectParams, 2>(
-              new OdrResidual{data[k], opt.fixed}),
+              new OdrResidual{data[k], opt.fixed, opt.both_branches}),
           robustLoss(), p.data(), z[k].data());
     }
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {

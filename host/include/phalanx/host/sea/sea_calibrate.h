@@ -50,6 +50,10 @@ struct CalibrationOptions {
   /// efficiency on Gaussian errors (Huber's textbook 1.345σ keeps 95 %) and turns the 5–15 σ misfits near a PIP
   /// dead point from quadratic to linear. docs/sea-model.md §Robust loss.
   double robust_sigmas = 2.0;
+  /// Predict θ7r on whichever assembly branch of the PIP four-bar fits the sample (the mechanism's whole coupler
+  /// curve) instead of the estimator's branch only: a recording that passes through the PIP dead point continues
+  /// on the other branch. docs/sea-model.md §Both branches.
+  bool both_branches = true;
 };
 
 struct CalibrationResult {
