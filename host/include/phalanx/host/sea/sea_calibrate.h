@@ -69,7 +69,7 @@ struct CalibrationResult {
   /// Savitzky–Golay fit); the Huber corner is robust_sigmas·noise_rad.
   double noise_rad = 0.0;
   /// Goodness of fit: errors_in_variables_rms_rad / (noise_rad/√3), ≈ 1 when the model explains the recording to
-  /// its noise (1.00–1.05 over the sweeps). Well above 1 (the tool warns above 1.5) the recording does not fit
+  /// its noise (0.97–1.03 over the sweeps). Well above 1 (the tool warns above 1.5) the recording does not fit
   /// the model: e.g. the mechanism passed through a PIP dead point onto the other assembly branch, or a sensor is
   /// miscalibrated; the estimate is then not trustworthy.
   double fit_to_noise = 0.0;
