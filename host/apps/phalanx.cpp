@@ -101,11 +101,11 @@ int main(int argc, char** argv) {
   std::string sea_cal_csv;
   std::string sea_cal_subject;
   int sea_cal_stride = 1;
-  sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record)")->required();
+  sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record; recommended: 60 s at 1 kHz, --smooth 51 --stride 10)")->required();
   sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
   int sea_cal_smooth = 1;
   sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(CLI::Range(1, 1000));
-  sea_cal->add_option("--smooth", sea_cal_smooth, "centred quadratic Savitzky-Golay smoothing over n rows before the fit (30 s at 1 kHz: 51)")
+  sea_cal->add_option("--smooth", sea_cal_smooth, "centred quadratic Savitzky-Golay smoothing over n rows before the fit (1 kHz recording: 51)")
       ->check(CLI::Range(1, 1001));
   sea_cal->add_flag("--json", json, "JSON output");
 

@@ -22,15 +22,33 @@ namespace {
 /// the recording: its closure error is a residual too, scaled so 0.1 mm weighs like one sensor σ (0.05°).
 constexpr double kClosureWeight = 0.05 * M_PI / 180.0 / 1e-4;  // rad per metre of closure error
 
+/// θ7r − y_m(P, θ1, θ6) wrapped to (−π, π], and the chain closure error. With `both_branches` y_m is taken on
+/// whichever assembly branch of the PIP four-bar is nearer to θ7r: the (θ6r, θ7r) locus of the mechanism is the
+/// whole coupler curve, and a recording whose motion passes through the dead point (F, H, C collinear) continues
+/// on the other branch (docs/sea-model.md §Both branches).
+double redundantError(const SubjectParams& sp, const FixedGeometry& fixed, double theta1, double theta6,
+                      double theta7r, bool both_branches, double& closure_m) {
+  const double e = std::remainder(theta7r - ps::predictRedundant(sp, fixed, theta1, theta6, &closure_m), 2.0 * M_PI);
+  if (!both_branches) return e;
+  double closure_other = 0.0;
+  const double e_other =
+      std::remainder(theta7r - ps::predictRedundant(sp, fixed, theta1, theta6, &closure_other, true), 2.0 * M_PI);
+  if (std::fabs(e_other) < std::fabs(e)) {
+    closure_m = closure_other;
+    return e_other;
+  }
+  return e;
+}
+
 /// y_k − y_m,k(P) (eq 12), wrapped to (−π, π], plus the chain-closure residual: the multistart's cheap objective.
 struct RedundantResidual {
   CalibrationSample s;
   FixedGeometry fixed;
+  bool both_branches;
   bool operator()(const double* p, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
     double closure_m = 0.0;
-    const double y_m = ps::predictRedundant(sp, fixed, s.theta1r_rad, s.theta6r_rad, &closure_m);
-    r[0] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[0] = redundantError(sp, fixed, s.theta1r_rad, s.theta6r_rad, s.theta7r_rad, both_branches, closure_m);
     r[1] = kClosureWeight * closure_m;
     return std::isfinite(r[0]) && std::isfinite(r[1]);
   }
@@ -44,13 +62,13 @@ struct RedundantResidual {
 struct OdrResidual {
   CalibrationSample s;
   FixedGeometry fixed;
+  bool both_branches;
   bool operator()(const double* p, const double* z, double* r) const {
     const SubjectParams sp{p[0], p[1], p[2], p[3], p[4], p[5], p[6]};
     double closure_m = 0.0;
-    const double y_m = ps::predictRedundant(sp, fixed, z[0], z[1], &closure_m);
     r[0] = s.theta1r_rad - z[0];
     r[1] = s.theta6r_rad - z[1];
-    r[2] = std::remainder(s.theta7r_rad - y_m, 2.0 * M_PI);
+    r[2] = redundantError(sp, fixed, z[0], z[1], s.theta7r_rad, both_branches, closure_m);
     r[3] = kClosureWeight * closure_m;
     return std::isfinite(r[2]) && std::isfinite(r[3]);
   }
@@ -78,6 +96,25 @@ Stats residualStats(const std::vector<CalibrationSample>& samples, const Subject
   return st;
 }
 
+/// Weight of the centred quadratic Savitzky–Golay filter over 2h+1 rows at offset d ∈ [−h, h]:
+/// (3(3h²+3h−1) − 15 d²) / ((2h−1)(2h+1)(2h+3)).
+double sgWeight(std::size_t h, double d) {
+  const double m = static_cast<double>(h);
+  return (3.0 * (3 * m * m + 3 * m - 1) - 15.0 * d * d) / ((2 * m - 1) * (2 * m + 1) * (2 * m + 3));
+}
+
+/// The quadratic Savitzky–Golay value of row i over rows i−h … i+h (h ≥ 2, all inside `rows`).
+CalibrationSample savitzkyGolay(const std::vector<CalibrationSample>& rows, std::size_t i, std::size_t h) {
+  CalibrationSample acc{0.0, 0.0, 0.0};
+  for (std::size_t j = i - h; j <= i + h; ++j) {
+    const double w = sgWeight(h, static_cast<double>(j) - static_cast<double>(i));
+    acc.theta1r_rad += w * rows[j].theta1r_rad;
+    acc.theta6r_rad += w * rows[j].theta6r_rad;
+    acc.theta7r_rad += w * rows[j].theta7r_rad;
+  }
+  return acc;
+}
+
 bool finite(const CalibrationSample& s) {
   return std::isfinite(s.theta1r_rad) && std::isfinite(s.theta6r_rad) && std::isfinite(s.theta7r_rad);
 }
@@ -92,6 +129,7 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
   if (opt.smooth_samples < 1) return "smooth_samples must be ≥ 1";
   if (opt.restarts < 0 || opt.valley_steps < 0) return "restarts and valley_steps must be ≥ 0";
   if (opt.polished < 1 || opt.refined < 1) return "polished and refined must be ≥ 1";
+  if (!(opt.robust_sigmas >= 0.0)) return "robust_sigmas must be ≥ 0";
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (!finite(all[i])) return "sample " + std::to_string(i) + " is not finite";
   }
@@ -104,20 +142,37 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
     for (std::size_t i = 0; i < all.size(); ++i) {
       const std::size_t h = std::min({half, i, all.size() - 1 - i});
       if (h < 2) continue;  // a parabola through ≤ 3 points is the data itself
-      // Weights of the quadratic SG filter for offset j ∈ [−h, h]: (3(3h²+3h−1) − 15 j²) / ((2h−1)(2h+1)(2h+3)).
-      const double m = static_cast<double>(h);
-      const double den = (2 * m - 1) * (2 * m + 1) * (2 * m + 3);
-      CalibrationSample acc{0.0, 0.0, 0.0};
-      for (std::size_t j = i - h; j <= i + h; ++j) {
-        const double d = static_cast<double>(j) - static_cast<double>(i);
-        const double w = (3.0 * (3 * m * m + 3 * m - 1) - 15.0 * d * d) / den;
-        acc.theta1r_rad += w * all[j].theta1r_rad;
-        acc.theta6r_rad += w * all[j].theta6r_rad;
-        acc.theta7r_rad += w * all[j].theta7r_rad;
-      }
-      smooth[i] = acc;
+      smooth[i] = savitzkyGolay(all, i, h);
     }
   }
+  // Sensor noise σ of the fitted samples, from the data alone (no model): the raw rows minus their quadratic
+  // Savitzky–Golay fit over the smoothing window (11 rows when not smoothing) have variance σ_raw²(1 − w0), w0 the
+  // filter's centre weight (= Σ w², the variance ratio of the filter); the smoothed samples have σ_raw·√w0.
+  double noise_rad = 0.0;
+  {
+    const std::size_t half = static_cast<std::size_t>((opt.smooth_samples > 1 ? opt.smooth_samples : 11) / 2);
+    const double w0 = sgWeight(half, 0);
+    double sq = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = half; i + half < all.size(); ++i) {
+      const CalibrationSample fit = savitzkyGolay(all, i, half);
+      for (const double e : {all[i].theta1r_rad - fit.theta1r_rad, all[i].theta6r_rad - fit.theta6r_rad,
+                             all[i].theta7r_rad - fit.theta7r_rad}) {
+        sq += e * e;
+        ++n;
+      }
+    }
+    const double sigma_raw = n > 0 ? std::sqrt(sq / static_cast<double>(n) / (1.0 - w0)) : 0.0;
+    noise_rad = opt.smooth_samples > 1 ? sigma_raw * std::sqrt(w0) : sigma_raw;
+  }
+  // Both objectives use a Huber loss with its corner at robust_sigmas·σ (0 = plain least squares): the Gaussian
+  // model of eq 12 fails near a PIP dead point, where the model curve y_m(θ6r) ends with a vertical tangent and a
+  // few recorded samples sit 5–15 σ off any P near the truth; squared, they outweighed the rest and moved the
+  // optimum 1–1.5 mm along the weak direction (docs/sea-model.md §Robust loss).
+  const double huber_rad = opt.robust_sigmas > 0.0 ? opt.robust_sigmas * noise_rad : 0.0;
+  auto robustLoss = [huber_rad]() -> ceres::LossFunction* {
+    return huber_rad > 0.0 ? new ceres::HuberLoss(huber_rad) : nullptr;
+  };
   std::vector<CalibrationSample> samples;
   samples.reserve(all.size() / static_cast<std::size_t>(opt.stride) + 1);
   for (std::size_t i = 0; i < smooth.size(); i += static_cast<std::size_t>(opt.stride)) samples.push_back(smooth[i]);
@@ -164,8 +219,8 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
     for (const CalibrationSample& s : data) {
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<RedundantResidual, ceres::FORWARD, 2, ps::kNumSubjectParams>(
-              new RedundantResidual{s, opt.fixed}),
-          nullptr, p.data());
+              new RedundantResidual{s, opt.fixed, opt.both_branches}),
+          robustLoss(), p.data());
     }
     if (frozen >= 0) {
       problem.SetManifold(p.data(), new ceres::SubsetManifold(ps::kNumSubjectParams, {frozen}));
@@ -195,8 +250,8 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
       z[k] = {data[k].theta1r_rad, data[k].theta6r_rad};
       problem.AddResidualBlock(
           new ceres::NumericDiffCostFunction<OdrResidual, ceres::CENTRAL, 4, ps::kNumSubjectParams, 2>(
-              new OdrResidual{data[k], opt.fixed}),
-          nullptr, p.data(), z[k].data());
+              new OdrResidual{data[k], opt.fixed, opt.both_branches}),
+          robustLoss(), p.data(), z[k].data());
     }
     for (std::size_t i = 0; i < ps::kNumSubjectParams; ++i) {
       problem.SetParameterLowerBound(p.data(), static_cast<int>(i), lo[i]);
@@ -288,6 +343,8 @@ std::string calibrate(const std::vector<CalibrationSample>& all, const Calibrati
 
   result.estimate = ps::fromArray(best);
   result.errors_in_variables_rms_rad = std::sqrt(2.0 * best_cost / (3.0 * static_cast<double>(samples.size())));
+  result.noise_rad = noise_rad;
+  result.fit_to_noise = noise_rad > 0.0 ? result.errors_in_variables_rms_rad / (noise_rad / std::sqrt(3.0)) : 0.0;
   const Stats before = residualStats(samples, opt.initial, opt.fixed);
   const Stats after = residualStats(samples, result.estimate, opt.fixed);
   result.initial_rms_rad = before.rms;
@@ -445,6 +502,8 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
   c["max_abs_residual_rad"] = r.max_abs_residual_rad;
   c["initial_rms_residual_rad"] = r.initial_rms_rad;
   c["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
+  c["noise_rad"] = r.noise_rad;
+  c["fit_to_noise"] = r.fit_to_noise;
   c["converged"] = r.converged;
   root["calibration"] = c;
   YAML::Emitter out;
@@ -510,6 +569,8 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   out["max_abs_residual_rad"] = r.max_abs_residual_rad;
   out["initial_rms_residual_rad"] = r.initial_rms_rad;
   out["errors_in_variables_rms_rad"] = r.errors_in_variables_rms_rad;
+  out["noise_rad"] = r.noise_rad;
+  out["fit_to_noise"] = r.fit_to_noise;
   out["least_squares_samples"] = r.least_squares_samples;
   out["converged"] = r.converged;
   out["iterations"] = r.iterations;
@@ -528,6 +589,12 @@ int seaCalibrateCommand(const std::string& recording_csv, const std::string& sub
   std::printf("  redundant-sensor residual: RMS %.4f deg (initial %.3f deg), max %.4f deg; %s\n",
               r.final_rms_rad * 57.2957795, r.initial_rms_rad * 57.2957795, r.max_abs_residual_rad * 57.2957795,
               r.converged ? "converged" : "NOT converged");
+  std::printf("  sensor noise estimated from the recording: %.4f deg per fitted sample; fit/noise %.2f\n",
+              r.noise_rad * 57.2957795, r.fit_to_noise);
+  if (r.fit_to_noise > 1.5) {
+    std::printf("  warning: the recording does not fit the model to its noise (fit/noise > 1.5): did the mechanism pass "
+                "a PIP dead point, or is a sensor offset? The estimate is not trustworthy\n");
+  }
   if (r.least_squares_samples > 0) {
     std::printf("  warning: %zu samples needed the least-squares fallback at the estimate\n", r.least_squares_samples);
   }

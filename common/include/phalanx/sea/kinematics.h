@@ -305,8 +305,11 @@ inline PipGeometry<T> pipGeometry(const Model<T>& m, T x3) {
 /// Sensor side → finger side of the PIP chain: θ6r fixes |CF| = d (law of cosines); F is on the circle of radius
 /// l_FH about H and on the circle of radius d about C, on the clockwise side of H→C (docs: branch). Least
 /// squares when the circles do not meet: F on the line HC (nearest/farthest point), residual = ||CF| − d|.
+/// `other_branch`: F on the counter-clockwise side of H→C instead (the other assembly mode of the four-bar; only
+/// eq 12's fit uses it, for recordings that pass through the dead point).
 template <class T>
-inline bool pipFromInput(const PipGeometry<T>& g, T theta6r, T& theta5, T& theta8, T& residual) {
+inline bool pipFromInput(const PipGeometry<T>& g, T theta6r, T& theta5, T& theta8, T& residual,
+                         bool other_branch = false) {
   const T d2 = g.l_CE * g.l_CE + g.l_EF * g.l_EF - T(2) * g.l_CE * g.l_EF * std::cos(theta6r);
   const T d = std::sqrt(d2 > T(0) ? d2 : T(0));
   const T rho = std::hypot(g.c_x, g.c_y);
@@ -319,7 +322,7 @@ inline bool pipFromInput(const PipGeometry<T>& g, T theta6r, T& theta5, T& theta
   T fy = T(0);
   bool exact = true;
   if (h2 >= T(0)) {
-    const T h = std::sqrt(h2);
+    const T h = other_branch ? -std::sqrt(h2) : std::sqrt(h2);
     fx = a * ux + h * uy;
     fy = a * uy - h * ux;
     residual = T(0);
@@ -577,7 +580,7 @@ inline Status computeFromFinger(const Model<T>& m, const FingerAngles<T>& finger
 /// `residual_m` (optional) receives the larger chain residual. Used by the parameter estimator.
 template <class T>
 inline T predictRedundant(const SubjectParams<T>& p, const FixedGeometry<T>& fixed, T theta1r_rad, T theta6r_rad,
-                          T* residual_m = nullptr) {
+                          T* residual_m = nullptr, bool other_branch = false) {
   Model<T> m{};
   m.subject = p;
   m.fixed = fixed;
@@ -588,7 +591,7 @@ inline T predictRedundant(const SubjectParams<T>& p, const FixedGeometry<T>& fix
   T t5 = T(0);
   T t8 = T(0);
   T r1 = T(0);
-  detail::pipFromInput(detail::pipGeometry(m, x3), theta6r_rad, t5, t8, r1);
+  detail::pipFromInput(detail::pipGeometry(m, x3), theta6r_rad, t5, t8, r1, other_branch);
   if (residual_m != nullptr) *residual_m = r0 > r1 ? r0 : r1;
   return detail::redundantAngle(t5, theta6r_rad, t8);
 }

@@ -31,7 +31,7 @@ struct CalibrationOptions {
   /// Centred quadratic Savitzky–Golay smoothing over this many consecutive rows, applied to all three channels
   /// before the fit (1 = none). The fit's inputs θ1r, θ6r are noisy too (errors in variables); a recording at
   /// 1 kHz of a ≤ 1 Hz motion can be smoothed over ~51 rows before the fit (docs/sea-model.md §Parameter
-  /// estimation: 30 s, `--smooth 51 --stride 10`). Only for white sensor noise; a recording of already-filtered
+  /// estimation: 60 s, `--smooth 51 --stride 10`). Only for white sensor noise; a recording of already-filtered
   /// sensors gains less.
   int smooth_samples = 1;
   /// Extra starting points (a Halton sequence over the LB–UB box) besides P0: eq 12 from one redundant angle has
@@ -42,8 +42,18 @@ struct CalibrationOptions {
   /// Multistart and valley-scan points (lowest eq 12 cost first) polished by the errors-in-variables fit on the
   /// thinned samples.
   int polished = 12;
-  /// Distinct polished candidates refined by the errors-in-variables fit on all samples.
-  int refined = 2;
+  /// Distinct polished candidates refined by the errors-in-variables fit on all samples (the lowest objective
+  /// wins). 4, not 2: the thinned samples' ranking of neighbouring valley points is noisy.
+  int refined = 4;
+  /// Huber loss corner of both objectives in units of the sensor noise σ, which is estimated from the recording
+  /// itself (CalibrationResult::noise_rad); 0 = plain least squares. At 2σ the loss keeps 99 % of least squares'
+  /// efficiency on Gaussian errors (Huber's textbook 1.345σ keeps 95 %) and turns the 5–15 σ misfits near a PIP
+  /// dead point from quadratic to linear. docs/sea-model.md §Robust loss.
+  double robust_sigmas = 2.0;
+  /// Predict θ7r on whichever assembly branch of the PIP four-bar fits the sample (the mechanism's whole coupler
+  /// curve) instead of the estimator's branch only: a recording that passes through the PIP dead point continues
+  /// on the other branch. docs/sea-model.md §Both branches.
+  bool both_branches = true;
 };
 
 struct CalibrationResult {
@@ -51,10 +61,18 @@ struct CalibrationResult {
   double initial_rms_rad = 0.0;   ///< RMS of y_k − y_m,k at P0
   double final_rms_rad = 0.0;     ///< … at P̂
   double max_abs_residual_rad = 0.0;
-  /// The minimised objective: RMS over the 3·N sensor errors (θ1r, θ6r, θ7r against the fitted true angles, plus
+  /// The minimised objective (with the Huber loss: √(2·cost/3N)): RMS over the 3·N sensor errors (θ1r, θ6r, θ7r against the fitted true angles, plus
   /// the chain-closure term) of the errors-in-variables fit at P̂. Its noise floor is ≈ σ/√3 for sensor noise σ
   /// (the fitted inputs absorb two of every three errors' degrees of freedom).
   double errors_in_variables_rms_rad = 0.0;
+  /// Sensor noise σ of the fitted (smoothed) samples, estimated from the recording (raw rows minus their
+  /// Savitzky–Golay fit); the Huber corner is robust_sigmas·noise_rad.
+  double noise_rad = 0.0;
+  /// Goodness of fit: errors_in_variables_rms_rad / (noise_rad/√3), ≈ 1 when the model explains the recording to
+  /// its noise (0.97–1.03 over the sweeps). Well above 1 (the tool warns above 1.5) the recording does not fit
+  /// the model: e.g. the mechanism passed through a PIP dead point onto the other assembly branch, or a sensor is
+  /// miscalibrated; the estimate is then not trustworthy.
+  double fit_to_noise = 0.0;
   int iterations = 0;
   bool converged = false;
   std::size_t samples_used = 0;
@@ -67,8 +85,9 @@ struct CalibrationResult {
 /// measurements too (errors in variables: each sample's true inputs are fitted with P, docs/sea-model.md
 /// §Parameter estimation). Search: multistart (P0 + `restarts` Halton points) and a valley scan over l_BC on
 /// ≈ 200 thinned samples with eq 12 as printed; the `polished` cheapest points refitted with errors in variables
-/// on the thinned samples; the `refined` best of those on all samples. With restarts = valley_steps = 0 only the
-/// last step runs, from P0. Returns an empty string or the problem (fewer than 20 samples, non-finite values,
+/// on the thinned samples; the `refined` best of those on all samples. Both objectives use a Huber loss at
+/// robust_sigmas·σ, σ estimated from the recording. With restarts = valley_steps = 0 only the last step runs,
+/// from P0. Returns an empty string or the problem (fewer than 20 samples, non-finite values,
 /// inconsistent bounds).
 std::string calibrate(const std::vector<CalibrationSample>& samples, const CalibrationOptions& options,
                       CalibrationResult& result);
