@@ -156,13 +156,21 @@ def relaxed_hand(args):
     return ["scenario=still"] if args.app == "glove5" else []
 
 
+def host_scene(args):
+    """The host's glove scene for these tests: none. The emulated plant computes 0.55-0.70 of real time during a
+    session, and a still hand resting in the rendered rigid ball then latched current-limit on ast1030-evb at 1 kHz
+    (CI, 2026-11-24): contact rendering against a plant in slow motion, which firmware-sim in real time does not show
+    (docs/firmware-mcu.md). The link, watchdog and tick checks need no contact."""
+    return ["--scene", "none"] if args.app == "glove5" else []
+
+
 def host_rt_args():
     return [] if HOST_REALTIME else ["--no-realtime"]
 
 
-def run_phalanx(pty, seconds, rate_hz, timeout_s, command_timeout_ms=COMMAND_TIMEOUT_MS):
+def run_phalanx(pty, seconds, rate_hz, timeout_s, command_timeout_ms=COMMAND_TIMEOUT_MS, extra=()):
     cmd = [os.path.join(BIN, "phalanx"), "run", "--device", f"serial:{pty}", "--seconds", str(seconds),
-           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json"] + host_rt_args()
+           "--rate-hz", str(rate_hz), "--command-timeout-ms", str(command_timeout_ms), "--json"] + host_rt_args() + list(extra)
     r = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout_s)
     try:
         summary = json.loads(r.stdout) if r.stdout.strip() else {}
@@ -197,7 +205,7 @@ def session(args):
     try:
         print(f"board up: pty={board.pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
         c.check(board.pty is not None, "QEMU exposed the protocol link as a pty")
-        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds + 30)
+        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds + 30, extra=host_scene(args))
         expected_cycles = int(args.seconds * args.rate_hz)
         print(f"phalanx run: rc={rc} cycles={s.get('cycles')} telemetry={s.get('telemetry')} "
               f"commands={s.get('commands')} rtt={s.get('round_trip', {}).get('p50_us')}us "
@@ -224,7 +232,7 @@ def session(args):
             start_mark = board.line_count()
             daemon = subprocess.Popen([os.path.join(BIN, "phalanxd"), "--device", f"serial:{board.pty}",
                                        "--rate-hz", str(args.rate_hz), "--command-timeout-ms", str(COMMAND_TIMEOUT_MS)]
-                                      + host_rt_args(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                      + host_rt_args() + host_scene(args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.PIPE, text=True)
             # Kill only once the device reports its power stage driven by this daemon's commands, and after a
             # while of steady commanding.
@@ -261,7 +269,7 @@ def session(args):
                         c.check(share >= 0.95, "the plant kept real time (>= 95 % of its steps computed)",
                                 f"{share:.3f}")
             # Reconnect: the latched fault is visible in the telemetry fault bits before the host clears it.
-            rc2, s2, err2 = run_phalanx(board.pty, 1, args.rate_hz, 30)
+            rc2, s2, err2 = run_phalanx(board.pty, 1, args.rate_hz, 30, extra=host_scene(args))
             print(f"reconnect: rc={rc2} faults_at_start={s2.get('faults_at_start')}")
             c.check(rc2 == 0 and "command-timeout" in str(s2.get("faults_at_start", "")),
                     "reconnecting host reads the latched command-timeout in telemetry", err2.strip()[-300:])
@@ -284,7 +292,7 @@ def bench(args):
                   extra=[f"plant_period_ms={plant_period_ms}"] + relaxed_hand(args) + args.extra, machine=args.board)
     try:
         boot = parse_kv(board.wait_for(r"^BOOT .*", 5).group(0))
-        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60)
+        rc, s, err = run_phalanx(board.pty, args.seconds, args.rate_hz, args.seconds * 20 + 60, extra=host_scene(args))
         # The same statistics through the wire protocol (ParamGet 0x0080..), while the firmware still runs.
         d = subprocess.run([os.path.join(BIN, "phalanx"), "mcu-diag", "--device", f"serial:{board.pty}",
                             "--timeout", "10"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
