@@ -8,7 +8,8 @@ LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, cons
       opt_(options),
       board_(device.pwmCount(), device.adcCount(), device.encoderCount(), pipe_.end(0)),
       core_(board_.board(), device.app(), fw::CoreConfig{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame}),
-      session_(pipe_.end(1)) {
+      session_(pipe_.end(1)),
+      host_every_(options.host_every_ticks > 0 ? options.host_every_ticks : 1u) {
   cmd_.timeout_ms = opt_.command_timeout_ms;
   cmd_.channel_count = device.app().layout().setpoint_count;
   for (auto& g : cmd_.gain_scale_permille) g = 1000;
@@ -16,12 +17,11 @@ LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, cons
 
 std::string LockstepRig::handshake() {
   session_.sendHello(1, device_.app().layout().type);
-  const unsigned every = opt_.host_every_ticks > 0 ? opt_.host_every_ticks : 1u;
-  for (unsigned i = 0; i < 10 * every && session_.handshake() == HandshakeResult::kPending; ++i) step();
+  for (unsigned i = 0; i < 10 * host_every_ && session_.handshake() == HandshakeResult::kPending; ++i) step();
   if (session_.handshake() != HandshakeResult::kOk) return session_.handshakeError();
   for (const auto& [id, value] : controller_.startupParams()) {
     session_.sendParamSet(id, value);
-    for (unsigned i = 0; i < every; ++i) step();
+    for (unsigned i = 0; i < host_every_; ++i) step();
     if (!session_.lastParamValid() || session_.lastParam().status != protocol::ParamStatus::kOk) {
       return "device refused start-up parameter " + std::to_string(id);
     }
@@ -38,12 +38,11 @@ void LockstepRig::step() {
   if (io_hook_) io_hook_(board_.io());
   board_.clock().advanceUs(period_us);
   core_.tick();
-  const unsigned every = opt_.host_every_ticks > 0 ? opt_.host_every_ticks : 1u;
-  if (++ticks_ % every != 0) return;
+  if (++ticks_ % host_every_ != 0) return;
   const uint64_t now_ns = board_.clock().nowUs() * 1000u;
   session_.poll(now_ns);
   if (!started_ || !host_connected_ || !session_.hasTelemetry()) return;
-  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us * every) * 1e-6, cmd_);
+  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us * host_every_) * 1e-6, cmd_);
   cmd_.channel_count = device_.app().layout().setpoint_count;
   session_.sendCommand(cmd_, now_ns);
 }

@@ -19,7 +19,7 @@ GloveController::GloveController(const GloveControllerConfig& config) : config_(
 }
 
 std::string GloveController::startupWarning(uint16_t id, float value) const {
-  if (id != 0x0110 || !(value < 0.0f)) return {};
+  if (id != apps::glove5_param::kTare || !(value < 0.0f)) return {};
   const auto mask = static_cast<unsigned>(std::lround(-value));
   std::string fingers;
   for (std::size_t f = 0; f < kNumFingers; ++f) {
@@ -27,9 +27,10 @@ std::string GloveController::startupWarning(uint16_t id, float value) const {
     if (!fingers.empty()) fingers += ", ";
     fingers += kFingerNames[f];
   }
-  return "strain-gauge tare refused for " + fingers +
-         ": the pad was pressed (more than 1 N from its zero) at start-up; the previous zero is kept. Relax the hand "
-         "and start again to re-zero.";
+  char limit[16];
+  std::snprintf(limit, sizeof limit, "%.1f", static_cast<double>(apps::kTareMaxShift_N));
+  return "strain-gauge tare refused for " + fingers + ": the pad was pressed (more than " + limit +
+         " N from its zero) at start-up; the previous zero is kept. Relax the hand and start again to re-zero.";
 }
 
 std::vector<Controller::RequiredParam> GloveController::requiredParams() const {

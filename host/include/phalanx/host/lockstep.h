@@ -58,6 +58,7 @@ class LockstepRig {
   HostSession session_;
   protocol::Command cmd_{};
   bool host_connected_ = true;
+  unsigned host_every_ = 1;  ///< options.host_every_ticks, at least 1
   uint64_t ticks_ = 0;
   bool started_ = false;  ///< commands flow only once handshake() finished the start-up sequence
   std::function<void(sim::SimIo&)> io_hook_;

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "phalanx/host/controller.h"
+#include "phalanx/apps/glove5.h"
 #include "phalanx/host/glove/scene.h"
 
 namespace phalanx::host::glove {
@@ -52,11 +53,11 @@ class GloveController : public Controller {
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
   /// Tare every strain gauge (glove5 parameter 0x0110) with the hand relaxed before force control starts.
-  std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{0x0110, 1.0f}}; }
+  std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{apps::glove5_param::kTare, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }
   std::vector<RequiredParam> requiredParams() const override;
   /// The tare's outcome (glove5 parameter 0x0110): refused for fingers whose pads were pressed at start-up.
-  std::vector<uint16_t> startupReadback() const override { return {0x0110}; }
+  std::vector<uint16_t> startupReadback() const override { return {apps::glove5_param::kTare}; }
   bool usesGainScale() const override { return !config_.transparent && config_.contact_gain_ref_N_per_m > 0.0; }
   std::string startupWarning(uint16_t id, float value) const override;
   const HandModel& hand() const { return scene_.hand(); }

@@ -3,6 +3,7 @@
 /// 15 mechanism angles through the glove kinematics, 000 eq 3–8).
 #include <array>
 
+#include "phalanx/apps/glove5.h"
 #include "phalanx/glove/kinematics.h"
 #include "phalanx/host/therapy/device.h"
 
@@ -26,7 +27,7 @@ class GloveTherapyDevice : public TherapyDevice {
   void observe(const TelemetryFrame& tel, Observation& out) override;
   float setpointFromEffort(std::size_t, double effort) const override { return static_cast<float>(effort); }
   double effortFromSetpoint(std::size_t, float setpoint) const override { return static_cast<double>(setpoint); }
-  std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{0x0110, 1.0f}}; }
+  std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{apps::glove5_param::kTare, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }
   std::unique_ptr<Controller> makeGraspController(const std::string& scene, std::string& error) const override;
 
