@@ -576,9 +576,11 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
   }
   summary["realtime"] = {{"memory_locked", rt.memory_locked}, {"sched_fifo", rt.fifo_scheduling}};
 
-  // Wait for the first telemetry; clear faults left latched by a previous session if asked to.
+  // Wait for the first telemetry (bounded like the handshake: a device that answered late on a slow or loaded
+  // link also streams late); clear faults left latched by a previous session if asked to.
   const uint64_t first_wait = linux_hal::monotonicNs();
-  while (!session.hasTelemetry() && linux_hal::monotonicNs() - first_wait < 500000000ull) {
+  while (!session.hasTelemetry() &&
+         static_cast<double>(linux_hal::monotonicNs() - first_wait) < opt.handshake_timeout_s * 1e9) {
     usleep(500);
     session.poll(linux_hal::monotonicNs());
   }

@@ -180,7 +180,10 @@ def run_daemon(name, device, seconds, actions=()):
         # Timed from the control loop's start: in a loaded VM the daemon's start-up alone can take seconds.
         deadline = time.monotonic() + 60
         while "control loop started" not in daemon_log(name):
-            check(time.monotonic() < deadline and d.poll() is None, "%s: the session never started" % name)
+            if d.poll() is not None or time.monotonic() >= deadline:
+                fail("%s: the session never started (%s): %r" % (
+                    name, "phalanxd exit %s" % d.returncode if d.poll() is not None else "60 s",
+                    daemon_log(name)[-600:]))
             time.sleep(0.05)
     t0 = time.monotonic()
     for at, act in sorted(actions, key=lambda a: a[0]):
