@@ -61,7 +61,10 @@ int main(int argc, char** argv) {
     sc->add_option("--seconds", bench_opt.seconds, "scenario length (0: its default)")->check(CLI::Range(0.0, 600.0));
     sc->add_option("--seed", bench_opt.seed, "simulation seed");
     sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
-    sc->add_flag("--no-drift", bench_no_drift, "simulated strain gauges without their slow zero drift (noise stays)");
+    sc->add_flag("--no-drift", bench_no_drift, "simulated strain gauges without their thermal zero drift (noise stays)");
+    sc->add_option("--worn-s", bench_opt.worn_s,
+                   "how long the glove was worn before the start (s; the pad is still warming up; default 60)")
+        ->check(CLI::Range(0.0, 86400.0));
     sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
   };
   CLI::App* free_motion = bench->add_subcommand("glove-free-motion", "close/open maneuvers at zero force (000 §4.3)");

@@ -39,28 +39,27 @@ struct GloveRig {
 
 }  // namespace
 
-// Issue target: ≤ 50 mN; the paper measured ≈ 100 mN at 300 Hz. With the plant's sensor noise and gauge drift the
-// target is NOT met (0.073–0.080 N in telemetry, 0.091–0.132 N true over seeds 1–5, docs/glove-firmware.md). These
-// bounds guard what has been reached.
-TEST(GloveFreeMotion, PeakContactForceStaysBelowOneHundredFiftyMillinewtons) {
+// Issue target: ≤ 50 mN per finger at 1 kHz, in the plant with its sensor noise (and the gauge's thermal drift since
+// the start-up tare); the paper measured ≈ 100 mN at 300 Hz. Seeds 1–15: 0.036–0.047 N true (docs/glove-firmware.md).
+TEST(GloveFreeMotion, PeakContactForceIsWithinFiftyMillinewtonsWithSensorNoiseAndDrift) {
   const auto r = host::glove::benchFreeMotion({});
-  EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
-  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.100) << r.dump(2);
-  for (const auto& [name, finger] : r["fingers"].items()) {
-    EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.150) << name;
-  }
-}
-
-// The loop's own share: without sensor noise and drift the free-motion peak is within the 50 mN target, so what is
-// left above it comes from the gauge (its noise through the loop, its drift since the tare).
-TEST(GloveFreeMotion, WithoutSensorNoiseThePeakIsWithinFiftyMillinewtons) {
-  host::glove::GloveBenchOptions o;
-  o.noise = false;
-  const auto r = host::glove::benchFreeMotion(o);
+  ASSERT_TRUE(r["noise"].get<bool>() && r["drift"].get<bool>());
   EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
   EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.050) << r.dump(2);
   for (const auto& [name, finger] : r["fingers"].items()) {
     EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.050) << name;
+  }
+}
+
+// The loop's own share, without any sensor noise: 0.032–0.037 N (seeds 1–5).
+TEST(GloveFreeMotion, WithoutSensorNoiseThePeakIsWithinFortyMillinewtons) {
+  host::glove::GloveBenchOptions o;
+  o.noise = false;
+  const auto r = host::glove::benchFreeMotion(o);
+  EXPECT_EQ(r["faults"].get<int>(), 0) << r.dump(2);
+  EXPECT_LE(r["peak_contact_force_N_max"].get<double>(), 0.040) << r.dump(2);
+  for (const auto& [name, finger] : r["fingers"].items()) {
+    EXPECT_LE(finger["truth"]["peak_contact_force_N"].get<double>(), 0.040) << name;
   }
 }
 
@@ -219,4 +218,23 @@ TEST(GloveFaults, AnEstopPressLatchesAndStopsTheMotors) {
   rig.step();
   EXPECT_FALSE(rig.board().io().pwm_enabled);
   EXPECT_TRUE(rig.core().faultBits() & protocol::fault::kEstop);
+}
+
+// The grasp (the main job) at a 100 Hz host: the 200 N/m the ball is rendered with there lets the fingers, squeezing
+// with 5 N, pass into it while the contact gain is small; the force left behind then met the full free-motion gain at
+// once when contact ended, and the loop limit-cycled at the bridge's ±4 A into current-limit (seeds 2 and 7 here; 9 of
+// 20 seeds over 10 s). The firmware now raises a finger's gain scale at most Glove5Config::gain_scale_rise_per_s
+// (0 of 20).
+TEST(GloveGrasp, AHundredHertzHostGraspEndsContactWithoutLatching) {
+  for (uint32_t seed = 1; seed <= 10; ++seed) {
+    host::LockstepOptions slow_host;
+    slow_host.host_every_ticks = 10;
+    slow_host.command_timeout_ms = 200;
+    sim::GlovePlantConfig pc = plantConfig(sim::HandScenario::kGrasp);
+    pc.seed = seed;
+    GloveRig g(pc, false, slow_host);
+    ASSERT_EQ(g.rig.handshake(), "");
+    for (int i = 0; i < 3000; ++i) g.rig.step();  // the reach (0.3–1.1 s) and two seconds of squeezing
+    EXPECT_EQ(g.rig.core().faultBits(), 0u) << "seed " << seed;
+  }
 }

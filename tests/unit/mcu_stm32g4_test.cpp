@@ -190,6 +190,15 @@ TEST(McuStm32g4Adc, SequenceRegistersHoldLengthAndRanks) {
   EXPECT_EQ(smprField(12).shift, 6u);
 }
 
+TEST(McuStm32g4Adc, OversamplingRatioFourAveragesBackToTwelveBits) {
+  // RM0440 ADC_CFGR2: ROVSE bit 0, OVSR [4:2] = 001 (×4), OVSS [8:5] = 0010 (shift 2).
+  EXPECT_EQ(adcCfgr2Oversampling(4), 0x1u | (0x1u << 2) | (0x2u << 5));
+  EXPECT_EQ(adcCfgr2Oversampling(2), 0x1u | (0x0u << 2) | (0x1u << 5));
+  EXPECT_EQ(adcCfgr2Oversampling(256), 0x1u | (0x7u << 2) | (0x8u << 5));
+  EXPECT_EQ(adcCfgr2Oversampling(1), 0u);
+  for (uint32_t bad : {0u, 3u, 6u, 512u, 1000u}) EXPECT_EQ(adcCfgr2Oversampling(bad), kAdcCfgr2Invalid) << bad;
+}
+
 TEST(McuStm32g4Dma, RxTrackerReportsNewBytesAcrossTheBufferEnd) {
   DmaRxTracker t(8);
   auto s = t.poll(8);  // nothing yet

@@ -131,7 +131,10 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
     float v_ff = 0.0f;
     for (int j = 0; j < kGloveJoints; ++j) v_ff += r[static_cast<size_t>(j)] * s.alpha_rate_rad_per_s[j];
     v_ff *= cfg_.ff_scale;
-    const float gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
+    const float commanded_gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
+    s.gain_scale = commanded_gain < s.gain_scale ? commanded_gain
+                                                 : std::fmin(commanded_gain, s.gain_scale + cfg_.gain_scale_rise_per_s * dt_s);
+    const float gain = s.gain_scale;
     const float sign = cal_.force_per_duty_sign;
     const float v_fb = sign * control::pidStep(cfg_.force_pid, s.pid, sign * s.force_N, sign * desired_N, dt_s, 0.0f, gain);
     s.tendon_velocity_m_per_s = v_ff + v_fb;
@@ -147,6 +150,7 @@ void Glove5App::safe() {
   for (auto& s : finger_) {
     control::pidReset(s.pid);
     s.duty = 0.0f;
+    s.gain_scale = 1.0f;
   }
   for (auto& n : overcurrent_ticks_) n = 0;
 }

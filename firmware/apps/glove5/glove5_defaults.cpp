@@ -44,13 +44,14 @@ Glove5Calibration glove5DefaultCalibration() {
 Glove5Config glove5DefaultConfig() {
   Glove5Config c;
   // Gains in (m/s of tendon) per N of force error, chosen in the lockstep benches (`phalanx bench glove-free-motion`
-  // and `glove-grasp`, with sensor noise; sweep in docs/glove-firmware.md): kp = 1.5 gives the lowest free-motion
-  // peak (0.07-0.08 N measured); more gain only turns gauge noise into motor current. In contact the host scales the gain down by the
-  // rendered stiffness (GloveControllerConfig::contact_gain_ref_N_per_m). The feed-forward carries the finger's
-  // motion, the P term the residual.
+  // and `glove-grasp`, with sensor noise and drift; sweep in docs/glove-firmware.md): kp = 2 is at the minimum
+  // of the free-motion peak (0.036-0.047 N true over seeds 1-15; 2.25 within 2 mN of it, 2.5 and more higher): more
+  // gain turns gauge noise into force. In contact the
+  // host scales the gain down by the rendered stiffness (GloveControllerConfig::contact_gain_ref_N_per_m). The
+  // feed-forward carries the finger's motion, the P term the residual.
   // No integral term: the self-locking worm already integrates (duty sets spool speed), and an integrator
   // limit-cycles against the worm's dead band (glove-plant.md).
-  c.force_pid.kp = 1.5f;
+  c.force_pid.kp = 2.0f;
   c.force_pid.ki = 0.0f;
   c.force_pid.kd = 0.0f;
   c.force_pid.d_cutoff_hz = 100.0f;

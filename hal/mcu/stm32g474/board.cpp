@@ -2,6 +2,7 @@
 
 #include <initializer_list>
 
+#include "phalanx/glove/board.h"
 #include "phalanx/mcu/stm32g4_clock.h"
 #include "phalanx/mcu/stm32g4_encoder.h"
 #include "phalanx/mcu/stm32g4_fdcan.h"
@@ -91,6 +92,11 @@ static_assert(kUsartRxDmaChannel == 3 && kUsartTxDmaChannel == 4 && kDmareqUsart
               "pin_plan.h DMA plan and regs.h agree");
 static_assert(dmaPlanDistinct(), "pin_plan.h: a DMA1 channel or DMAMUX request is used twice");
 
+// Every sample averages glove::board::kAdcOversampling conversions (the sensors' noise budget in
+// docs/glove-plant.md assumes it).
+constexpr uint32_t kAdcCfgr2 = adcCfgr2Oversampling(static_cast<uint32_t>(glove::board::kAdcOversampling));
+static_assert(kAdcCfgr2 != kAdcCfgr2Invalid, "glove/board.h kAdcOversampling: a power of two in 1..256");
+
 void adcInit(uint32_t adc, const AdcSequence& seq, const uint8_t* plan, size_t n) {
   reg(adc + kAdcCr) &= ~kAdcCrDeeppwd;
   reg(adc + kAdcCr) |= kAdcCrAdvregen;
@@ -106,6 +112,7 @@ void adcInit(uint32_t adc, const AdcSequence& seq, const uint8_t* plan, size_t n
   }
   reg(adc + kAdcSmpr1) = smpr[0];
   reg(adc + kAdcSmpr2) = smpr[1];
+  reg(adc + kAdcCfgr2) = kAdcCfgr2;  // hardware oversampling (glove/board.h kAdcOversampling)
   reg(adc + kAdcCfgr) = kAdcCfgrDmaen | kAdcCfgrDmacfg | kAdcCfgrExtenRising | (kAdcExtselTim1Trgo << 5);
   reg(adc + kAdcIsr) = kAdcIsrAdrdy;
   reg(adc + kAdcCr) |= kAdcCrAden;

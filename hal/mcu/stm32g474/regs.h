@@ -70,7 +70,7 @@ constexpr uint32_t kTimOcPwm1 = 0x6u;  ///< OCxM = 0110, PWM mode 1
 constexpr uint32_t kLptimIsr = 0x00, kLptimCfgr = 0x0C, kLptimCr = 0x10, kLptimArr = 0x18, kLptimCnt = 0x1C;
 
 // ---- ADC (§21.7) ----
-constexpr uint32_t kAdcIsr = 0x00, kAdcCr = 0x08, kAdcCfgr = 0x0C, kAdcSmpr1 = 0x14, kAdcSmpr2 = 0x18;
+constexpr uint32_t kAdcIsr = 0x00, kAdcCr = 0x08, kAdcCfgr = 0x0C, kAdcCfgr2 = 0x10, kAdcSmpr1 = 0x14, kAdcSmpr2 = 0x18;
 constexpr uint32_t kAdcSqr1 = 0x30, kAdcDr = 0x40, kAdcCommonCcr = 0x08;
 constexpr uint32_t kAdcCrAden = 1u << 0, kAdcCrAdstart = 1u << 2, kAdcCrAdvregen = 1u << 28;
 constexpr uint32_t kAdcCrDeeppwd = 1u << 29, kAdcCrAdcal = 1u << 31;

@@ -74,13 +74,13 @@ void validate(const GlovePlantConfig& c) {
                              p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.passive_hold_margin,
                              p.slip_kinetic_fraction, p.pad_transmission, p.tendon_stiffness_N_per_m,
                              p.spool_segment_fraction, p.pad_stiffness_N_per_m, p.phalanx_mass_per_length_kg_per_m,
-                             p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad, p.strain_drift_time_s,
+                             p.muscle_damping_ratio, p.limit_stiffness_Nm_per_rad, p.pad_thermal_time_s,
                              p.max_substep_s};
   for (double v : positive) requireValid(finitePositive(v), "GlovePlantParams: a value that must be > 0 is not");
   const double non_negative[] = {p.motor_coulomb_friction_Nm, p.motor_viscous_Nm_s_per_rad,
                                  p.slip_damping_Nm_s_per_rad, p.tendon_damping_N_s_per_m, p.pretension_N,
                                  p.passive_damping_Nm_s_per_rad, p.limit_damping_Nm_s_per_rad,
-                                 p.hall_noise_counts, p.strain_noise_counts, p.strain_drift_N,
+                                 p.hall_noise_counts, p.strain_amp_noise_counts, p.adc_noise_counts, p.pad_warmup_K, p.strain_zero_tc_N_per_K,
                                  p.current_noise_counts, p.hall_gain_error, p.hall_offset_error_counts,
                                  p.hall_angle_error_rad, p.strain_gain_error, p.strain_offset_error_N,
                                  p.current_gain_error, p.current_offset_error_counts};
@@ -93,6 +93,7 @@ void validate(const GlovePlantConfig& c) {
   requireValid(p.spur_efficiency <= 1.0 && p.slip_kinetic_fraction <= 1.0, "GlovePlantParams: efficiency > 1");
   requireValid(p.spool_segment_fraction < 1.0, "GlovePlantParams: spool_segment_fraction must be < 1");
   requireValid(p.max_substep_s <= 1e-3, "GlovePlantParams: max_substep_s must be <= 1 ms");
+  requireValid(finiteNonNegative(c.worn_before_start_s), "GlovePlantConfig: worn_before_start_s must be finite and >= 0");
   // Self-locking needs the lead angle below the friction angle (λ < ρ); the forward efficiency is then < 50 %.
   requireValid(p.worm_lead_rad < std::atan(p.worm_friction_coeff), "GlovePlantParams: worm is not self-locking");
 }
@@ -263,6 +264,8 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   f.err.strain_offset_N = on * clippedNormal(calib_rng, p.strain_offset_error_N);
   f.err.current_gain = on * clippedNormal(calib_rng, p.current_gain_error);
   f.err.current_offset_counts = on * clippedNormal(calib_rng, p.current_offset_error_counts);
+  f.err.strain_zero_tc_N_per_K = on * clippedNormal(calib_rng, p.strain_zero_tc_N_per_K);
+  f.strain_drift_N = config_.noise ? thermalDrift_N(f) : 0.0;
 
   // Initial state: the finger at its intent, both tendons at their pretension, worm at rest and locked.
   Vec3<double> theta_d{}, theta_d_dot{};
@@ -616,7 +619,13 @@ void GlovePlant::fillTruth(Finger& f, const Eval& e, bool bridge_on) {
 
 double GlovePlant::gaussian() { return normal(noise_rng_); }
 
-void GlovePlant::sample(Finger& f, double dt_s, SimIo& io) {
+double GlovePlant::thermalDrift_N(const Finger& f) const {
+  const GlovePlantParams& p = config_.params;
+  const double worn_s = config_.worn_before_start_s + time_s_;
+  return f.err.strain_zero_tc_N_per_K * p.pad_warmup_K * (1.0 - std::exp(-worn_s / p.pad_thermal_time_s));
+}
+
+void GlovePlant::sample(Finger& f, SimIo& io) {
   const GlovePlantParams& p = config_.params;
   const int i = f.index;
   if (!f.enabled) {
@@ -637,15 +646,16 @@ void GlovePlant::sample(Finger& f, double dt_s, SimIo& io) {
     if (noise) v += p.hall_noise_counts * gaussian();
     io.adc[board::hallAdcChannel(i, static_cast<int>(j))] = toCounts(v);
   }
-  // Strain gauge: slow offset drift (exact Ornstein–Uhlenbeck update), noise, amplifier clamp at ± full scale.
-  if (noise) {
-    const double a = std::exp(-dt_s / p.strain_drift_time_s);
-    f.strain_drift_N = a * f.strain_drift_N + p.strain_drift_N * std::sqrt(1.0 - a * a) * gaussian();
-  }
+  // Strain gauge: zero drift with the pad's temperature (first-order warm-up since the glove was put on), noise,
+  // amplifier clamp at ± full scale.
+  f.strain_drift_N = noise ? thermalDrift_N(f) : 0.0;
   const double cpn = asDouble(board::kStrainCountsPerNewton);
   double s = static_cast<double>(board::kStrainZeroCounts) +
              cpn * ((1.0 + f.err.strain_gain) * f.truth.pad_force_N + f.err.strain_offset_N + f.strain_drift_N);
-  if (noise) s += p.strain_noise_counts * gaussian();
+  if (noise) {
+    const double adc = p.adc_noise_counts / std::sqrt(static_cast<double>(board::kAdcOversampling));
+    s += std::sqrt(p.strain_amp_noise_counts * p.strain_amp_noise_counts + adc * adc) * gaussian();
+  }
   s = std::clamp(s, static_cast<double>(board::kStrainMinCounts), static_cast<double>(board::kStrainMaxCounts));
   io.adc[board::strainAdcChannel(i)] = toCounts(s);
   // Current sense.
@@ -676,7 +686,7 @@ void GlovePlant::step(double dt_s, SimIo& io) {
     fillTruth(f, e, bridge_on);
   }
   time_s_ += dt_s;
-  for (Finger& f : fingers_) sample(f, dt_s, io);
+  for (Finger& f : fingers_) sample(f, io);
 }
 
 }  // namespace phalanx::sim

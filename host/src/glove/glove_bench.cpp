@@ -63,7 +63,8 @@ sim::GlovePlantConfig plantConfig(const GloveBenchOptions& o, sim::HandScenario 
   sim::GlovePlantConfig plant;
   plant.seed = o.seed;
   plant.noise = o.noise;
-  if (!o.drift) plant.params.strain_drift_N = 0.0;
+  if (!o.drift) plant.params.strain_zero_tc_N_per_K = 0.0;
+  if (o.worn_s >= 0.0) plant.worn_before_start_s = o.worn_s;
   plant.scenario = scenario;
   return plant;
 }
@@ -86,6 +87,7 @@ nlohmann::json benchFreeMotion(const GloveBenchOptions& o) {
   out["seed"] = o.seed;
   out["noise"] = o.noise;
   out["drift"] = o.noise && o.drift;
+  out["worn_s"] = plant.worn_before_start_s;
   out["faults"] = with.faults;
   double worst_peak = 0.0;
   std::array<double, 3> r_sum{};

@@ -61,6 +61,10 @@ struct Glove5Config {
   float force_filter_hz = 300.0f;
   float velocity_filter_hz = 40.0f;
   float max_duty = 0.9f;
+  /// The command's per-finger gain scale is applied at once when it falls (contact) and rises at most this fast
+  /// (1/s) when it grows back (leaving contact), so the full free-motion gain does not meet the force the reduced
+  /// contact gain left behind all at once.
+  float gain_scale_rise_per_s = 2.0f;
   float current_limit_A = 1.5f;     ///< sustained |I| above this for current_limit_ticks → fault
   uint16_t current_limit_ticks = 100;
   float active_force_limit_N = 10.0f;  ///< 000 §2.2: maximum active fingertip force
@@ -74,8 +78,9 @@ struct Glove5Config {
 };
 
 /// Device parameters (ParamGet/ParamSet, only settable while outputs are safe).
-/// Largest zero shift a tare accepts (N): 2× the per-part offset's 3σ (0.45 N) plus the gauge's drift (σ 0.05 N)
-/// (docs/glove-plant.md); a hand pressing the pad (≥ 1 N) is refused.
+/// Largest zero shift a tare accepts (N): the per-part offset's 3σ (0.45 N) plus the gauge's whole thermal drift
+/// (≤ 0.36 N: 36 mN/K over the pad's 10 K warm-up, docs/glove-plant.md), with margin; a hand pressing the pad
+/// (≥ 1 N) is refused.
 inline constexpr float kTareMaxShift_N = 1.0f;
 
 namespace glove5_param {
@@ -105,6 +110,7 @@ struct GloveFingerState {
   float current_A = 0.0f;
   float tendon_velocity_m_per_s = 0.0f;  ///< commanded, v_ff + v_fb
   float duty = 0.0f;
+  float gain_scale = 1.0f;    ///< the force loop's gain scale in use (the command's, its rises slew-limited)
   control::PidState pid{};
 };
 

@@ -38,6 +38,18 @@ constexpr SmprField smprField(uint8_t channel) {
                        : SmprField{1, static_cast<uint8_t>(3u * (channel - 10u))};
 }
 
+/// ADC_CFGR2 for regular-channel oversampling (RM0440 §21.4.30, §21.7.4): ROVSE (bit 0), OVSR [4:2] = log2(ratio) − 1,
+/// OVSS [8:5] = log2(ratio), so the sum of `ratio` conversions is shifted back to a 12-bit average. `ratio` 1: off
+/// (0); anything but a power of two in 2..256 is refused (returns 0xFFFFFFFF).
+inline constexpr uint32_t kAdcCfgr2Invalid = 0xFFFFFFFFu;
+constexpr uint32_t adcCfgr2Oversampling(uint32_t ratio) {
+  if (ratio == 1u) return 0u;
+  uint32_t log2 = 0;
+  while (log2 < 9u && (1u << log2) < ratio) ++log2;
+  if (log2 < 1u || log2 > 8u || (1u << log2) != ratio) return kAdcCfgr2Invalid;
+  return 1u | ((log2 - 1u) << 2) | (log2 << 5);
+}
+
 /// Where a circular DMA transfer is: the channel's CNDTR counts down from len to 1 and reloads, so the index
 /// the DMA writes next is len − CNDTR (CNDTR = len right after a reload ⇒ index 0).
 constexpr size_t dmaWriteIndex(size_t len, uint32_t cndtr) {

@@ -88,9 +88,16 @@ struct GlovePlantParams {
   double limit_damping_Nm_s_per_rad = 0.01;
   // Sensor imperfections (1σ). Noise terms only when GlovePlantConfig::noise.
   double hall_noise_counts = 2.0;             ///< DRV5055-class output noise after a 1 kHz RC filter
-  double strain_noise_counts = 2.0;           ///< bridge + INA noise, ≈ 21 mN
-  double strain_drift_N = 0.05;               ///< stationary σ of the slow offset drift (Ornstein–Uhlenbeck)
-  double strain_drift_time_s = 30.0;          ///< correlation time of the drift
+  /// Strain channel noise (derivation in docs/glove-plant.md "Sensors"): the bridge amplifier's (INA333,
+  /// 50 nV/√Hz through a 1 kHz RC, at the gain that maps 2 mV/V to ±1.5 V) ...
+  double strain_amp_noise_counts = 0.56;
+  /// ... and the ADC's own per conversion (SNR 66 dB, quantisation excluded), averaged over
+  /// board::kAdcOversampling conversions: 0.65 counts (≈ 7 mN) together.
+  double adc_noise_counts = 0.67;
+  /// Zero drift: the pad's temperature × the bridge's zero coefficient (per part, see strain_zero_tc_N_per_K).
+  /// The pad warms from the room towards the fingertip's temperature by this much (K) ...
+  double pad_warmup_K = 10.0;
+  double pad_thermal_time_s = 120.0;          ///< ... with this time constant (pad + fabric, estimated)
   double current_noise_counts = 3.0;          ///< residual PWM ripple + amplifier noise, ≈ 5 mA
   // Per-sensor calibration errors (1σ, clipped at 3σ). Only when GlovePlantConfig::calibration_errors.
   double hall_gain_error = 0.015;             ///< DRV5055 sensitivity tolerance + magnet strength spread
@@ -98,6 +105,9 @@ struct GlovePlantParams {
   double hall_angle_error_rad = 0.0087266;    ///< 0.5° magnet mounting angle
   double strain_gain_error = 0.02;
   double strain_offset_error_N = 0.15;        ///< bridge imbalance after assembly (tare removes it)
+  /// Zero shift per kelvin of the pad bridge (N/K): 3σ = 36 mN/K, the worst case of foil gauges whose apparent
+  /// strain is within ±1.8 µε/K, at 1000 µε for 20 N full scale.
+  double strain_zero_tc_N_per_K = 0.012;
   double current_gain_error = 0.01;
   double current_offset_error_counts = 5.0;
   // Integration.
@@ -109,6 +119,9 @@ struct GlovePlantConfig {
   std::uint32_t seed = 1;                                  ///< noise, calibration errors and kRandom motion
   TendonLubrication lubrication = TendonLubrication::kLubricated;
   bool noise = true;               ///< sensor noise and strain drift; false: deterministic, noise-free counts
+  /// How long the glove has been worn when the plant starts (s): the pad has been warming up for that long, so
+  /// its temperature, and the gauge's zero with it, still changes after the start-up tare (docs/glove-plant.md).
+  double worn_before_start_s = 60.0;
   bool calibration_errors = true;  ///< per-sensor gain/offset/mounting errors (seeded)
   std::array<bool, 5> finger_enabled = {true, true, true, true, true};  ///< false: not simulated, ADC reads 0
   /// true: that finger's tendons are removed (paper §4.3 "without cabling"): the glove linkage is dragged
@@ -204,7 +217,8 @@ class GlovePlant final : public Plant {
   double padForce_N(int finger) const { return truth(finger).pad_force_N; }
   /// The simulated user's intended finger angles θ_d (rad) at the current time.
   const glove::Vec3<double>& fingerIntent(int finger) const { return truth(finger).theta_d_rad; }
-  /// Current strain-gauge offset drift (N) — ground truth for tests of tare/drift handling.
+  /// Current strain-gauge zero drift (N, thermal, since the pad was at room temperature) — ground truth for
+  /// tests of tare/drift handling.
   double strainDrift_N(int finger) const { return fingers_[idx(finger)].strain_drift_N; }
 
  private:
@@ -214,6 +228,7 @@ class GlovePlant final : public Plant {
     glove::Vec3<double> hall_angle_rad{};
     double strain_gain = 0;
     double strain_offset_N = 0;
+    double strain_zero_tc_N_per_K = 0;
     double current_gain = 0;
     double current_offset_counts = 0;
   };
@@ -261,7 +276,8 @@ class GlovePlant final : public Plant {
   void evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const;
   void integrate(Finger& f, const Eval& e, double h);
   static void fillTruth(Finger& f, const Eval& e, bool bridge_on);
-  void sample(Finger& f, double dt_s, SimIo& io);
+  void sample(Finger& f, SimIo& io);
+  double thermalDrift_N(const Finger& f) const;  ///< the gauge's zero shift at the pad's temperature now
   double gaussian();
 
   GlovePlantConfig config_;

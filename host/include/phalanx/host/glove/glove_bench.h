@@ -13,7 +13,8 @@ struct GloveBenchOptions {
   double seconds = 0.0;  ///< 0: the scenario's default length
   uint32_t seed = 1;
   bool noise = true;
-  bool drift = true;  ///< false: the simulated strain gauges' slow zero drift is off (noise stays)
+  bool drift = true;  ///< false: the simulated strain gauges' thermal zero drift is off (noise stays)
+  double worn_s = -1.0;  ///< how long the glove was worn before the start (s); < 0: the plant's default
 };
 
 /// Free motion (000 §4.3): close/open maneuvers of 1 s with zero commanded force, with and without cables.

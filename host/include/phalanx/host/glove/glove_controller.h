@@ -22,9 +22,10 @@ struct GloveControllerConfig {
   /// Force-loop gain in contact, sent as the command's gain scale: min(1, k_ref / k_object); 0 disables.
   /// In contact the firmware's admittance loop closes through the rendered stiffness (setpoint k·x moves with the
   /// glove), so its loop gain grows with k; with the full gain a rigid ball (2000 N/m) limit-cycles at ≈ 20 Hz
-  /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 75 N/m keeps the grasp error ≤ 3.4 % at
-  /// 0.5–1.5 A RMS with the firmware's kp = 1.5 (an effective 0.056 m/s per N on the rigid ball; glove-firmware.md).
-  double contact_gain_ref_N_per_m = 75.0;
+  /// and the motors draw 3.3–3.7 A RMS holding it. k_ref = 56.25 N/m with the firmware's kp = 2 (kp·k_ref as with
+  /// the earlier 1.5 and 75: an effective 0.056 m/s per N on the rigid ball) keeps the grasp error ≤ 4.1 % at
+  /// 0.5–1.4 A RMS (glove-firmware.md).
+  double contact_gain_ref_N_per_m = 56.25;
   /// Largest rendered stiffness × host period (N·s/m): every object is rendered with k ≤ this / T. The setpoint
   /// k·x is sampled once per host period T and the 1 kHz firmware realises it within the period; too stiff for the
   /// period, the rendering jumps in and out of contact (100 Hz host, hand still and resting in the rigid ball:
