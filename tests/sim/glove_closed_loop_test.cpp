@@ -132,6 +132,11 @@ TEST(GloveTare, AFingerPressingThePadKeepsItsZeroAndTheRelaxedOnesAreTared) {
   for (int i = 0; i < 100; ++i) rig.step();
   ASSERT_EQ(app.getParam(apps::glove5_param::kTare, tare), protocol::ParamStatus::kOk);
   EXPECT_EQ(-tare, static_cast<float>(pressing)) << "exactly the pressing fingers are refused";
+  // What phalanxd prints after reading the parameter back (GloveController and the therapy session's glove).
+  const std::string warning = host::glove::tareWarning(apps::glove5_param::kTare, tare);
+  for (int f = 0; f < 5; ++f) {
+    EXPECT_EQ(warning.find(host::glove::kFingerNames[f]) != std::string::npos, ((pressing >> f) & 1) != 0) << warning;
+  }
   for (int f = 0; f < 5; ++f) {
     // Every finger's force still reads the true pad force (the pressing ones with their old zero).
     EXPECT_NEAR(app.finger(f).force_N, g.device.glovePlant().padForce_N(f), 0.5) << "finger " << f;

@@ -137,3 +137,16 @@ TEST(PatientLimits, ClampEffortAndNeverPushAJointFurtherOutOfItsRange) {
   l.apply(obs, e);
   EXPECT_DOUBLE_EQ(e[1], 0.0);
 }
+
+// The therapy session reads the glove's tare back after start-up like the grasp session, and warns the same way.
+TEST(GloveTherapyDevice, ReadsTheTareBackAndWarnsOfRefusedFingers) {
+  std::string error;
+  const auto glove = GloveTherapyDevice::make({}, error);
+  ASSERT_TRUE(glove) << error;
+  ASSERT_EQ(glove->startupReadback(), std::vector<uint16_t>{phalanx::apps::glove5_param::kTare});
+  EXPECT_EQ(glove->startupWarning(phalanx::apps::glove5_param::kTare, 0.0f), "") << "every finger re-zeroed";
+  const std::string w = glove->startupWarning(phalanx::apps::glove5_param::kTare, -6.0f);  // index and middle
+  EXPECT_NE(w.find("index, middle"), std::string::npos) << w;
+  EXPECT_NE(w.find("refused"), std::string::npos) << w;
+  EXPECT_EQ(glove->startupWarning(phalanx::apps::glove5_param::kForceKp, -6.0f), "") << "another parameter";
+}

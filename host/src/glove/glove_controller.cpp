@@ -18,7 +18,9 @@ GloveController::GloveController(const GloveControllerConfig& config) : config_(
   loadDemoScene(scene_, config.scene);
 }
 
-std::string GloveController::startupWarning(uint16_t id, float value) const {
+std::string GloveController::startupWarning(uint16_t id, float value) const { return tareWarning(id, value); }
+
+std::string tareWarning(uint16_t id, float value) {
   if (id != apps::glove5_param::kTare || !(value < 0.0f)) return {};
   const auto mask = static_cast<unsigned>(std::lround(-value));
   std::string fingers;

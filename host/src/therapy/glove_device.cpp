@@ -94,6 +94,10 @@ void GloveTherapyDevice::observe(const TelemetryFrame& tel, Observation& out) {
   (void)kDutySample0;
 }
 
+std::string GloveTherapyDevice::startupWarning(uint16_t id, float value) const {
+  return glove::tareWarning(id, value);
+}
+
 std::unique_ptr<Controller> GloveTherapyDevice::makeGraspController(const std::string& scene, std::string& error) const {
   glove::GloveControllerConfig cfg;
   if (scene == "rigid-ball") cfg.scene = glove::DemoScene::kRigidBall;

@@ -26,6 +26,8 @@ class SharedController : public Controller {
   void summarize(nlohmann::json& out) const override { c_->summarize(out); }
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return c_->startupParams(); }
   double startupSettleS() const override { return c_->startupSettleS(); }
+  std::vector<uint16_t> startupReadback() const override { return c_->startupReadback(); }
+  std::string startupWarning(uint16_t id, float value) const override { return c_->startupWarning(id, value); }
 
  private:
   std::shared_ptr<TherapyController> c_;

@@ -46,6 +46,10 @@ struct FingerStats {
   long free_cycles = 0;
 };
 
+/// The start-up warning for glove5's tare parameter read back after start-up (value: −mask of the fingers whose
+/// tare was refused, bit = FingerId), empty when every finger was re-zeroed or `id` is another parameter.
+std::string tareWarning(uint16_t id, float value);
+
 class GloveController : public Controller {
  public:
   explicit GloveController(const GloveControllerConfig& config);

@@ -74,6 +74,9 @@ class TherapyDevice {
   /// Start-up parameters (e.g. the glove's strain-gauge tare) and settle time, as Controller.
   virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }
   virtual double startupSettleS() const { return 0.0; }
+  /// Parameters read back after start-up and the warning each value gives, as Controller.
+  virtual std::vector<uint16_t> startupReadback() const { return {}; }
+  virtual std::string startupWarning(uint16_t /*id*/, float /*value*/) const { return {}; }
   /// The virtual-object grasp exercise (glove: GloveController's scene rendering), nullptr when the device
   /// has none. scene: rigid-ball | soft-ball | wall.
   virtual std::unique_ptr<Controller> makeGraspController(const std::string& scene, std::string& error) const {

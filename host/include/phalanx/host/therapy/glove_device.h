@@ -29,6 +29,8 @@ class GloveTherapyDevice : public TherapyDevice {
   double effortFromSetpoint(std::size_t, float setpoint) const override { return static_cast<double>(setpoint); }
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{apps::glove5_param::kTare, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }
+  std::vector<uint16_t> startupReadback() const override { return {apps::glove5_param::kTare}; }
+  std::string startupWarning(uint16_t id, float value) const override;
   std::unique_ptr<Controller> makeGraspController(const std::string& scene, std::string& error) const override;
 
   const phalanx::glove::Model<double>& model(std::size_t finger) const { return models_[finger]; }

@@ -51,6 +51,8 @@ class TherapyController : public Controller {
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return device_->startupParams(); }
   double startupSettleS() const override { return device_->startupSettleS(); }
+  std::vector<uint16_t> startupReadback() const override { return device_->startupReadback(); }
+  std::string startupWarning(uint16_t id, float value) const override { return device_->startupWarning(id, value); }
   void summarize(nlohmann::json& out) const override;
 
   // --- API thread ---
