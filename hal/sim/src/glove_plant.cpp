@@ -80,7 +80,8 @@ void validate(const GlovePlantConfig& c) {
   const double non_negative[] = {p.motor_coulomb_friction_Nm, p.motor_viscous_Nm_s_per_rad,
                                  p.slip_damping_Nm_s_per_rad, p.tendon_damping_N_s_per_m, p.pretension_N,
                                  p.passive_damping_Nm_s_per_rad, p.limit_damping_Nm_s_per_rad,
-                                 p.hall_noise_counts, p.strain_amp_noise_counts, p.adc_noise_counts, p.pad_warmup_K, p.strain_zero_tc_N_per_K,
+                                 p.hall_noise_counts, p.strain_amp_noise_counts, p.adc_noise_counts,
+                                 p.pad_warmup_K, p.strain_zero_tc_N_per_K,
                                  p.current_noise_counts, p.hall_gain_error, p.hall_offset_error_counts,
                                  p.hall_angle_error_rad, p.strain_gain_error, p.strain_offset_error_N,
                                  p.current_gain_error, p.current_offset_error_counts};
