@@ -25,8 +25,11 @@ sim::GlovePlantConfig plantConfig(sim::HandScenario scenario) {
 
 /// The simulated glove, the host's glove controller (rendering or transparent) and the lockstep rig joining them.
 struct GloveRig {
-  GloveRig(const sim::GlovePlantConfig& plant, bool transparent, const host::LockstepOptions& options = {})
-      : device(plant), controller(controllerConfig(transparent)), rig(device, controller, options) {}
+  GloveRig(const sim::GlovePlantConfig& plant, bool transparent, const host::LockstepOptions& options = {},
+           const apps::Glove5Config& firmware = apps::glove5DefaultConfig())
+      : device(plant, apps::glove5DefaultCalibration(), firmware),
+        controller(controllerConfig(transparent)),
+        rig(device, controller, options) {}
   static GloveControllerConfig controllerConfig(bool transparent) {
     GloveControllerConfig c;
     c.transparent = transparent;
@@ -141,6 +144,82 @@ TEST(GloveTare, AFingerPressingThePadKeepsItsZeroAndTheRelaxedOnesAreTared) {
     // Every finger's force still reads the true pad force (the pressing ones with their old zero).
     EXPECT_NEAR(app.finger(f).force_N, g.device.glovePlant().padForce_N(f), 0.5) << "finger " << f;
   }
+}
+
+// A hand clenched onto the pads when the session starts: the transparent loop released at full speed, the finger (a
+// force source) followed into the fist and the glove overshot, -10 to -12 N on the pad, into current-limit or
+// sensor-saturated within 0.5 s (10 of 10 seeds). The firmware holds such a finger (motor off, the worm holds) until
+// its pad force is within Glove5Config::engage_max_force_N. The same scenario with the hold disabled must latch, or
+// this test shows nothing.
+TEST(GloveEngage, AHandClenchedAtTheStartIsHeldAndNeverDriven) {
+  for (const bool hold : {true, false}) {
+    apps::Glove5Config fw = apps::glove5DefaultConfig();
+    if (!hold) fw.engage_max_force_N = 1e9f;
+    GloveRig g(plantConfig(sim::HandScenario::kGrasp), true, {}, fw);
+    g.rig.run(3.0);  // the hand closes onto the glove before the host connects: the worm holds it
+    ASSERT_EQ(g.rig.handshake(), "");
+    double worst_pad_N = 0.0;
+    for (int i = 0; i < 2000; ++i) {
+      g.rig.step();
+      for (int f = 0; f < 5; ++f) worst_pad_N = std::fmax(worst_pad_N, std::fabs(g.device.glovePlant().padForce_N(f)));
+    }
+    if (!hold) {
+      EXPECT_NE(g.rig.core().faultBits(), 0u) << "without the hold the clenched start must latch";
+      continue;
+    }
+    EXPECT_EQ(g.rig.core().faultBits(), 0u);
+    EXPECT_TRUE(g.rig.board().io().pwm_enabled);
+    EXPECT_LT(worst_pad_N, 6.0) << "no more than the hand's own squeeze (5 N)";
+    for (int f = 0; f < 5; ++f) {
+      EXPECT_FALSE(g.device.gloveApp().finger(f).engaged) << "finger " << f;
+      EXPECT_EQ(g.rig.board().io().pwm_duty[static_cast<size_t>(f)], 0.0f) << "finger " << f;
+    }
+  }
+}
+
+// The hand presses when the link comes back, then relaxes: the pressing fingers are held (the worm does not move)
+// while the others follow the hand; once the pads are relieved every finger engages and the glove is transparent.
+TEST(GloveEngage, APressingFingerEngagesOnceItRelaxes) {
+  auto cfg = plantConfig(sim::HandScenario::kPush);
+  cfg.push_force_N = 5.0;
+  cfg.push_ramp_s = 0.3;
+  cfg.push_until_s = 3.0;
+  GloveRig g(cfg, true);
+  auto& rig = g.rig;
+  const auto& plant = g.device.glovePlant();
+  ASSERT_EQ(rig.handshake(), "");  // tare at t ≈ 0, relaxed
+  rig.setHostConnected(false);
+  rig.run(1.5);  // safe: the worm holds while the push ramps up
+  int pressing = 0;
+  double spool[5];
+  for (int f = 0; f < 5; ++f) {
+    pressing |= (plant.padForce_N(f) > 2.0 ? 1 : 0) << f;
+    spool[f] = plant.spoolAngle_rad(f);
+  }
+  ASSERT_NE(pressing, 0) << "some finger must press the pad for this to test anything";
+  rig.setHostConnected(true);
+  while (rig.timeS() < 2.9) rig.step();
+  ASSERT_EQ(rig.core().faultBits(), 0u);
+  for (int f = 0; f < 5; ++f) {
+    const bool pressed = ((pressing >> f) & 1) != 0;
+    EXPECT_EQ(g.device.gloveApp().finger(f).engaged, !pressed) << "finger " << f;
+    if (pressed) {
+      EXPECT_NEAR(plant.spoolAngle_rad(f), spool[f], 1e-6) << "held finger " << f << " moved";
+    }
+  }
+  double least_pad_N = 0.0;  // the hand lets go from t = 3 s: no overshoot into the relaxing finger as it engages
+  double late_peak_N = 0.0;
+  while (rig.timeS() < 5.0) {
+    rig.step();
+    for (int f = 0; f < 5; ++f) {
+      least_pad_N = std::fmin(least_pad_N, plant.padForce_N(f));
+      if (rig.timeS() > 4.0) late_peak_N = std::fmax(late_peak_N, std::fabs(plant.padForce_N(f)));
+    }
+  }
+  EXPECT_EQ(rig.core().faultBits(), 0u);
+  for (int f = 0; f < 5; ++f) EXPECT_TRUE(g.device.gloveApp().finger(f).engaged) << "finger " << f;
+  EXPECT_GT(least_pad_N, -0.5);  // seeds 1-10: -0.11 to -0.13 N
+  EXPECT_LT(late_peak_N, 0.15) << "transparent once engaged (seeds 1-10: 0.09-0.10 N)";
 }
 
 TEST(GlovePowerOff, TheWormHoldsAgainst35NWithTheMotorsOff) {

@@ -406,6 +406,19 @@ TEST(GlovePlantScenarios, GraspSqueezeAgainstALockedGloveIsBoundedByTheSqueezeEf
   }
 }
 
+TEST(GlovePlantScenarios, APushThatEndsLetsTheLockedPadGo) {
+  GlovePlantConfig c = idealConfig(HandScenario::kPush);
+  c.push_force_N = 5.0;
+  c.push_ramp_s = 0.3;
+  c.push_until_s = 1.5;
+  GlovePlant plant(c);
+  SimIo io;  // outputs off: the worm holds the glove
+  run(plant, io, 1.4);
+  EXPECT_NEAR(plant.padForce_N(kIndex), 5.0, 0.5);
+  run(plant, io, 1.0);  // let go at 1.5 s, over 0.3 s
+  EXPECT_LT(std::fabs(plant.padForce_N(kIndex)), 0.2);
+}
+
 TEST(GlovePlantScenarios, CloseOpenManeuverClosesAndReopensInAboutOneSecond) {
   GlovePlant plant(idealConfig(HandScenario::kCloseOpen));
   SimIo io;

@@ -116,8 +116,13 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
                                 : static_cast<uint16_t>(0);
     if (overcurrent_ticks_[f] >= cfg_.current_limit_ticks) faults |= protocol::fault::kCurrentLimit;
 
-    if (cmd.mode == protocol::Mode::kLock) {
-      // Motor off: the self-locking worm holds the mechanism (000 §2.2).
+    // Lock, or an active mode entered while the pad is pressed (Glove5Config::engage_max_force_N): motor off,
+    // the self-locking worm holds the mechanism (000 §2.2).
+    if (cmd.mode == protocol::Mode::kLock) s.engaged = false;
+    if (!s.engaged && cmd.mode != protocol::Mode::kLock && std::fabs(s.force_N) <= cfg_.engage_max_force_N) {
+      s.engaged = true;
+    }
+    if (!s.engaged) {
       control::pidReset(s.pid);
       s.duty = 0.0f;
       pwm.setDuty(static_cast<uint8_t>(f), 0.0f);
@@ -151,6 +156,7 @@ void Glove5App::safe() {
     control::pidReset(s.pid);
     s.duty = 0.0f;
     s.gain_scale = 1.0f;
+    s.engaged = false;
   }
   for (auto& n : overcurrent_ticks_) n = 0;
 }

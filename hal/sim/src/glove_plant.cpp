@@ -70,6 +70,7 @@ void validate(const GlovePlantConfig& c) {
   requireValid(finitePositive(c.squeeze_force_N), "GlovePlantConfig: squeeze_force_N must be finite and > 0");
   requireValid(finiteNonNegative(c.push_force_N), "GlovePlantConfig: push_force_N must be finite and >= 0");
   requireValid(finitePositive(c.push_ramp_s), "GlovePlantConfig: push_ramp_s must be finite and > 0");
+  requireValid(!std::isnan(c.push_until_s) && c.push_until_s >= 0.0, "GlovePlantConfig: push_until_s must be >= 0");
   const double positive[] = {p.rotor_inertia_kg_m2, p.spur_efficiency, p.worm_lead_rad, p.worm_friction_coeff,
                              p.spool_inertia_kg_m2, p.worm_wheel_inertia_kg_m2, p.passive_hold_margin,
                              p.slip_kinetic_fraction, p.pad_transmission, p.tendon_stiffness_N_per_m,
@@ -120,6 +121,7 @@ struct GlovePlant::Eval {
   double tau_load_Nm = 0;  // tendon torque on the spool, + turns it +
   double voltage_V = 0, current_A = 0;
   double push_target_N = 0;  // kPush: the pad force the person aims for now
+  double push_effort_cap = 1;  // kPush: fraction of the maximum effort left (falls to 0 as the person lets go)
   // Linearly implicit finger step: local joint stiffness/damping (diagonal) and the tendon's rank-1 terms
   // along a = ∂q_m/∂θ.
   Vec3<double> k_diag{}, b_diag{}, a{};
@@ -420,6 +422,7 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
                     p.passive_stiffness_Nm_per_rad[j] * (e.theta_d[j] - rest);
   }
   e.push_target_N = 0.0;
+  e.push_effort_cap = 1.0;
   if (config_.scenario == HandScenario::kGrasp) {
     // Effort saturates at the squeeze force: the joint torques that a pad-normal force of that size needs.
     for (std::size_t j = 0; j < 3; ++j) {
@@ -437,7 +440,10 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
     }
     const double along = aa > 0.0 ? dot3(e.a, posture) / aa : 0.0;
     for (std::size_t j = 0; j < 3; ++j) tau_muscle[j] -= e.a[j] * (along + f.push_effort_N);
-    e.push_target_N = config_.push_force_N * std::min(1.0, t / config_.push_ramp_s);
+    const double on = std::min(1.0, t / config_.push_ramp_s);
+    const double off = std::clamp((t - config_.push_until_s) / config_.push_ramp_s, 0.0, 1.0);
+    e.push_target_N = config_.push_force_N * std::min(on, 1.0 - off);
+    e.push_effort_cap = 1.0 - off;
   }
   for (std::size_t j = 0; j < 3; ++j) {
     const double rest = degToRad(p.rest_pose_deg[j]);
@@ -558,11 +564,12 @@ void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
   }
 
   // ---- kPush: the person regulates the fingertip force by feel — the effort integrates the force error
-  // with a 0.15 s time constant, never negative, at most twice the nominal effort.
+  // with a 0.15 s time constant, never negative, at most twice the nominal effort; letting go (push_until_s),
+  // that bound falls to 0 with the target: a relaxed finger does not regulate a zero force, it stops pushing.
   if (config_.scenario == HandScenario::kPush) {
     const double c = f.k.pad_transmission;
     f.push_effort_N += h * (e.push_target_N - e.pad_N) / (c * kPushForceLoop_s);
-    f.push_effort_N = std::clamp(f.push_effort_N, 0.0, 2.0 * config_.push_force_N / c);
+    f.push_effort_N = std::clamp(f.push_effort_N, 0.0, e.push_effort_cap * 2.0 * config_.push_force_N / c);
   }
 
   // ---- Finger: linearly implicit Euler, (M + h·B + h²·K)·Δθ̇ = h·τ, then θ += h·θ̇, with B and K the

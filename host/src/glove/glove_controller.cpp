@@ -32,7 +32,8 @@ std::string tareWarning(uint16_t id, float value) {
   char limit[16];
   std::snprintf(limit, sizeof limit, "%.1f", static_cast<double>(apps::kTareMaxShift_N));
   return "strain-gauge tare refused for " + fingers + ": the pad was pressed (more than " + limit +
-         " N from its zero) at start-up; the previous zero is kept. Relax the hand and start again to re-zero.";
+         " N from its zero) at start-up; the previous zero is kept, and the glove holds those fingers (motor off) until "
+         "their pads are relieved. Relax the hand and start again to re-zero.";
 }
 
 std::vector<Controller::RequiredParam> GloveController::requiredParams() const {

@@ -54,6 +54,11 @@ struct Glove5Calibration {
   float force_per_duty_sign = 1.0f;
 };
 
+/// Largest zero shift a tare accepts (N): the per-part offset's 3σ (0.45 N) plus the gauge's whole thermal drift
+/// (≤ 0.36 N: 36 mN/K over the pad's 10 K warm-up, docs/glove-plant.md), with margin; a hand pressing the pad
+/// (≥ 1 N) is refused.
+inline constexpr float kTareMaxShift_N = 1.0f;
+
 struct Glove5Config {
   control::PidConfig force_pid{};   ///< pad force error (N) → tendon velocity (m/s); out_min/max: ± max speed
   float ff_scale = 1.0f;            ///< 0 disables the finger-motion feed-forward
@@ -65,6 +70,12 @@ struct Glove5Config {
   /// (1/s) when it grows back (leaving contact), so the full free-motion gain does not meet the force the reduced
   /// contact gain left behind all at once.
   float gain_scale_rise_per_s = 2.0f;
+  /// Engagement: a finger entering an active mode (from lock, safe or start-up) keeps its motor off — the worm
+  /// holds — until its measured pad force is within this (N). The admittance loop cannot release a finger that
+  /// keeps pressing (it chases the finger into the fist at full speed and overshoots, docs/glove-firmware.md), so a
+  /// hand clenched when the session starts or the link comes back is held until it relaxes. kTareMaxShift_N: a
+  /// relaxed pad whose tare was refused still reads within it (its zero's error is smaller).
+  float engage_max_force_N = kTareMaxShift_N;
   float current_limit_A = 1.5f;     ///< sustained |I| above this for current_limit_ticks → fault
   uint16_t current_limit_ticks = 100;
   float active_force_limit_N = 10.0f;  ///< 000 §2.2: maximum active fingertip force
@@ -78,11 +89,6 @@ struct Glove5Config {
 };
 
 /// Device parameters (ParamGet/ParamSet, only settable while outputs are safe).
-/// Largest zero shift a tare accepts (N): the per-part offset's 3σ (0.45 N) plus the gauge's whole thermal drift
-/// (≤ 0.36 N: 36 mN/K over the pad's 10 K warm-up, docs/glove-plant.md), with margin; a hand pressing the pad
-/// (≥ 1 N) is refused.
-inline constexpr float kTareMaxShift_N = 1.0f;
-
 namespace glove5_param {
 constexpr uint16_t kForceKp = 0x0100;
 constexpr uint16_t kForceKi = 0x0101;
@@ -111,6 +117,7 @@ struct GloveFingerState {
   float tendon_velocity_m_per_s = 0.0f;  ///< commanded, v_ff + v_fb
   float duty = 0.0f;
   float gain_scale = 1.0f;    ///< the force loop's gain scale in use (the command's, its rises slew-limited)
+  bool engaged = false;       ///< the force loop drives the motor (false in lock and safe, and while held, above)
   control::PidState pid{};
 };
 

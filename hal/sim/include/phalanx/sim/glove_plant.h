@@ -26,6 +26,7 @@
 /// (noise from std::mt19937 with a portable Box–Muller, scenario randomness from a second seeded stream).
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <random>
 
 #include "phalanx/glove/board.h"
@@ -133,6 +134,9 @@ struct GlovePlantConfig {
   /// the effort by feel until the pad force matches (or the glove gives way) and holds the θ_ref posture.
   double push_force_N = 0.0;
   double push_ramp_s = 0.5;      ///< kPush: linear ramp time of the target force (s)
+  /// kPush: the person stops pressing at this time (s; infinity: never), ramping the target back to 0 over
+  /// push_ramp_s: a clenched hand that relaxes.
+  double push_until_s = std::numeric_limits<double>::infinity();
   GlovePlantParams params{};
 };
 
