@@ -118,9 +118,10 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
 
     // Lock, or an active mode entered while the pad is pressed (Glove5Config::engage_max_force_N): motor off,
     // the self-locking worm holds the mechanism (000 §2.2).
-    if (cmd.mode == protocol::Mode::kLock) s.engaged = false;
-    if (!s.engaged && cmd.mode != protocol::Mode::kLock && std::fabs(s.force_N) <= cfg_.engage_max_force_N) {
-      s.engaged = true;
+    if (cmd.mode == protocol::Mode::kLock) {
+      s.engaged = false;
+    } else if (!s.engaged) {
+      s.engaged = std::fabs(s.force_N) <= cfg_.engage_max_force_N;
     }
     if (!s.engaged) {
       control::pidReset(s.pid);

@@ -167,6 +167,8 @@ GlovePlant::GlovePlant(const GlovePlantConfig& config) : config_(config), noise_
   const double rho = std::atan(p.worm_friction_coeff);
   worm_eff_forward_ = std::tan(p.worm_lead_rad) / std::tan(p.worm_lead_rad + rho);
   worm_eff_backward_ = std::tan(p.worm_lead_rad - rho) / std::tan(p.worm_lead_rad);
+  const double adc_noise = p.adc_noise_counts / std::sqrt(static_cast<double>(board::kAdcOversampling));
+  strain_noise_counts_ = std::sqrt(p.strain_amp_noise_counts * p.strain_amp_noise_counts + adc_noise * adc_noise);
   // Separate streams, so that switching noise or calibration errors never changes the hand's motion.
   std::mt19937 calib_rng(config_.seed ^ 0x9E3779B9u);
   std::mt19937 motion_rng(config_.seed ^ 0x7F4A7C15u);
@@ -268,7 +270,6 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   f.err.current_gain = on * clippedNormal(calib_rng, p.current_gain_error);
   f.err.current_offset_counts = on * clippedNormal(calib_rng, p.current_offset_error_counts);
   f.err.strain_zero_tc_N_per_K = on * clippedNormal(calib_rng, p.strain_zero_tc_N_per_K);
-  f.strain_drift_N = config_.noise ? thermalDrift_N(f) : 0.0;
 
   // Initial state: the finger at its intent, both tendons at their pretension, worm at rest and locked.
   Vec3<double> theta_d{}, theta_d_dot{};
@@ -656,14 +657,11 @@ void GlovePlant::sample(Finger& f, SimIo& io) {
   }
   // Strain gauge: zero drift with the pad's temperature (first-order warm-up since the glove was put on), noise,
   // amplifier clamp at ± full scale.
-  f.strain_drift_N = noise ? thermalDrift_N(f) : 0.0;
+  const double drift_N = noise ? thermalDrift_N(f) : 0.0;
   const double cpn = asDouble(board::kStrainCountsPerNewton);
   double s = static_cast<double>(board::kStrainZeroCounts) +
-             cpn * ((1.0 + f.err.strain_gain) * f.truth.pad_force_N + f.err.strain_offset_N + f.strain_drift_N);
-  if (noise) {
-    const double adc = p.adc_noise_counts / std::sqrt(static_cast<double>(board::kAdcOversampling));
-    s += std::sqrt(p.strain_amp_noise_counts * p.strain_amp_noise_counts + adc * adc) * gaussian();
-  }
+             cpn * ((1.0 + f.err.strain_gain) * f.truth.pad_force_N + f.err.strain_offset_N + drift_N);
+  if (noise) s += strain_noise_counts_ * gaussian();
   s = std::clamp(s, static_cast<double>(board::kStrainMinCounts), static_cast<double>(board::kStrainMaxCounts));
   io.adc[board::strainAdcChannel(i)] = toCounts(s);
   // Current sense.

@@ -223,7 +223,7 @@ class GlovePlant final : public Plant {
   const glove::Vec3<double>& fingerIntent(int finger) const { return truth(finger).theta_d_rad; }
   /// Current strain-gauge zero drift (N, thermal, since the pad was at room temperature) — ground truth for
   /// tests of tare/drift handling.
-  double strainDrift_N(int finger) const { return fingers_[idx(finger)].strain_drift_N; }
+  double strainDrift_N(int finger) const { return config_.noise ? thermalDrift_N(fingers_[idx(finger)]) : 0.0; }
 
  private:
   struct SensorErrors {
@@ -262,7 +262,6 @@ class GlovePlant final : public Plant {
     double spool_angle = 0;
     bool worm_stuck = true;
     bool slipping = false;
-    double strain_drift_N = 0;
     double push_effort_N = 0;              ///< kPush: the person's effort, as a tendon tension (N)
     GloveFingerTruth truth{};
   };
@@ -288,6 +287,7 @@ class GlovePlant final : public Plant {
   double mu_ = 0;
   double worm_eff_forward_ = 0;   ///< η_w = tan λ / tan(λ + ρ)
   double worm_eff_backward_ = 0;  ///< η_wb = tan(λ − ρ) / tan λ (< 0: self-locking)
+  double strain_noise_counts_ = 0;  ///< σ of a strain sample: amplifier + ADC noise, the ADC's averaged (counts)
   double time_s_ = 0;
   std::array<Finger, 5> fingers_{};
   std::mt19937 noise_rng_;
