@@ -26,7 +26,7 @@
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
-#include "phalanx/host/record/spsc_queue.h"
+#include "phalanx/host/record/csv_recorder.h"
 #include "phalanx/host/safety_io.h"
 #include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
@@ -121,119 +121,6 @@ class SimChild {
 
  private:
   pid_t pid_ = -1;
-};
-
-/// CSV recorder. The loop only copies each cycle into a bounded lock-free queue (no formatting, no system call, no
-/// allocation); a writer thread at normal priority formats the rows and writes them. Before this the loop
-/// formatted every row into a 1 MiB stdio buffer and, whenever it filled (every ~3 s), made the 1 MiB write(2)
-/// itself: on a machine with busy disks that write blocked the loop for up to 28 ms (docs/modbus.md, "Measured").
-/// A full queue (the writer starved for kQueueRows cycles) drops the row; drops are counted in the summary.
-class Recorder {
- public:
-  ~Recorder() { close(); }
-  std::string open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column) {
-    f_ = std::fopen(path.c_str(), "w");
-    if (f_ == nullptr) return "cannot write recording " + path + ": " + std::strerror(errno);
-    std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
-    std::fprintf(f_, "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits");
-    for (uint8_t i = 0; i < layout.sample_count; ++i) std::fprintf(f_, ",sample%u", i);
-    for (uint8_t i = 0; i < layout.setpoint_count; ++i) std::fprintf(f_, ",setpoint%u", i);
-    // Rising edges of the sync pulse emitted so far: the motion-capture frame index (docs/gpio.md).
-    if (sync_column) std::fprintf(f_, ",sync_pulses");
-    std::fprintf(f_, "\n");
-    sync_column_ = sync_column;
-    samples_ = layout.sample_count;
-    setpoints_ = layout.setpoint_count;
-    // Allocated and touched here, before the loop (and before mlockall, which then locks it).
-    queue_ = std::make_unique<record::SpscQueue<Row>>(kQueueRows);
-    running_ = true;
-    writer_ = std::thread([this] { writerMain(); });
-    return {};
-  }
-  /// Loop side: one copy into the queue.
-  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses) {
-    if (!queue_) return;
-    Row r;
-    r.t_s = t_s;
-    r.device_time_us = tel.device_time_us;
-    r.sync_pulses = sync_pulses;
-    r.seq = tel.seq;
-    r.cmd_seq_echo = tel.cmd_seq_echo;
-    r.fault_bits = tel.fault_bits;
-    r.mode = static_cast<uint8_t>(tel.mode);
-    std::copy(tel.value.begin(), tel.value.begin() + samples_, r.sample.begin());
-    std::copy(cmd.setpoint, cmd.setpoint + setpoints_, r.setpoint.begin());
-    if (queue_->push(r)) {
-      ++rows_;
-    } else {
-      ++dropped_;
-    }
-  }
-  void close() {
-    if (writer_.joinable()) {
-      running_ = false;
-      writer_.join();
-    }
-    queue_.reset();
-    if (f_ != nullptr) std::fclose(f_);
-    f_ = nullptr;
-  }
-  uint64_t rows() const { return rows_; }
-  uint64_t dropped() const { return dropped_; }
-
- private:
-  /// 8 s at 1 kHz of writer starvation before a row is dropped; ≈ 1.4 MB.
-  static constexpr size_t kQueueRows = 8192;
-  struct Row {
-    double t_s = 0.0;
-    uint64_t device_time_us = 0, sync_pulses = 0;
-    uint16_t seq = 0, cmd_seq_echo = 0, fault_bits = 0;
-    uint8_t mode = 0;
-    std::array<float, protocol::kMaxSamples> sample{};
-    std::array<float, protocol::kMaxSetpoints> setpoint{};
-  };
-  void writerMain() {
-    // Created before the loop goes SCHED_FIFO; made explicit anyway: the writer must never compete with the loop.
-    sched_param normal{};
-    normal.sched_priority = 0;
-    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
-    Row r;
-    uint64_t since_flush = 0;
-    for (;;) {
-      const bool more = running_.load();
-      size_t n = 0;
-      while (queue_->pop(r)) {
-        format(r);
-        ++n;
-      }
-      since_flush += n;
-      if (!more) break;
-      // Hand the rows to the kernel about every 100 ms of recording (a crash loses at most that much).
-      if (since_flush >= 100) {
-        std::fflush(f_);
-        since_flush = 0;
-      }
-      if (n == 0) usleep(5000);
-    }
-    std::fflush(f_);
-  }
-  void format(const Row& r) {
-    std::fprintf(f_, "%.6f,%llu,%u,%u,%u,%u", r.t_s, static_cast<unsigned long long>(r.device_time_us), r.seq,
-                 r.cmd_seq_echo, static_cast<unsigned>(r.mode), r.fault_bits);
-    for (uint8_t i = 0; i < samples_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(r.sample[i]));
-    for (uint8_t i = 0; i < setpoints_; ++i) std::fprintf(f_, ",%.5g", static_cast<double>(r.setpoint[i]));
-    if (sync_column_) std::fprintf(f_, ",%llu", static_cast<unsigned long long>(r.sync_pulses));
-    std::fputc('\n', f_);
-  }
-
-  std::FILE* f_ = nullptr;
-  uint8_t samples_ = 0;
-  uint8_t setpoints_ = 0;
-  bool sync_column_ = false;
-  uint64_t rows_ = 0, dropped_ = 0;
-  std::unique_ptr<record::SpscQueue<Row>> queue_;
-  std::atomic<bool> running_{false};
-  std::thread writer_;
 };
 
 /// One e-stop stop, measured: the kernel's edge timestamp, when the daemon read it, and when the daemon first saw
@@ -562,7 +449,7 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
                 2);
   }
 
-  Recorder recorder;
+  record::CsvRecorder recorder;
   if (!opt.record_csv.empty()) {
     if (std::string err = recorder.open(opt.record_csv, layout, io.have_sync); !err.empty()) return fail(err, 3);
   }
