@@ -14,6 +14,7 @@ Usage (inside the VM, from the repository root): python3 tests/vm/can_session.py
 import json
 import os
 import re
+import signal
 import socket
 import struct
 import subprocess
@@ -70,10 +71,32 @@ def send_error_frame(bus, err_bits):
     sock.close()
 
 
+class DumpCounter:
+    """Counts the frames of one identifier in a growing candump -L log (read incrementally)."""
+
+    def __init__(self, path, can_id):
+        self.path, self.tag, self.pos, self.count = path, " %03X#" % can_id, 0, 0
+
+    def update(self):
+        with open(self.path) as f:
+            f.seek(self.pos)
+            data = f.read()
+        complete = data[:data.rfind("\n") + 1]
+        self.pos += len(complete)
+        self.count += complete.count(self.tag)
+        return self.count
+
+
 def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_load=False, device=DEVICE,
-            extra_host=(), expect_exit=0):
+            extra_host=(), expect_exit=0, tail_commands=0):
     """Run firmware-sim and phalanxd on bus; actions = [(t_s, callable)] run while the session runs.
+    tail_commands > 0: the session is not bounded by `seconds` but ends (SIGINT, a clean stop) once the host has
+    sent that many commands after the last action returned - so what an action sent is always inside the
+    session, however slowly the emulated VM runs this script or cansend (a fixed-length session ended before the
+    injected frames on a loaded machine: the host then counted none of them).
     Returns (summary dict, firmware-sim stderr text, candump log path, canbusload output)."""
+    if tail_commands > 0:
+        seconds = 600  # an upper bound only: the session is ended by the script
     vcan(bus, mode != "classic")
     # The log goes to the VM's tmpfs: 2000 lines/s written over 9p would cost the VM more than the session.
     dump_path = "/tmp/%s.candump" % name
@@ -106,6 +129,16 @@ def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_
         while time.monotonic() - t0 < at:
             time.sleep(0.01)
         act()
+    if tail_commands > 0:
+        commands = DumpCounter(dump_path, 1 << 6 | NODE)
+        target = commands.update() + tail_commands
+        deadline = time.monotonic() + 300
+        while commands.update() < target:
+            check(d.poll() is None, "%s: phalanxd ended before the session was stopped" % name)
+            check(time.monotonic() < deadline, "%s: the host sent %d of %d commands after the last action in 300 s"
+                  % (name, commands.count - target + tail_commands, tail_commands))
+            time.sleep(0.05)
+        d.send_signal(signal.SIGINT)
     # phalanxd runs seconds × RATE cycles: at the few hundred Hz a loaded VM keeps, that takes several times longer.
     out, _ = d.communicate(timeout=seconds + 180)
     fw.terminate()
@@ -268,11 +301,12 @@ def quiet(mode, device=DEVICE, seconds=5):
 
 
 def inject_session(name, bus, mode, frames):
-    """A 3 s session with `frames` sent by cansend at 1.5 s; returns (summary, host rx_rejected, device rx counts).
+    """A session with `frames` sent by cansend from 1.5 s on, ended after the host sent 1000 more commands; returns (summary, host rx_rejected, device rx counts).
     Always glove5, whatever PHALANX_VM_DEVICE says: the frames' lengths are glove5's (a right-length compact
     command for glove5 is a wrong-length one for the other devices)."""
     acts = [(1.5, lambda f=f: cansend(bus, f)) for f in frames]
-    s, fw, _, _ = session(name, bus, mode, 3, actions=acts, device="glove5")
+    # Ended 1000 host commands after the last cansend returned: both ends have read every injected frame by then.
+    s, fw, _, _ = session(name, bus, mode, 3, actions=acts, device="glove5", tail_commands=1000)
     host = s["can"]["rx_rejected"]
     dev = {k: fw_counter(fw, "rx_" + k) for k in ("bad_id", "bad_length", "crc", "sequence")}
     print("%s: host rejected %s, device rejected %s, rejected_by_device (telemetry) %d, telemetry lost %d" % (
@@ -307,7 +341,7 @@ def busoff():
     bus = "vcan0"
     acts = [(1.5, lambda: send_error_frame(bus, 0x040)),   # CAN_ERR_BUSOFF
             (2.5, lambda: send_error_frame(bus, 0x100))]   # CAN_ERR_RESTARTED
-    s, fw, dump, _ = session("busoff-fd", bus, "fd", 4, actions=acts)
+    s, fw, dump, _ = session("busoff-fd", bus, "fd", 4, actions=acts, tail_commands=1000)
     c = s["can"]
     print("busoff: host can %s; faults %s; telemetry %d; firmware: bus_off=%d restarts=%d tx_dropped_bus_off=%d" % (
         json.dumps(c), s["faults_seen"], s["telemetry"]["received"], fw_counter(fw, "bus_off"),
