@@ -18,6 +18,9 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--rate-hz", opt.rate_hz, "host loop rate")->check(CLI::Range(100u, 4000u));
   app.add_option("--command-timeout-ms", opt.command_timeout_ms, "timeout carried by every command")
       ->check(CLI::Range(2u, 1000u));
+  app.add_option("--telemetry-timeout-ms", opt.telemetry_timeout_ms,
+                 "no new telemetry for this long ends the session as a lost link (exit 6)")
+      ->check(CLI::Range(10u, 10000u));
   app.add_option("--record", opt.record_csv, "record every cycle to this CSV file");
   app.add_option("--scenario", opt.scenario, "simulated hand: still|close-open|grasp|random")
       ->check(CLI::IsMember({"still", "close-open", "grasp", "random"}));

@@ -37,7 +37,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
-  requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "realtime", "record",
+  requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "telemetry_timeout_ms", "realtime", "record",
                          "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
@@ -47,6 +47,10 @@ void apply(const YAML::Node& root, RunOptions& opt) {
   if (root["rate_hz"]) opt.rate_hz = scalar<unsigned>(root["rate_hz"], "rate_hz", "positive integer");
   if (root["command_timeout_ms"]) {
     opt.command_timeout_ms = scalar<unsigned>(root["command_timeout_ms"], "command_timeout_ms", "positive integer");
+  }
+  if (root["telemetry_timeout_ms"]) {
+    opt.telemetry_timeout_ms =
+        scalar<unsigned>(root["telemetry_timeout_ms"], "telemetry_timeout_ms", "positive integer");
   }
   if (root["record"]) opt.record_csv = scalar<std::string>(root["record"], "record", "path");
   if (root["seed"]) opt.seed = scalar<uint32_t>(root["seed"], "seed", "non-negative integer");

@@ -1,17 +1,12 @@
 #include "phalanx/host/daemon.h"
 
-#include <fcntl.h>
-#include <poll.h>
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -19,10 +14,11 @@
 #include <cstring>
 #include <memory>
 #include <random>
-#include <thread>
 #include <vector>
 
+#include "phalanx/host/command_limits.h"
 #include "phalanx/host/controller.h"
+#include "phalanx/host/device_link.h"
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
@@ -30,12 +26,9 @@
 #include "phalanx/host/safety_io.h"
 #include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
-#include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/gpio.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/linux/usb_link.h"
-
-extern char** environ;
 
 namespace phalanx::host {
 
@@ -48,80 +41,6 @@ volatile std::sig_atomic_t g_stop = 0;
 void onStopSignal(int) { g_stop = 1; }
 volatile std::sig_atomic_t g_reset = 0;
 void onResetSignal(int) { g_reset = 1; }
-
-std::string selfDir() {
-  char buf[4096];
-  const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
-  if (n <= 0) return ".";
-  buf[n] = 0;
-  std::string p(buf);
-  const auto slash = p.rfind('/');
-  return slash == std::string::npos ? "." : p.substr(0, slash);
-}
-
-/// Tick rate of every board image (hal/mcu/qemu/board_main.cpp, hal/mcu/stm32g474/main.cpp).
-constexpr unsigned kSimDeviceTickHz = 1000;
-
-/// The simulated firmware as a child process; it prints "PTY <path>" once its link is up.
-class SimChild {
- public:
-  ~SimChild() { stop(); }
-  std::string start(const RunOptions& opt, const std::string& device_name, std::string& pty_path) {
-    const std::string exe = opt.firmware_sim.empty() ? selfDir() + "/firmware-sim" : opt.firmware_sim;
-    if (access(exe.c_str(), X_OK) != 0) return "cannot run the simulated firmware '" + exe + "': " + std::strerror(errno);
-    int out[2];
-    if (pipe2(out, O_CLOEXEC) != 0) return std::string("pipe: ") + std::strerror(errno);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
-    const std::string seed = std::to_string(opt.seed);
-    // The simulated firmware ticks at the boards' rate (1 kHz, hal/mcu/*/main: kTickHz), or faster with a faster
-    // host loop, never at a slower host's rate: the glove's force loop is designed for >= 1 kHz (000 §4.3; issue
-    // #3) and at a 100 Hz tick it limit-cycled into current-limit in 5 of 6 sessions with a still hand.
-    const std::string hz = std::to_string(std::max(opt.rate_hz, kSimDeviceTickHz));
-    std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
-                                     "--scenario", opt.scenario, "--exit-with-parent"};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, exe.c_str(), &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    ::close(out[1]);
-    if (rc != 0) {
-      ::close(out[0]);
-      pid_ = -1;
-      return "cannot start " + exe + ": " + std::strerror(rc);
-    }
-    // Read its first line (bounded wait).
-    std::string line;
-    pollfd pfd{out[0], POLLIN, 0};
-    while (line.find('\n') == std::string::npos) {
-      if (::poll(&pfd, 1, 5000) <= 0) break;
-      char c[256];
-      const ssize_t n = ::read(out[0], c, sizeof c);
-      if (n <= 0) break;
-      line.append(c, static_cast<size_t>(n));
-    }
-    ::close(out[0]);
-    if (line.rfind("PTY ", 0) != 0) return "the simulated firmware did not report its link (got '" + line + "')";
-    pty_path = line.substr(4, line.find('\n') - 4);
-    return {};
-  }
-  void stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    int status = 0;
-    for (int i = 0; i < 200 && waitpid(pid_, &status, WNOHANG) == 0; ++i) usleep(5000);
-    if (waitpid(pid_, &status, WNOHANG) == 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, &status, 0);
-    }
-    pid_ = -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
 
 /// One e-stop stop, measured: the kernel's edge timestamp, when the daemon read it, and when the daemon first saw
 /// the device report its safe state (mode safe, outputs off) - in time and in device ticks (telemetry sequence).
@@ -170,15 +89,6 @@ void logEvent(void* hooks, const protocol::Event& e) {
     default:
       break;
   }
-}
-
-/// Host-side last line of defence: nothing non-finite or beyond the device's limit leaves the host.
-bool commandIsSafe(const protocol::Command& cmd, const protocol::DeviceLayout& layout) {
-  if (static_cast<uint8_t>(cmd.mode) >= protocol::kModeCount) return false;
-  for (uint8_t i = 0; i < layout.setpoint_count; ++i) {
-    if (!std::isfinite(cmd.setpoint[i]) || std::fabs(cmd.setpoint[i]) > layout.setpoint_limit) return false;
-  }
-  return true;
 }
 
 }  // namespace
@@ -262,7 +172,16 @@ std::string validate(const RunOptions& opt) {
     linux_hal::UsbLink::Options o;
     if (std::string err = linux_hal::parseUsbDevice(opt.device, o); !err.empty()) return err;
   }
-  if (opt.device.rfind("serial:", 0) == 0 && opt.device.size() == 7) return "device: 'serial:' needs a path (serial:/dev/ttyACM0)";
+  if (opt.device.rfind("serial:", 0) == 0) {
+    if (opt.device.size() == 7 || opt.device[7] == '@') return "device: 'serial:' needs a path (serial:/dev/ttyACM0)";
+    if (const auto at = opt.device.find('@'); at != std::string::npos) {
+      char* end = nullptr;
+      const unsigned long b = std::strtoul(opt.device.c_str() + at + 1, &end, 10);
+      if (at + 1 == opt.device.size() || *end != 0 || b == 0 || b > 4000000) {
+        return "device: bad baud rate in '" + opt.device + "' (a number of bit/s, e.g. @921600)";
+      }
+    }
+  }
   if (opt.device.rfind("can:", 0) == 0) {
     linux_hal::CanLink::Options o;
     if (std::string err = parseCanDevice(opt.device, o); !err.empty()) return err;
@@ -275,10 +194,19 @@ std::string validate(const RunOptions& opt) {
   }
   if (!std::isfinite(opt.seconds) || opt.seconds < 0 || opt.seconds > 86400) return "seconds: must be in [0, 86400]";
   if (opt.rate_hz < 100 || opt.rate_hz > 4000) return "rate_hz: must be in [100, 4000]";
+  // seconds × rate rounds to the cycle count, and 0 cycles means "until stopped": a positive length shorter than
+  // one period would run forever.
+  if (opt.seconds > 0 && std::llround(opt.seconds * opt.rate_hz) < 1) {
+    return "seconds: must be 0 (until stopped) or at least one period (" + std::to_string(1.0 / opt.rate_hz) +
+           " s at " + std::to_string(opt.rate_hz) + " Hz)";
+  }
   if (opt.command_timeout_ms < 2 || opt.command_timeout_ms > 1000) return "command_timeout_ms: must be in [2, 1000]";
   if (opt.command_timeout_ms * opt.rate_hz < 2000) {
     return "command_timeout_ms: must cover at least two host periods (" + std::to_string(2000 / opt.rate_hz + 1) + " ms at " +
            std::to_string(opt.rate_hz) + " Hz)";
+  }
+  if (opt.telemetry_timeout_ms < 10 || opt.telemetry_timeout_ms > 10000) {
+    return "telemetry_timeout_ms: must be in [10, 10000]";
   }
   if (opt.rt_priority < 1 || opt.rt_priority > 99) return "realtime.priority: must be in [1, 99]";
   if (opt.scenario != "still" && opt.scenario != "close-open" && opt.scenario != "grasp" && opt.scenario != "random") {
@@ -306,575 +234,544 @@ std::string validate(const RunOptions& opt) {
   return modbus::validateServerOptions(opt.modbus);
 }
 
-int runSession(const RunOptions& opt, nlohmann::json& summary) {
-  auto fail = [&](const std::string& msg, int code) {
-    summary["error"] = msg;
+namespace {
+
+/// One session, in the stages a reader follows top to bottom: open bench lines → open device → handshake →
+/// configure → run cycles → shut down. A stage that fails returns the process exit code (README "Exit codes").
+/// The cycle is the design's data flow: telemetry → device model → command source → limits → send.
+class SessionRunner {
+ public:
+  SessionRunner(const RunOptions& opt, nlohmann::json& summary) : opt_(opt), summary_(summary) {}
+
+  int run() {
+    if (const std::string problem = validate(opt_); !problem.empty()) return fail(problem, 2);
+    summary_["device"] = opt_.device;
+    if (int rc = openBenchLines(); rc != 0) return rc;
+    if (int rc = openDevice(); rc != 0) return rc;
+    if (int rc = handshake(); rc != 0) return rc;
+    if (int rc = configure(); rc != 0) return rc;
+    runCycles();
+    return shutDown();
+  }
+
+ private:
+  int fail(const std::string& msg, int code) {
+    summary_["error"] = msg;
     std::fprintf(stderr, "phalanxd: error: %s\n", msg.c_str());
     return code;
-  };
-  if (const std::string problem = validate(opt); !problem.empty()) return fail(problem, 2);
-  summary["device"] = opt.device;
-
-  // Bench GPIO first: the enable line is held inactive from here on, before any device is opened.
-  GpioLines io;
-  if (!opt.gpio.enable.empty()) {
-    linux_hal::GpioLineSpec spec;
-    linux_hal::parseGpioLine(opt.gpio.enable, spec);  // validated above
-    if (std::string err = io.enable.open(spec, "phalanxd-enable"); !err.empty()) return fail("gpio.enable: " + err, 3);
-    io.have_enable = true;
   }
-  if (!opt.gpio.sync.empty()) {
-    linux_hal::GpioLineSpec spec;
-    double hz = 0.0;
-    linux_hal::parseGpioSync(opt.gpio.sync, spec, hz);
-    if (std::string err = io.sync.open(spec, hz, "phalanxd-sync"); !err.empty()) return fail("gpio.sync: " + err, 3);
-    io.have_sync = true;
-  }
-  if (!opt.gpio.estop.empty()) {
-    // An e-stop that cannot be opened is not an error that ends the daemon: it counts as pressed (the daemon
-    // runs stopped, devices safe, and retries the line) - docs/gpio.md.
-    linux_hal::GpioLineSpec spec;
-    linux_hal::parseGpioLine(opt.gpio.estop, spec);
-    io.have_estop = true;
-    io.estop_error = io.estop.open(spec, "phalanxd-estop");
-    io.estop_open = io.estop_error.empty();
-    if (!io.estop_open) std::fprintf(stderr, "phalanxd: e-stop: %s - counts as pressed\n", io.estop_error.c_str());
+  double waitBoundS() const { return opt_.handshake_timeout_s; }
+  /// Poll the link until done() or the handshake bound passes; done()'s last answer.
+  template <class Done>
+  bool pollUntil(Done done) {
+    const uint64_t t0 = linux_hal::monotonicNs();
+    while (!done()) {
+      if (static_cast<double>(linux_hal::monotonicNs() - t0) > waitBoundS() * 1e9) return done();
+      usleep(500);
+      session_->poll(linux_hal::monotonicNs());
+    }
+    return true;
   }
 
-  SimChild sim;
-  const bool is_can = opt.device.rfind("can:", 0) == 0;
-  const bool is_usb = opt.device.rfind("usb:", 0) == 0;
-  const bool is_serial = opt.device.rfind("serial:", 0) == 0;
-  const bool can_reconnect = is_usb || is_serial;  // hot-unplug handled in the loop
-  std::string path = opt.device.substr(opt.device.find(':') + 1);
-  unsigned baud = 0;
-  protocol::DeviceType expected = protocol::DeviceType::kAny;
-  if (opt.device.rfind("sim:", 0) == 0) {
-    const std::string name = path;
-    // sim:sea_rig is the sea_finger firmware on the §7.1 test-rig plant: it answers as a sea_finger.
-    expected = name == "glove5"                            ? protocol::DeviceType::kGlove5
-               : name == "sea_finger" || name == "sea_rig" ? protocol::DeviceType::kSeaFinger
-                                                           : protocol::DeviceType::kPantograph;
-    if (std::string err = sim.start(opt, name, path); !err.empty()) return fail(err, 3);
-  } else if (const auto at = path.find('@'); at != std::string::npos && !is_can && !is_usb) {
-    try {
-      baud = static_cast<unsigned>(std::stoul(path.substr(at + 1)));
-    } catch (...) {
-      return fail("device: bad baud rate in '" + opt.device + "'", 2);
+  // ---- stage 1: bench GPIO first: the enable line is held inactive from here on, before any device is opened.
+  int openBenchLines() {
+    const GpioOptions& g = opt_.gpio;
+    if (!g.enable.empty()) {
+      linux_hal::GpioLineSpec spec;
+      linux_hal::parseGpioLine(g.enable, spec);  // validated
+      if (std::string err = io_.enable.open(spec, "phalanxd-enable"); !err.empty()) return fail("gpio.enable: " + err, 3);
+      io_.have_enable = true;
     }
-    path = path.substr(0, at);
+    if (!g.sync.empty()) {
+      linux_hal::GpioLineSpec spec;
+      double hz = 0.0;
+      linux_hal::parseGpioSync(g.sync, spec, hz);
+      if (std::string err = io_.sync.open(spec, hz, "phalanxd-sync"); !err.empty()) return fail("gpio.sync: " + err, 3);
+      io_.have_sync = true;
+    }
+    if (!g.estop.empty()) {
+      // An e-stop that cannot be opened does not end the daemon: it counts as pressed (the daemon runs stopped,
+      // devices safe, and retries the line) - docs/gpio.md.
+      linux_hal::GpioLineSpec spec;
+      linux_hal::parseGpioLine(g.estop, spec);
+      io_.have_estop = true;
+      io_.estop_error = io_.estop.open(spec, "phalanxd-estop");
+      io_.estop_open = io_.estop_error.empty();
+      if (!io_.estop_open) std::fprintf(stderr, "phalanxd: e-stop: %s - counts as pressed\n", io_.estop_error.c_str());
+    }
+    return 0;
   }
-  linux_hal::SerialLink link;
-  linux_hal::CanLink can;
-  linux_hal::UsbLink usb;
-  bool can_classic = false;  // classic CAN carries no gain scales (checked against the controller below)
-  if (is_usb) {
-    linux_hal::UsbLink::Options o;
-    linux_hal::parseUsbDevice(opt.device, o);  // validated above
-    if (std::string err = usb.open(o); !err.empty()) return fail(err, 3);
-    path = opt.device;
-    summary["link"] = {{"usb", opt.device.substr(4)}, {"where", usb.where()}};
-    std::fprintf(stderr, "phalanxd: USB device %s at %s\n", opt.device.substr(4).c_str(), usb.where().c_str());
-  } else if (is_can) {
-    linux_hal::CanLink::Options o;
-    parseCanDevice(opt.device, o);  // validated above
-    can_classic = o.flavor == protocol::can::Flavor::kClassic;
-    if (std::string err = can.open(o); !err.empty()) return fail(err, 3);
-    path = o.ifname;
-    summary["link"] = {{"interface", o.ifname},
-                       {"node", o.node},
-                       {"flavor", o.flavor == protocol::can::Flavor::kFd          ? "fd"
-                                  : o.flavor == protocol::can::Flavor::kFdCompact ? "fd-compact"
-                                                                                  : "classic"}};
-  } else {
-    if (std::string err = link.open(path, baud); !err.empty()) return fail(err, 3);
-    summary["link"] = path;
-  }
-  std::string serial_write_error;
-  // One flush for either transport; false on a hard link error.
-  // USB: handle libusb's completions (never a hard error: an unplug is a link outage, handled below).
-  auto flushLink = [&]() {
-    if (is_usb) {
-      usb.service();
-      return true;
-    }
-    if (is_serial && link.isOpen() && !link.flush()) {
-      // A write error on a serial device (CDC-ACM unplugged: the tty may fail writes before it reads as hung up)
-      // is a lost link, handled by reconnecting like a hang-up, not the end of the session.
-      serial_write_error = link.error();
-      link.close();
-      return true;
-    }
-    return is_can ? can.flush() : is_serial ? true : link.flush();
-  };
-  auto linkError = [&]() { return is_can ? can.error() : is_usb ? usb.error() : link.error(); };
-  linux_hal::CanBusState can_state = can.state();
 
-  HostSession session = is_can   ? HostSession(static_cast<hal::PacketLink&>(can))
-                        : is_usb ? HostSession(static_cast<hal::PacketLink&>(usb))
-                                 : HostSession(link);
-  session.setEventCallback(logEvent, opt.hooks);
-  std::random_device rd;
-  uint32_t session_id = rd();
-  session.sendHello(session_id, expected);
-  flushLink();
-  const uint64_t hs_start = linux_hal::monotonicNs();
-  while (session.handshake() == HandshakeResult::kPending) {
-    if (static_cast<double>(linux_hal::monotonicNs() - hs_start) > opt.handshake_timeout_s * 1e9) {
-      return fail("device did not answer the handshake within " + std::to_string(opt.handshake_timeout_s) +
-                      " s on " + path + " (wrong port, or not Phalanx firmware?)",
+  // ---- stage 2: the device link, whatever its transport.
+  int openDevice() {
+    std::string err;
+    link_ = openDeviceLink(opt_, err);
+    if (!link_) return fail(err, 3);
+    summary_["link"] = link_->info();
+    session_ = std::make_unique<HostSession>(link_->makeSession());
+    session_->setEventCallback(logEvent, opt_.hooks);
+    return 0;
+  }
+
+  // ---- stage 3: Hello / HelloAck, then the first telemetry.
+  int handshake() {
+    session_->sendHello(rd_(), link_->expectedDevice());
+    link_->push();
+    if (!pollUntil([&] { return session_->handshake() != HandshakeResult::kPending; })) {
+      return fail("device did not answer the handshake within " + std::to_string(waitBoundS()) + " s on " +
+                      link_->where() + " (wrong port, or not Phalanx firmware?)",
                   4);
     }
-    usleep(1000);
-    session.poll(linux_hal::monotonicNs());
-  }
-  if (session.handshake() != HandshakeResult::kOk) return fail(session.handshakeError(), 4);
-  const protocol::DeviceLayout& layout = *session.layout();
-  summary["device_type"] = layout.name;
-  summary["firmware_build_id"] = session.deviceInfo().firmware_build_id;
-  summary["firmware_tick_hz"] = session.deviceInfo().tick_rate_hz;
-  summary["protocol_version"] = protocol::kProtocolVersion;
-
-  std::string ctl_error;
-  std::unique_ptr<Controller> controller;
-  if (opt.hooks != nullptr) controller = opt.hooks->makeController(layout, ctl_error);
-  if (!controller && !ctl_error.empty()) return fail(ctl_error, 2);
-  if (!controller) controller = makeController(layout, opt, ctl_error);
-  if (!controller) return fail(ctl_error, 2);
-  summary["controller"] = controller->name();
-  if (can_classic && controller->usesGainScale()) {
-    return fail(std::string("controller '") + controller->name() +
-                    "' sends per-finger gain scales in contact, which classic CAN does not carry (docs/protocol.md): "
-                    "use @fd or @fd-compact, or --mode transparent",
-                2);
+    if (session_->handshake() != HandshakeResult::kOk) return fail(session_->handshakeError(), 4);
+    layout_ = session_->layout();
+    summary_["device_type"] = layout_->name;
+    summary_["firmware_build_id"] = session_->deviceInfo().firmware_build_id;
+    summary_["firmware_tick_hz"] = session_->deviceInfo().tick_rate_hz;
+    summary_["protocol_version"] = protocol::kProtocolVersion;
+    return 0;
   }
 
-  record::CsvRecorder recorder;
-  if (!opt.record_csv.empty()) {
-    if (std::string err = recorder.open(opt.record_csv, layout, io.have_sync); !err.empty()) return fail(err, 3);
-  }
-
-  linux_hal::RealtimeStatus rt;
-  if (opt.realtime) {
-    rt = linux_hal::setupRealtime(opt.rt_priority);
-    if (!rt.warning.empty()) std::fprintf(stderr, "phalanxd: warning: %s\n", rt.warning.c_str());
-  } else {
-    rt.warning = "real-time scheduling disabled by configuration";
-  }
-  summary["realtime"] = {{"memory_locked", rt.memory_locked}, {"sched_fifo", rt.fifo_scheduling}};
-
-  // Wait for the first telemetry (bounded like the handshake: a device that answered late on a slow or loaded
-  // link also streams late); clear faults left latched by a previous session if asked to.
-  const uint64_t first_wait = linux_hal::monotonicNs();
-  while (!session.hasTelemetry() &&
-         static_cast<double>(linux_hal::monotonicNs() - first_wait) < opt.handshake_timeout_s * 1e9) {
-    usleep(500);
-    session.poll(linux_hal::monotonicNs());
-  }
-  if (!session.hasTelemetry()) return fail("device answered the handshake but sends no telemetry", 4);
-  if (session.latest().fault_bits != 0) {
-    const std::string prior = faultList(session.latest().fault_bits);
-    summary["faults_at_start"] = prior;
-    if (!opt.clear_faults) return fail("device has latched faults (" + prior + ") and clear_faults is off", 5);
-    std::fprintf(stderr, "phalanxd: clearing faults latched before this session: %s\n", prior.c_str());
-    session.sendClearFaults();
-    flushLink();
-  }
-
-  // A model from a geometry file must match the geometry the firmware was built with (fingerprint parameter):
-  // the host never silently runs one geometry against firmware made for another (docs/design-tools.md).
-  // ParamGet and wait (bounded like the handshake) for its answer; true when it came.
-  const auto getParam = [&](uint16_t id) {
-    session.sendParamGet(id);
-    flushLink();
-    const uint64_t t0 = linux_hal::monotonicNs();
-    while (!(session.lastParamValid() && session.lastParam().param_id == id) &&
-           static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
-      usleep(500);
-      session.poll(linux_hal::monotonicNs());
+  // ---- stage 4: controller, limits, recording, real time, device faults and parameters, outside surfaces.
+  int configure() {
+    if (int rc = chooseController(); rc != 0) return rc;
+    limits_ = std::make_unique<CommandLimits>(*layout_);
+    if (opt_.hooks != nullptr) limits_->setPatientStage(opt_.hooks->patientLimits());
+    if (!opt_.record_csv.empty()) {
+      if (std::string err = recorder_.open(opt_.record_csv, *layout_, io_.have_sync); !err.empty()) return fail(err, 3);
     }
-    return session.lastParamValid() && session.lastParam().param_id == id;
-  };
-  for (const Controller::RequiredParam& rp : controller->requiredParams()) {
-    if (!getParam(rp.id)) {
-      return fail(rp.what + ": the device did not answer the geometry fingerprint query: refused", 2);
+    setUpRealtime();
+    // The first telemetry, bounded like the handshake: a device that answered late on a slow or loaded link
+    // also streams late.
+    if (!pollUntil([&] { return session_->hasTelemetry(); })) {
+      return fail("device answered the handshake but sends no telemetry", 4);
     }
-    if (session.lastParam().status != protocol::ParamStatus::kOk) {
-      return fail(rp.what + ": the firmware does not report its geometry fingerprint: refused", 2);
+    if (int rc = clearPriorFaults(); rc != 0) return rc;
+    if (int rc = checkRequiredParams(); rc != 0) return rc;
+    if (int rc = setStartupParams(); rc != 0) return rc;
+    readBackStartupParams();
+    if (int rc = startModbus(); rc != 0) return rc;
+    if (opt_.hooks != nullptr) {
+      if (std::string err = opt_.hooks->onStart(*layout_, summary_); !err.empty()) return fail(err, 3);
     }
-    if (session.lastParam().value != rp.value) {
-      char fw[32];
-      std::snprintf(fw, sizeof fw, "%.0f", static_cast<double>(session.lastParam().value));
-      return fail(rp.what + " differs from the firmware's compile-time geometry (fingerprint " + fw +
-                      "): build the firmware with this geometry, or run without the file; refused",
+    return 0;
+  }
+
+  int chooseController() {
+    std::string err;
+    if (opt_.hooks != nullptr) controller_ = opt_.hooks->makeController(*layout_, err);
+    if (!controller_ && !err.empty()) return fail(err, 2);
+    if (!controller_) controller_ = makeController(*layout_, opt_, err);
+    if (!controller_) return fail(err, 2);
+    summary_["controller"] = controller_->name();
+    if (!link_->carriesGainScales() && controller_->usesGainScale()) {
+      return fail(std::string("controller '") + controller_->name() +
+                      "' sends per-finger gain scales in contact, which classic CAN does not carry (docs/protocol.md): "
+                      "use @fd or @fd-compact, or --mode transparent",
                   2);
     }
+    return 0;
   }
-  for (const auto& [id, value] : controller->startupParams()) {
-    session.sendParamSet(id, value);
-    flushLink();
-    const uint64_t t0 = linux_hal::monotonicNs();
-    // Same bound as the handshake: a slow link (emulated, loaded) answers late but does answer.
-    while (!session.lastParamValid() &&
-           static_cast<double>(linux_hal::monotonicNs() - t0) < opt.handshake_timeout_s * 1e9) {
-      usleep(500);
-      session.poll(linux_hal::monotonicNs());
+
+  void setUpRealtime() {
+    linux_hal::RealtimeStatus rt;
+    if (opt_.realtime) {
+      rt = linux_hal::setupRealtime(opt_.rt_priority);
+      if (!rt.warning.empty()) std::fprintf(stderr, "phalanxd: warning: %s\n", rt.warning.c_str());
     }
-    if (!session.lastParamValid()) {
+    summary_["realtime"] = {{"memory_locked", rt.memory_locked}, {"sched_fifo", rt.fifo_scheduling}};
+  }
+
+  /// Faults left latched by a previous session are cleared if asked to (logged), else refuse to start.
+  int clearPriorFaults() {
+    if (session_->latest().fault_bits == 0) return 0;
+    const std::string prior = faultList(session_->latest().fault_bits);
+    summary_["faults_at_start"] = prior;
+    if (!opt_.clear_faults) return fail("device has latched faults (" + prior + ") and clear_faults is off", 5);
+    std::fprintf(stderr, "phalanxd: clearing faults latched before this session: %s\n", prior.c_str());
+    session_->sendClearFaults();
+    link_->push();
+    return 0;
+  }
+
+  /// ParamGet and wait (bounded like the handshake) for its answer; true when it came.
+  bool getParam(uint16_t id) {
+    session_->sendParamGet(id);
+    link_->push();
+    return pollUntil([&] { return session_->lastParamValid() && session_->lastParam().param_id == id; });
+  }
+
+  /// A model from a geometry file must match the geometry the firmware was built with (fingerprint parameter):
+  /// the host never silently runs one geometry against firmware made for another (docs/design-tools.md).
+  int checkRequiredParams() {
+    for (const Controller::RequiredParam& rp : controller_->requiredParams()) {
+      if (!getParam(rp.id)) return fail(rp.what + ": the device did not answer the geometry fingerprint query: refused", 2);
+      if (session_->lastParam().status != protocol::ParamStatus::kOk) {
+        return fail(rp.what + ": the firmware does not report its geometry fingerprint: refused", 2);
+      }
+      if (session_->lastParam().value != rp.value) {
+        char fw[32];
+        std::snprintf(fw, sizeof fw, "%.0f", static_cast<double>(session_->lastParam().value));
+        return fail(rp.what + " differs from the firmware's compile-time geometry (fingerprint " + fw +
+                        "): build the firmware with this geometry, or run without the file; refused",
+                    2);
+      }
+    }
+    return 0;
+  }
+
+  int setStartupParams() {
+    for (const auto& [id, value] : controller_->startupParams()) {
+      session_->sendParamSet(id, value);
+      link_->push();
+      // Same bound as the handshake: a slow link (emulated, loaded) answers late but does answer.
       char what[128];
-      std::snprintf(what, sizeof what, "device did not answer start-up parameter 0x%04x within %.1f s", id,
-                    opt.handshake_timeout_s);
-      return fail(what, 4);
-    }
-    if (session.lastParam().status != protocol::ParamStatus::kOk) {
-      char what[96];
-      std::snprintf(what, sizeof what, "device refused start-up parameter 0x%04x (status %d)", id,
-                    static_cast<int>(session.lastParam().status));
-      return fail(what, 4);
-    }
-  }
-  usleep(static_cast<useconds_t>(controller->startupSettleS() * 1e6));
-  session.poll(linux_hal::monotonicNs());
-  summary["startup_warnings"] = nlohmann::json::array();
-  for (const uint16_t id : controller->startupReadback()) {
-    if (!getParam(id) || session.lastParam().status != protocol::ParamStatus::kOk) continue;
-    const std::string warning = controller->startupWarning(id, session.lastParam().value);
-    if (warning.empty()) continue;
-    std::fprintf(stderr, "phalanxd: WARNING: %s\n", warning.c_str());
-    summary["startup_warnings"].push_back(warning);
-  }
-
-  // Optional Modbus TCP server (docs/modbus.md): its own thread; the loop only publishes and polls, wait-free.
-  std::unique_ptr<modbus::Server> mb_server;
-  std::unique_ptr<modbus::LoopPort> mb_port;
-  if (opt.modbus.enabled) {
-    modbus::WriteLimits limits{layout.setpoint_count, layout.setpoint_limit};
-    if (opt.modbus.setpoint_limit > 0.0) {
-      limits.setpoint_limit = std::min(limits.setpoint_limit, static_cast<float>(opt.modbus.setpoint_limit));
-    }
-    mb_server = std::make_unique<modbus::Server>(opt.modbus, limits);
-    if (std::string err = mb_server->start(); !err.empty()) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: modbus: serving on %s:%u (%s)\n", opt.modbus.address.c_str(), mb_server->port(),
-                 opt.modbus.writes_enabled ? "writes enabled" : "read-only");
-    mb_port = std::make_unique<modbus::LoopPort>(*mb_server, opt.modbus, static_cast<uint16_t>(layout.type),
-                                                 layout.sample_count, layout.setpoint_count);
-  }
-
-  const uint64_t period_ns = 1000000000ull / opt.rate_hz;
-  const double dt_s = 1.0 / opt.rate_hz;
-  Histogram jitter_us(5000);
-  Histogram cycle_us(5000);
-  uint64_t overruns = 0;
-  uint64_t cycles = 0;
-  uint64_t cycles_without_telemetry = 0;
-  uint64_t host_refused = 0;
-  uint64_t commands_unsent_link_lost = 0;  // sends that found the link lost (hot-unplug), within commands_unsent
-  uint16_t faults_seen = 0;
-  const auto max_cycles = static_cast<uint64_t>(std::llround(opt.seconds * opt.rate_hz));
-  linux_hal::PeriodicTimer timer(period_ns);
-  const uint64_t start_ns = linux_hal::monotonicNs();
-  uint64_t expected_wake_ns = start_ns + period_ns;
-  uint64_t next_live_ns = start_ns;
-  protocol::Command cmd;
-  cmd.channel_count = layout.setpoint_count;
-  cmd.timeout_ms = static_cast<uint16_t>(opt.command_timeout_ms);
-  for (auto& g : cmd.gain_scale_permille) g = 1000;
-
-  if (opt.hooks != nullptr) {
-    if (std::string err = opt.hooks->onStart(layout, summary); !err.empty()) return fail(err, 3);
-  }
-  SafetyIoConfig safety_cfg;
-  safety_cfg.release_debounce_ns = static_cast<uint64_t>(opt.gpio.estop_release_ms * 1e6);
-  SafetyIo safety(io.have_estop ? &io.estop : nullptr, io.have_enable ? &io.enable : nullptr, safety_cfg);
-  const bool have_safety_io = io.have_estop || io.have_enable;
-  constexpr size_t kMaxStopRecords = 256;  // fixed: no allocation in the loop; later stops are counted only
-  std::vector<StopRecord> stops;
-  stops.reserve(kMaxStopRecords);
-  bool awaiting_safe = false;
-  bool log_stop = false;
-  bool last_pressed = false;
-  if (have_safety_io) {
-    safety.start(io.estop_open, linux_hal::monotonicNs());
-    last_pressed = safety.estopPressed();
-    if (safety.stopped()) {
-      std::fprintf(stderr, "phalanxd: e-stop: starting STOPPED (%s): devices held safe until a reset (SIGUSR1 or the API's reset)\n",
-                   stopCauseName(safety.cause()));
-    } else if (io.have_enable) {
-      std::fprintf(stderr, "phalanxd: enable: drives enabled\n");
-    }
-  }
-  if (io.have_sync) {
-    if (std::string w = io.sync.start(opt.realtime ? std::max(1, opt.rt_priority - 1) : 0); !w.empty()) {
-      std::fprintf(stderr, "phalanxd: warning: %s\n", w.c_str());
-    }
-    std::fprintf(stderr, "phalanxd: sync: pulses at %g Hz on %s\n", io.sync.rateHz(), opt.gpio.sync.c_str());
-  }
-  if (can_reconnect) std::fprintf(stderr, "phalanxd: control loop started on %s\n", path.c_str());
-  // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
-  // cleared, then new commands (host/include/phalanx/host/link_recovery.h).
-  struct DaemonLink final : RecoveryLink {
-    bool is_usb;
-    linux_hal::UsbLink& usb;
-    linux_hal::SerialLink& serial;
-    const std::string& path;
-    unsigned baud;
-    std::string& write_error;
-    DaemonLink(bool u, linux_hal::UsbLink& ul, linux_hal::SerialLink& sl, const std::string& p, unsigned b,
-               std::string& we)
-        : is_usb(u), usb(ul), serial(sl), path(p), baud(b), write_error(we) {}
-    bool lost() override { return is_usb ? !usb.connected() : (serial.hungUp() || !serial.isOpen()); }
-    void drop() override {
-      if (!is_usb) serial.close();  // an open descriptor would keep the ttyACM minor busy
-    }
-    std::string reopen() override {
-      if (is_usb) return usb.reconnect();
-      std::string err = serial.open(path, baud);
-      if (err.empty()) write_error.clear();
-      return err;
-    }
-    void flush() override {
-      if (is_usb) {
-        usb.service();
-      } else {
-        serial.flush();
+      if (!pollUntil([&] { return session_->lastParamValid(); })) {
+        std::snprintf(what, sizeof what, "device did not answer start-up parameter 0x%04x within %.1f s", id, waitBoundS());
+        return fail(what, 4);
+      }
+      if (session_->lastParam().status != protocol::ParamStatus::kOk) {
+        std::snprintf(what, sizeof what, "device refused start-up parameter 0x%04x (status %d)", id,
+                      static_cast<int>(session_->lastParam().status));
+        return fail(what, 4);
       }
     }
-    std::string describe() override {
-      if (!is_usb) {
-        if (serial.hungUp()) return "serial port hung up";
-        if (serial.isOpen()) return path;
-        return write_error.empty() ? "serial port closed" : write_error;
-      }
-      return usb.connected() ? usb.where() : usb.error();
+    usleep(static_cast<useconds_t>(controller_->startupSettleS() * 1e6));
+    session_->poll(linux_hal::monotonicNs());
+    return 0;
+  }
+
+  void readBackStartupParams() {
+    summary_["startup_warnings"] = nlohmann::json::array();
+    for (const uint16_t id : controller_->startupReadback()) {
+      if (!getParam(id) || session_->lastParam().status != protocol::ParamStatus::kOk) continue;
+      const std::string warning = controller_->startupWarning(id, session_->lastParam().value);
+      if (warning.empty()) continue;
+      std::fprintf(stderr, "phalanxd: WARNING: %s\n", warning.c_str());
+      summary_["startup_warnings"].push_back(warning);
     }
-  } daemon_link(is_usb, usb, link, path, baud, serial_write_error);
-  LinkRecoveryOptions rec_opt;
-  rec_opt.handshake_timeout_ns = static_cast<uint64_t>(opt.handshake_timeout_s * 1e9);
-  rec_opt.clear_faults = opt.clear_faults;
-  LinkRecovery recovery(
-      daemon_link, session, layout.type, controller->startupParams(), rec_opt, [&rd]() { return static_cast<uint32_t>(rd()); },
-      [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns);
-  while (g_stop == 0 && (max_cycles == 0 || cycles < max_cycles) &&
-         (opt.hooks == nullptr || !opt.hooks->stopRequested())) {
+  }
+
+  /// Optional Modbus TCP server (docs/modbus.md): its own thread; the loop only publishes and polls, wait-free.
+  int startModbus() {
+    if (!opt_.modbus.enabled) return 0;
+    modbus::WriteLimits limits{layout_->setpoint_count, layout_->setpoint_limit};
+    if (opt_.modbus.setpoint_limit > 0.0) {
+      limits.setpoint_limit = std::min(limits.setpoint_limit, static_cast<float>(opt_.modbus.setpoint_limit));
+    }
+    mb_server_ = std::make_unique<modbus::Server>(opt_.modbus, limits);
+    if (std::string err = mb_server_->start(); !err.empty()) return fail(err, 3);
+    std::fprintf(stderr, "phalanxd: modbus: serving on %s:%u (%s)\n", opt_.modbus.address.c_str(), mb_server_->port(),
+                 opt_.modbus.writes_enabled ? "writes enabled" : "read-only");
+    mb_port_ = std::make_unique<modbus::LoopPort>(*mb_server_, opt_.modbus, static_cast<uint16_t>(layout_->type),
+                                                  layout_->sample_count, layout_->setpoint_count);
+    return 0;
+  }
+
+  // ---- stage 5: the cycles.
+  void runCycles() {
+    period_ns_ = 1000000000ull / opt_.rate_hz;
+    max_cycles_ = static_cast<uint64_t>(std::llround(opt_.seconds * opt_.rate_hz));
+    telemetry_timeout_ns_ = static_cast<uint64_t>(opt_.telemetry_timeout_ms) * 1000000ull;
+    cmd_.channel_count = layout_->setpoint_count;
+    cmd_.timeout_ms = static_cast<uint16_t>(opt_.command_timeout_ms);
+    makeSafe(cmd_);
+    startSafetyIo();
+    if (link_->reconnects()) std::fprintf(stderr, "phalanxd: control loop started on %s\n", link_->where().c_str());
+    linux_hal::PeriodicTimer timer(period_ns_);
+    start_ns_ = linux_hal::monotonicNs();
+    expected_wake_ns_ = start_ns_ + period_ns_;
+    next_live_ns_ = start_ns_;
+    last_new_telemetry_ns_ = start_ns_;
+    // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
+    // cleared, then new commands (host/include/phalanx/host/link_recovery.h).
+    LinkRecoveryOptions rec_opt;
+    rec_opt.handshake_timeout_ns = static_cast<uint64_t>(opt_.handshake_timeout_s * 1e9);
+    rec_opt.clear_faults = opt_.clear_faults;
+    recovery_ = std::make_unique<LinkRecovery>(
+        *link_, *session_, layout_->type, controller_->startupParams(), rec_opt,
+        [this]() { return static_cast<uint32_t>(rd_()); },
+        [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns_);
+    while (g_stop == 0 && (max_cycles_ == 0 || cycles_ < max_cycles_) &&
+           (opt_.hooks == nullptr || !opt_.hooks->stopRequested())) {
+      if (!cycle(timer)) break;
+    }
+    if (opt_.live_view) std::fputc('\n', stderr);
+  }
+
+  /// One cycle: telemetry → device model → command source → limits → send. false ends the session.
+  bool cycle(linux_hal::PeriodicTimer& timer) {
+    const uint64_t wake_ns = waitForPeriod(timer);
+    const int new_telemetry = session_->poll(wake_ns);
+    if (link_->reconnects()) {
+      const LinkRecovery::Step st = recovery_->step(wake_ns);
+      if (st == LinkRecovery::Step::kFailed) return linkLost(recovery_->error());
+      if (st == LinkRecovery::Step::kOffline) {
+        last_new_telemetry_ns_ = wake_ns;  // the recovery owns the outage's timing
+        return true;
+      }
+    }
+    if (std::string why = deviceSilent(new_telemetry, wake_ns); !why.empty()) return linkLost(why);
+    const TelemetryFrame& tel = session_->latest();
+    faults_seen_ |= tel.fault_bits;
+    const double t_s = static_cast<double>(wake_ns - start_ns_) * 1e-9;
+    readSafetyInputs(tel, t_s);
+    commandFromSources(tel, t_s, wake_ns);
+    limits_->apply(tel, cmd_);
+    if (!sendCommand(t_s)) return false;
+    recorder_.row(t_s, tel, cmd_, io_.have_sync ? io_.sync.pulses() : 0);
+    if (opt_.hooks != nullptr) opt_.hooks->onCycle(wake_ns, t_s, tel, cmd_);
+    publish(tel, wake_ns, t_s);
+    return true;
+  }
+
+  uint64_t waitForPeriod(linux_hal::PeriodicTimer& timer) {
     const uint32_t missed = timer.wait();
     const uint64_t wake_ns = linux_hal::monotonicNs();
-    const double jitter = std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns)) / 1000.0;
-    jitter_us.add(jitter);
-    overruns += missed;
-    expected_wake_ns += (1 + missed) * period_ns;
-    ++cycles;
+    last_jitter_us_ = std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns_)) / 1000.0;
+    jitter_us_.add(last_jitter_us_);
+    overruns_ += missed;
+    expected_wake_ns_ += (1 + missed) * period_ns_;
+    ++cycles_;
+    return wake_ns;
+  }
 
-    const int new_telemetry = session.poll(wake_ns);
-    if (can_reconnect) {
-      const LinkRecovery::Step st = recovery.step(wake_ns);
-      if (st == LinkRecovery::Step::kFailed) {
-        summary["link_error"] = recovery.error();
-        break;
-      }
-      if (st == LinkRecovery::Step::kOffline) continue;
+  /// Why the device is lost although the link is open ("" while it answers): the simulated firmware exited, or
+  /// no new telemetry for telemetry_timeout_ms. Cycles without new telemetry are counted (stale cycles).
+  std::string deviceSilent(int new_telemetry, uint64_t wake_ns) {
+    if (std::string gone = link_->deviceGone(); !gone.empty()) return gone;
+    if (new_telemetry > 0) {
+      last_new_telemetry_ns_ = wake_ns;
+      return {};
     }
-    if (new_telemetry == 0) ++cycles_without_telemetry;
-    const TelemetryFrame& tel = session.latest();
-    faults_seen |= tel.fault_bits;
-    const double t_s = static_cast<double>(wake_ns - start_ns) * 1e-9;
-    // An explicit reset (SIGUSR1 or the API's reset): clears the daemon's stop if the e-stop allows it, and sends
-    // one ClearFaults to the device (its own latched faults; it refuses while its own e-stop is pressed).
+    ++cycles_without_telemetry_;
+    if (wake_ns - last_new_telemetry_ns_ <= telemetry_timeout_ns_) return {};
+    char why[96];
+    std::snprintf(why, sizeof why, "no telemetry from the device for %.0f ms (telemetry_timeout_ms %u)",
+                  static_cast<double>(wake_ns - last_new_telemetry_ns_) / 1e6, opt_.telemetry_timeout_ms);
+    return why;
+  }
+
+  bool linkLost(const std::string& why) {
+    summary_["link_error"] = why;
+    return false;
+  }
+
+  void startSafetyIo() {
+    SafetyIoConfig cfg;
+    cfg.release_debounce_ns = static_cast<uint64_t>(opt_.gpio.estop_release_ms * 1e6);
+    safety_ = std::make_unique<SafetyIo>(io_.have_estop ? &io_.estop : nullptr, io_.have_enable ? &io_.enable : nullptr, cfg);
+    have_safety_io_ = io_.have_estop || io_.have_enable;
+    stops_.reserve(kMaxStopRecords);
+    if (have_safety_io_) {
+      safety_->start(io_.estop_open, linux_hal::monotonicNs());
+      last_pressed_ = safety_->estopPressed();
+      if (safety_->stopped()) {
+        std::fprintf(stderr, "phalanxd: e-stop: starting STOPPED (%s): devices held safe until a reset (SIGUSR1 or the API's reset)\n",
+                     stopCauseName(safety_->cause()));
+      } else if (io_.have_enable) {
+        std::fprintf(stderr, "phalanxd: enable: drives enabled\n");
+      }
+    }
+    if (io_.have_sync) {
+      if (std::string w = io_.sync.start(opt_.realtime ? std::max(1, opt_.rt_priority - 1) : 0); !w.empty()) {
+        std::fprintf(stderr, "phalanxd: warning: %s\n", w.c_str());
+      }
+      std::fprintf(stderr, "phalanxd: sync: pulses at %g Hz on %s\n", io_.sync.rateHz(), opt_.gpio.sync.c_str());
+    }
+  }
+
+  /// A reset request (SIGUSR1 or the API's reset) and the e-stop line, read right after the telemetry poll so the
+  /// newest telemetry is the device's state when the edge reached the daemon; a stop drops the enable line inside
+  /// update(), before the safe command goes out.
+  void readSafetyInputs(const TelemetryFrame& tel, double t_s) {
     bool reset_request = g_reset != 0;
     if (reset_request) g_reset = 0;
-    if (opt.hooks != nullptr && opt.hooks->takeClearFaultsRequest()) reset_request = true;
-    if (reset_request) session.sendClearFaults();
-    if (have_safety_io) {
-      const uint64_t now_ns = linux_hal::monotonicNs();
-      if (reset_request && safety.stopped()) {
-        if (const char* why = safety.requestReset(now_ns); why != nullptr) {
-          std::fprintf(stderr, "phalanxd: e-stop: reset refused at t=%.3f s: %s\n", t_s, why);
-        } else {
-          std::fprintf(stderr, "phalanxd: e-stop: reset accepted at t=%.3f s: drives enabled, control resumes\n", t_s);
-        }
-      }
-      // Read the e-stop right after the telemetry poll, so the newest telemetry is the device's state when the
-      // edge reached the daemon; a stop drops the enable line inside update(), before the safe command goes out.
-      if (safety.update(now_ns)) {
-        const uint64_t seen_ns = linux_hal::monotonicNs();
-        StopRecord r;
-        r.cause = safety.cause();
-        r.edge_ns = safety.stopEdgeNs();
-        r.seen_ns = seen_ns;
-        r.seq_at_seen = tel.seq;
-        r.device_was_active = (tel.state_flags & protocol::state::kOutputsActive) != 0;
-        awaiting_safe = stops.size() < kMaxStopRecords;
-        if (awaiting_safe) {
-          stops.push_back(r);
-          session.watchForSafe(tel.seq);
-        }
-        log_stop = true;  // after the safe command is out: stderr may be a slow file or pipe
-      }
-      if (safety.estopPressed() != last_pressed) {
-        last_pressed = safety.estopPressed();
-        if (!last_pressed) std::fprintf(stderr, "phalanxd: e-stop: released at t=%.3f s (%s)\n", t_s,
-                                        safety.stopped() ? "still stopped: a reset is needed" : "running");
+    if (opt_.hooks != nullptr && opt_.hooks->takeClearFaultsRequest()) reset_request = true;
+    // One ClearFaults to the device (its own latched faults; it refuses while its own e-stop is pressed).
+    if (reset_request) session_->sendClearFaults();
+    if (have_safety_io_) readEstop(tel, t_s, reset_request);
+    if (awaiting_safe_ && session_->safeSeen()) confirmSafe();
+  }
+
+  void readEstop(const TelemetryFrame& tel, double t_s, bool reset_request) {
+    const uint64_t now_ns = linux_hal::monotonicNs();
+    if (reset_request && safety_->stopped()) {
+      if (const char* why = safety_->requestReset(now_ns); why != nullptr) {
+        std::fprintf(stderr, "phalanxd: e-stop: reset refused at t=%.3f s: %s\n", t_s, why);
+      } else {
+        std::fprintf(stderr, "phalanxd: e-stop: reset accepted at t=%.3f s: drives enabled, control resumes\n", t_s);
       }
     }
-    if (awaiting_safe && session.safeSeen()) {
-      StopRecord& r = stops.back();
-      r.safe_confirmed = true;
-      r.safe_rx_ns = session.safeRxNs();
-      r.ticks_to_safe = static_cast<uint16_t>(session.safeSeq() - r.seq_at_seen);
-      awaiting_safe = false;
-      std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
-                   "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
-                   r.edge_ns != 0 ? static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0 : -1.0,
-                   static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0);
+    if (safety_->update(now_ns)) {
+      StopRecord r;
+      r.cause = safety_->cause();
+      r.edge_ns = safety_->stopEdgeNs();
+      r.seen_ns = linux_hal::monotonicNs();
+      r.seq_at_seen = tel.seq;
+      r.device_was_active = (tel.state_flags & protocol::state::kOutputsActive) != 0;
+      awaiting_safe_ = stops_.size() < kMaxStopRecords;
+      if (awaiting_safe_) {
+        stops_.push_back(r);
+        session_->watchForSafe(tel.seq);
+      }
+      log_stop_ = true;  // after the safe command is out: stderr may be a slow file or pipe
     }
-    if (safety.stopped()) {
-      // Stopped: every cycle commands the safe state; the controller does not run (no integrator wind-up).
-      cmd.mode = protocol::Mode::kSafe;
-      for (auto& sp : cmd.setpoint) sp = 0.0f;
-    } else {
-      controller->update(tel, t_s, dt_s, cmd);
+    if (safety_->estopPressed() != last_pressed_) {
+      last_pressed_ = safety_->estopPressed();
+      if (!last_pressed_) std::fprintf(stderr, "phalanxd: e-stop: released at t=%.3f s (%s)\n", t_s,
+                                       safety_->stopped() ? "still stopped: a reset is needed" : "running");
     }
-    cmd.channel_count = layout.setpoint_count;
-    if (mb_port && !safety.stopped()) mb_port->overrideCommand(cmd, wake_ns);
-    if (!commandIsSafe(cmd, layout)) {
-      ++host_refused;
-      cmd.mode = protocol::Mode::kSafe;
-      for (auto& s : cmd.setpoint) s = 0.0f;
+  }
+
+  void confirmSafe() {
+    StopRecord& r = stops_.back();
+    r.safe_confirmed = true;
+    r.safe_rx_ns = session_->safeRxNs();
+    r.ticks_to_safe = static_cast<uint16_t>(session_->safeSeq() - r.seq_at_seen);
+    awaiting_safe_ = false;
+    std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
+                 "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
+                 r.edge_ns != 0 ? static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0 : -1.0,
+                 static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0);
+  }
+
+  /// Exactly one source commands the device each cycle: a stop (e-stop) commands the safe state and nothing runs;
+  /// else a Modbus client that took control; else the session's controller (built-in or therapy exercise). The
+  /// controller runs whenever the daemon is not stopped, so its state follows the hand while Modbus commands.
+  void commandFromSources(const TelemetryFrame& tel, double t_s, uint64_t wake_ns) {
+    if (have_safety_io_ && safety_->stopped()) {
+      makeSafe(cmd_);  // no controller update while stopped: no integrator wind-up
+      ++source_cycles_[kSourceStop];
+      return;
     }
-    if (!session.sendCommand(cmd, linux_hal::monotonicNs()) && can_reconnect && daemon_link.lost()) {
+    controller_->update(tel, t_s, 1.0 / opt_.rate_hz, cmd_);
+    if (mb_port_ && mb_port_->overrideCommand(cmd_, wake_ns)) {
+      ++source_cycles_[kSourceModbus];
+      return;
+    }
+    ++source_cycles_[kSourceController];
+  }
+
+  /// Send, push the link, time-stamp an e-stop's safe command. false on a hard link error.
+  bool sendCommand(double t_s) {
+    if (!session_->sendCommand(cmd_, linux_hal::monotonicNs()) && link_->reconnects() && link_->lost()) {
       // The link went away inside this very send (USB: the submit found the device unplugged): part of the
       // outage that the next cycle's recovery step reports, not a full link.
-      ++commands_unsent_link_lost;
+      ++commands_unsent_link_lost_;
     }
-    if (is_can && can.state() != can_state) {
-      std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(can_state),
-                   linux_hal::canBusStateName(can.state()), t_s);
-      can_state = can.state();
-    }
-    const bool flushed = flushLink();
-    if (awaiting_safe && stops.back().sent_ns == 0) stops.back().sent_ns = linux_hal::monotonicNs();
-    if (log_stop) {
-      log_stop = false;
+    link_->afterCycle(t_s);
+    const bool pushed = link_->push();
+    if (awaiting_safe_ && stops_.back().sent_ns == 0) stops_.back().sent_ns = linux_hal::monotonicNs();
+    if (log_stop_) {
+      log_stop_ = false;
       std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
-                   stopCauseName(safety.cause()), t_s);
+                   stopCauseName(safety_->cause()), t_s);
     }
-    if (!flushed) {
-      summary["link_error"] = linkError();
-      break;
-    }
-    recorder.row(t_s, tel, cmd, io.have_sync ? io.sync.pulses() : 0);
-    if (opt.hooks != nullptr) opt.hooks->onCycle(wake_ns, t_s, tel, cmd);
-    const uint64_t done_ns = linux_hal::monotonicNs();
-    cycle_us.add(static_cast<double>(done_ns - wake_ns) / 1000.0);
-    if (mb_port) {
-      mb_port->publish(tel, cmd, cycles, overruns, jitter, static_cast<double>(done_ns - wake_ns) / 1000.0, wake_ns - start_ns,
-                       session.stats().telemetry_lost, modbus::LoopState::kRunning);
-    }
+    if (!pushed) return linkLost(link_->linkError());
+    return true;
+  }
 
-    if (opt.live_view && wake_ns >= next_live_ns) {
-      next_live_ns = wake_ns + 100000000ull;
+  void publish(const TelemetryFrame& tel, uint64_t wake_ns, double t_s) {
+    const uint64_t done_ns = linux_hal::monotonicNs();
+    const double cycle_us = static_cast<double>(done_ns - wake_ns) / 1000.0;
+    cycle_us_.add(cycle_us);
+    if (mb_port_) {
+      mb_port_->publish(tel, cmd_, cycles_, overruns_, last_jitter_us_, cycle_us, wake_ns - start_ns_,
+                        session_->stats().telemetry_lost, modbus::LoopState::kRunning);
+    }
+    if (opt_.live_view && wake_ns >= next_live_ns_) {
+      next_live_ns_ = wake_ns + 100000000ull;
       std::fprintf(stderr, "\r\033[K%7.2fs %-11s faults=%s %s", t_s, modeName(tel.mode),
-                   faultList(tel.fault_bits).c_str(), controller->liveLine(tel).c_str());
+                   faultList(tel.fault_bits).c_str(), controller_->liveLine(tel).c_str());
       std::fflush(stderr);
     }
   }
-  if (opt.live_view) std::fputc('\n', stderr);
 
-  // Leave the device safe: drives disabled, then an explicit safe command (the device would also time out).
-  if (have_safety_io) safety.shutdown();
-  if (io.have_sync) io.sync.stop();
-  cmd.mode = protocol::Mode::kSafe;
-  for (auto& s : cmd.setpoint) s = 0.0f;
-  for (int i = 0; i < 3; ++i) {
-    session.sendCommand(cmd, linux_hal::monotonicNs());
-    flushLink();
-    usleep(2000);
-  }
-  session.poll(linux_hal::monotonicNs());
-  recorder.close();
-  sim.stop();
-  if (mb_server) {
-    mb_server->stop();
-    summary["modbus"] = mb_server->statsJson();
-    summary["modbus"]["cycles_under_modbus_control"] = mb_port->remoteCycles();
-    summary["modbus"]["command_timeouts"] = mb_port->remoteTimeouts();
+  // ---- stage 6: leave the device safe (drives disabled, then explicit safe commands; the device would also
+  // time out), stop the outside surfaces, summarise.
+  int shutDown() {
+    if (have_safety_io_) safety_->shutdown();
+    if (io_.have_sync) io_.sync.stop();
+    makeSafe(cmd_);
+    for (int i = 0; i < 3; ++i) {
+      session_->sendCommand(cmd_, linux_hal::monotonicNs());
+      link_->push();
+      usleep(2000);
+    }
+    session_->poll(linux_hal::monotonicNs());
+    recorder_.close();
+    link_->close();
+    if (mb_server_) {
+      mb_server_->stop();
+      summary_["modbus"] = mb_server_->statsJson();
+      summary_["modbus"]["cycles_under_modbus_control"] = mb_port_->remoteCycles();
+      summary_["modbus"]["command_timeouts"] = mb_port_->remoteTimeouts();
+    }
+    summarize();
+    if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
+    if (summary_.contains("link_error")) {
+      std::fprintf(stderr, "phalanxd: session ended by a link error: %s\n",
+                   summary_["link_error"].get<std::string>().c_str());
+      return 6;
+    }
+    return 0;
   }
 
-  const LinkStats& s = session.stats();
-  summary["seconds"] = static_cast<double>(linux_hal::monotonicNs() - start_ns) * 1e-9;
-  summary["rate_hz"] = opt.rate_hz;
-  summary["cycles"] = cycles;
-  summary["overruns"] = overruns;
-  summary["period_jitter"] = histogramJson(jitter_us);
-  summary["cycle_time"] = histogramJson(cycle_us);
-  summary["round_trip"] = histogramJson(session.roundTripUs());
-  summary["telemetry"] = {{"received", s.telemetry_received},
-                          {"lost", s.telemetry_lost},
-                          {"cycles_without_new_telemetry", cycles_without_telemetry}};
-  summary["commands"] = {{"sent", s.commands_sent},
-                         {"unsent_link_full", s.commands_unsent - commands_unsent_link_lost},
-                         {"unsent_link_lost", commands_unsent_link_lost},
-                         {"refused_by_host_limits", host_refused},
-                         {"lost_seen_by_device", s.device_cmd_lost},
-                         {"rejected_by_device", s.device_rx_errors}};
-  summary["host_rx_errors"] = {{"crc", s.host_rx.crc_errors},
-                               {"framing", s.host_rx.framing_errors},
-                               {"unknown_id", s.host_rx.unknown_id},
-                               {"bad_length", s.host_rx.bad_length}};
-  // Faults latched while the link was down are read (and cleared) by the reconnect, outside the control cycles.
-  if (can_reconnect) faults_seen |= recovery.stats().faults_after_reconnect;
-  summary["faults_seen"] = faultList(faults_seen);
-  if (can_reconnect) {
-    const LinkRecoveryStats& r = recovery.stats();
-    summary["outages"] = {{"count", r.outages},  {"reconnects", r.reconnects}, {"cycles_offline", r.cycles_offline},
-                          {"max_s", r.max_s},    {"total_s", r.total_s},
-                          {"connected_at_end", recovery.phase() == LinkRecovery::Phase::kUp}};
+  void summarize() {
+    const LinkStats& s = session_->stats();
+    const LimitCounters& lim = limits_->counters();
+    summary_["seconds"] = static_cast<double>(linux_hal::monotonicNs() - start_ns_) * 1e-9;
+    summary_["rate_hz"] = opt_.rate_hz;
+    summary_["cycles"] = cycles_;
+    summary_["overruns"] = overruns_;
+    summary_["period_jitter"] = histogramJson(jitter_us_);
+    summary_["cycle_time"] = histogramJson(cycle_us_);
+    summary_["round_trip"] = histogramJson(session_->roundTripUs());
+    summary_["telemetry"] = {{"received", s.telemetry_received},
+                             {"lost", s.telemetry_lost},
+                             {"cycles_without_new_telemetry", cycles_without_telemetry_}};
+    summary_["commands"] = {{"sent", s.commands_sent},
+                            {"unsent_link_full", s.commands_unsent - commands_unsent_link_lost_},
+                            {"unsent_link_lost", commands_unsent_link_lost_},
+                            {"refused_by_host_limits", lim.refused},
+                            {"limited_by_device_limits", lim.device_limited},
+                            {"limited_by_patient_limits", lim.patient_limited},
+                            {"lost_seen_by_device", s.device_cmd_lost},
+                            {"rejected_by_device", s.device_rx_errors}};
+    summary_["command_sources"] = {{"controller", source_cycles_[kSourceController]},
+                                   {"modbus", source_cycles_[kSourceModbus]},
+                                   {"stop", source_cycles_[kSourceStop]}};
+    summary_["host_rx_errors"] = {{"crc", s.host_rx.crc_errors},
+                                  {"framing", s.host_rx.framing_errors},
+                                  {"unknown_id", s.host_rx.unknown_id},
+                                  {"bad_length", s.host_rx.bad_length}};
+    // Faults latched while the link was down are read (and cleared) by the reconnect, outside the control cycles.
+    if (link_->reconnects()) faults_seen_ |= recovery_->stats().faults_after_reconnect;
+    summary_["faults_seen"] = faultList(faults_seen_);
+    if (link_->reconnects()) {
+      const LinkRecoveryStats& r = recovery_->stats();
+      summary_["outages"] = {{"count", r.outages},  {"reconnects", r.reconnects}, {"cycles_offline", r.cycles_offline},
+                             {"max_s", r.max_s},    {"total_s", r.total_s},
+                             {"connected_at_end", recovery_->phase() == LinkRecovery::Phase::kUp}};
+    }
+    link_->summarize(summary_);
+    summary_["final_mode"] = modeName(session_->latest().mode);
+    summarizeGpio();
+    if (!opt_.record_csv.empty()) {
+      summary_["recording"] = {{"path", opt_.record_csv}, {"rows", recorder_.rows()}, {"dropped_rows", recorder_.dropped()}};
+    }
+    nlohmann::json extra = nlohmann::json::object();
+    controller_->summarize(extra);
+    if (!extra.empty()) summary_[layout_->name] = extra;
   }
-  if (is_usb) {
-    const auto& u = usb.stats();
-    const auto& r = usb.rxStats();
-    summary["usb"] = {{"tx_messages", u.tx_messages},
-                      {"tx_completed", u.tx_completed},
-                      {"tx_queued", u.tx_queued},
-                      {"tx_superseded", u.tx_superseded},
-                      {"tx_dropped_busy", u.tx_dropped_busy},
-                      {"tx_discarded_unplug", u.tx_discarded_unplug},
-                      {"tx_dropped_offline", u.tx_dropped_offline},
-                      {"tx_failed", u.tx_failed},
-                      {"rx_transfers", u.rx_transfers},
-                      {"rx_overflow", u.rx_overflow},
-                      {"rx_failed", u.rx_failed},
-                      {"disconnects", u.disconnects},
-                      {"connects", u.connects},
-                      {"reconnect_attempts", u.reconnect_attempts},
-                      {"rx_rejected", {{"bad_id", r.bad_id}, {"bad_length", r.bad_length}, {"crc", r.crc}}}};
-  }
-  if (is_can) {
-    const auto& c = can.stats();
-    const auto& m = can.mapperStats();
-    summary["can"] = {{"state", linux_hal::canBusStateName(can.state())},
-                      {"tx_frames", c.tx_frames},
-                      {"tx_would_block", c.tx_would_block},
-                      {"tx_superseded", c.tx_superseded},
-                      {"tx_dropped_queue_full", c.tx_dropped_full},
-                      {"tx_dropped_bus_off", c.tx_dropped_bus_off},
-                      {"tx_not_representable", c.tx_not_representable},
-                      {"tx_refusal", can.lastRefusal() != nullptr ? can.lastRefusal() : ""},
-                      {"tx_link_down", c.tx_link_down},
-                      {"rx_frames", c.rx_frames},
-                      {"rx_kernel_dropped", c.rx_kernel_dropped},
-                      {"error_frames", c.error_frames},
-                      {"bus_off_events", c.bus_off_events},
-                      {"restarts", c.restarts},
-                      {"rx_rejected", {{"bad_id", m.bad_id}, {"bad_length", m.bad_length}, {"crc", m.crc},
-                                        {"sequence", m.sequence}}}};
-  }
-  summary["final_mode"] = modeName(session.latest().mode);
-  if (have_safety_io || io.have_sync) {
+
+  void summarizeGpio() {
+    if (!have_safety_io_ && !io_.have_sync) return;
     nlohmann::json g = nlohmann::json::object();
-    if (have_safety_io) {
-      const SafetyIoCounters& c = safety.counters();
+    if (have_safety_io_) {
+      const SafetyIoCounters& c = safety_->counters();
       nlohmann::json list = nlohmann::json::array();
-      for (const StopRecord& r : stops) {
+      for (const StopRecord& r : stops_) {
         nlohmann::json j = {{"cause", stopCauseName(r.cause)}, {"device_was_active", r.device_was_active},
                             {"safe_confirmed", r.safe_confirmed}};
         if (r.edge_ns != 0) j["edge_to_daemon_us"] = static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0;
@@ -885,34 +782,61 @@ int runSession(const RunOptions& opt, nlohmann::json& summary) {
         }
         list.push_back(j);
       }
-      g["estop"] = {{"line", opt.gpio.estop}, {"state", safety.stopped() ? "stopped" : "running"},
-                    {"cause", stopCauseName(safety.cause())}, {"line_ok", safety.estopLineOk()},
-                    {"open_error", io.estop_error}, {"stops", c.stops}, {"presses", c.presses},
+      g["estop"] = {{"line", opt_.gpio.estop}, {"state", safety_->stopped() ? "stopped" : "running"},
+                    {"cause", stopCauseName(safety_->cause())}, {"line_ok", safety_->estopLineOk()},
+                    {"open_error", io_.estop_error}, {"stops", c.stops}, {"presses", c.presses},
                     {"line_lost", c.line_lost}, {"resets", c.resets}, {"resets_refused", c.resets_refused},
                     {"reopen_attempts", c.reopen_attempts}, {"reopened", c.reopened},
-                    {"enable_failures", c.enable_failures}, {"release_debounce_ms", opt.gpio.estop_release_ms},
+                    {"enable_failures", c.enable_failures}, {"release_debounce_ms", opt_.gpio.estop_release_ms},
                     {"stop_records", list}};
-      if (io.have_enable) g["enable"] = {{"line", opt.gpio.enable}, {"write_failures", c.enable_failures}};
+      if (io_.have_enable) g["enable"] = {{"line", opt_.gpio.enable}, {"write_failures", c.enable_failures}};
     }
-    if (io.have_sync) {
-      const linux_hal::SyncPulseStats y = io.sync.stats();
-      g["sync"] = {{"line", opt.gpio.sync}, {"rate_hz", io.sync.rateHz()}, {"pulses", y.pulses},
+    if (io_.have_sync) {
+      const linux_hal::SyncPulseStats y = io_.sync.stats();
+      g["sync"] = {{"line", opt_.gpio.sync}, {"rate_hz", io_.sync.rateHz()}, {"pulses", y.pulses},
                    {"missed_periods", y.missed}, {"write_errors", y.write_errors},
                    {"edge_late_mean_us", y.mean_late_us}, {"edge_late_max_us", y.max_late_us},
                    {"first_rise_ns", y.first_rise_ns}};
     }
-    summary["gpio"] = g;
+    summary_["gpio"] = g;
   }
-  if (!opt.record_csv.empty()) summary["recording"] = {{"path", opt.record_csv}, {"rows", recorder.rows()}, {"dropped_rows", recorder.dropped()}};
-  nlohmann::json extra = nlohmann::json::object();
-  controller->summarize(extra);
-  if (!extra.empty()) summary[layout.name] = extra;
-  if (opt.hooks != nullptr) opt.hooks->onEnd(summary);
-  if (summary.contains("link_error")) {
-    std::fprintf(stderr, "phalanxd: session ended by a link error: %s\n", summary["link_error"].get<std::string>().c_str());
-    return 6;
-  }
-  return 0;
+
+  static constexpr size_t kMaxStopRecords = 256;  // fixed: no allocation in the loop; later stops are counted only
+  enum Source : uint8_t { kSourceController = 0, kSourceModbus, kSourceStop, kSourceCount };
+
+  const RunOptions& opt_;
+  nlohmann::json& summary_;
+  std::random_device rd_;
+  GpioLines io_;
+  std::unique_ptr<DeviceLink> link_;
+  std::unique_ptr<HostSession> session_;
+  const protocol::DeviceLayout* layout_ = nullptr;
+  std::unique_ptr<Controller> controller_;
+  std::unique_ptr<CommandLimits> limits_;
+  record::CsvRecorder recorder_;
+  std::unique_ptr<modbus::Server> mb_server_;
+  std::unique_ptr<modbus::LoopPort> mb_port_;
+  std::unique_ptr<SafetyIo> safety_;
+  std::unique_ptr<LinkRecovery> recovery_;
+  bool have_safety_io_ = false;
+  std::vector<StopRecord> stops_;
+  bool awaiting_safe_ = false, log_stop_ = false, last_pressed_ = false;
+  protocol::Command cmd_;
+  uint64_t period_ns_ = 0, max_cycles_ = 0, telemetry_timeout_ns_ = 0;
+  uint64_t start_ns_ = 0, expected_wake_ns_ = 0, next_live_ns_ = 0, last_new_telemetry_ns_ = 0;
+  Histogram jitter_us_{5000};
+  Histogram cycle_us_{5000};
+  double last_jitter_us_ = 0.0;
+  uint64_t cycles_ = 0, overruns_ = 0, cycles_without_telemetry_ = 0, commands_unsent_link_lost_ = 0;
+  std::array<uint64_t, kSourceCount> source_cycles_{};
+  uint16_t faults_seen_ = 0;
+};
+
+}  // namespace
+
+int runSession(const RunOptions& opt, nlohmann::json& summary) {
+  SessionRunner runner(opt, summary);
+  return runner.run();
 }
 
 }  // namespace phalanx::host

@@ -247,7 +247,7 @@ LoopPort::LoopPort(Server& server, const ServerOptions& options, uint16_t device
   snap_.setpoint_count = setpoint_count;
 }
 
-void LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
+bool LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
   RemoteCommand latest;
   if (server_.latestCommand(latest)) {
     remote_ = latest;
@@ -256,7 +256,7 @@ void LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
   timed_out_ = false;
   if (!have_remote_ || remote_.source != ControlSource::kModbus) {
     snap_.source = ControlSource::kController;
-    return;
+    return false;
   }
   snap_.source = ControlSource::kModbus;
   ++remote_cycles_;
@@ -266,10 +266,15 @@ void LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
     timed_out_ = true;
     cmd.mode = protocol::Mode::kSafe;
     for (auto& s : cmd.setpoint) s = 0.0f;
-    return;
+    for (auto& g : cmd.gain_scale_permille) g = 1000;
+    return true;
   }
   cmd.mode = remote_.mode;
-  for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) cmd.setpoint[i] = remote_.setpoint[i];
+  for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) {
+    cmd.setpoint[i] = remote_.setpoint[i];
+    cmd.gain_scale_permille[i] = 1000;
+  }
+  return true;
 }
 
 void LoopPort::publish(const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t cycles, uint64_t overruns,

@@ -105,4 +105,16 @@ void SeaTherapyDevice::commandFromEffort(std::array<double, kMaxChannels>& effor
   }
 }
 
+void SeaTherapyDevice::effortFromCommand(const std::array<float, kMaxChannels>& setpoint,
+                                         std::array<double, kMaxChannels>& effort) const {
+  const host::sea::Data& d = estimator_.data();
+  const host::sea::Vec2 tau_j{static_cast<double>(setpoint[0]), static_cast<double>(setpoint[1])};
+  host::sea::Vec2 tau_f{tau_j[0], tau_j[1]};
+  if (!d.J_valid || phalanx::sea::fingerTorqueFromExoTorque(d.J_n, tau_j, host::sea::FingerTorqueLimits{}.min_abs_det_Jn, tau_f) != phalanx::sea::Status::kOk) {
+    tau_f = tau_j;
+  }
+  effort[0] = tau_f[0];
+  effort[1] = tau_f[1];
+}
+
 }  // namespace phalanx::host::therapy

@@ -46,6 +46,15 @@ std::unique_ptr<Controller> TherapySession::makeController(const protocol::Devic
             layout.name;
     return nullptr;
   }
+  // The patient's limits hold on every command the session sends, with or without an exercise.
+  if (config_.have_profile) {
+    auto guard_device = makeTherapyDevice(layout, config_.profile.kinematics, error);
+    if (!guard_device) return nullptr;
+    auto guard = std::make_shared<PatientGuard>(std::move(guard_device), config_.profile.limits);
+    loop_guard_ = guard.get();
+    std::lock_guard<std::mutex> lock(ctl_mutex_);
+    guard_ = guard;
+  }
   if (config_.exercise.empty()) return nullptr;  // recording only, the default controller
   auto device = makeTherapyDevice(layout, config_.profile.kinematics, error);
   if (!device) return nullptr;
@@ -190,6 +199,10 @@ std::string TherapySession::setLimits(const nlohmann::json& request) {
     next.effort_max[static_cast<std::size_t>(i)] = x;
   }
   c->offerLimits(next);
+  {
+    std::lock_guard<std::mutex> lock(ctl_mutex_);
+    if (guard_) guard_->offerLimits(next);
+  }
   if (writer_.isOpen()) writer_.pushEvent(statusJson().value("t_s", 0.0), "api-limits", request);
   return {};
 }
@@ -236,11 +249,17 @@ nlohmann::json TherapySession::statusJson() const {
   j["limited_cycles"] = s.limited_cycles;
   j["effort_unit"] = d.effortUnit();
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  // What was sent, after the limits stage, whichever source commanded (an exercise, Modbus, ...).
+  std::array<double, kMaxChannels> sent = s.effort_command;
+  {
+    std::lock_guard<std::mutex> lock(ctl_mutex_);
+    if (guard_) sent = guard_->sentEffort();
+  }
   for (std::size_t ch = 0; ch < d.channelCount(); ++ch) {
     j["channels"][d.channelName(ch)] = {{"q_deg", num(s.q_rad[ch] * 180.0 / M_PI)},
                                         {"target_deg", num(s.target_q_rad[ch] * 180.0 / M_PI)},
                                         {"effort_measured", num(s.effort_measured[ch])},
-                                        {"effort_command", num(s.effort_command[ch])},
+                                        {"effort_command", num(sent[ch])},
                                         {"assist_gain", num(s.assist_gain[ch])},
                                         {"effort_max", num(s.effort_max[ch])}};
   }
@@ -257,6 +276,7 @@ void TherapySession::housekeeping() {
 
 void TherapySession::onEnd(const nlohmann::json& summary) {
   loop_ctl_ = nullptr;
+  loop_guard_ = nullptr;
   (void)summary;
 }
 

@@ -17,6 +17,7 @@
 namespace phalanx::host {
 
 class Controller;
+class PatientLimitStage;
 struct TelemetryFrame;
 
 /// Optional observer of a session, for the therapy layer (session records, the control API, patient limits):
@@ -37,6 +38,9 @@ class SessionHooks {
   virtual void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) = 0;
   /// Each device event (fault latched, command rejected, …), from the session thread.
   virtual void onDeviceEvent(const protocol::Event& event) { (void)event; }
+  /// The active patient's limits, applied by the session's limits stage after the device's to every command,
+  /// whatever its source (nullptr: no patient). Called once, before the first cycle.
+  virtual PatientLimitStage* patientLimits() { return nullptr; }
   /// Polled every cycle: true ends the session cleanly (safe command sent, summary written).
   virtual bool stopRequested() { return false; }
   /// Polled every cycle: true sends one ClearFaults to the device (the therapist's e-stop reset).
@@ -58,6 +62,8 @@ struct RunOptions {
   double seconds = 0.0;               ///< 0: until SIGINT/SIGTERM
   unsigned rate_hz = 1000;
   unsigned command_timeout_ms = 20;   ///< each command's own timeout: the device goes safe if the next is late
+  /// No new telemetry for this long ends the session as a lost link (exit 6), on every kind of link.
+  unsigned telemetry_timeout_ms = 500;
   bool realtime = true;               ///< try SCHED_FIFO + mlockall
   int rt_priority = 80;
   std::string record_csv;             ///< one row per cycle; empty: no recording

@@ -72,8 +72,9 @@ class LoopPort {
   LoopPort(Server& server, const ServerOptions& options, uint16_t device_type, uint16_t sample_count,
            uint16_t setpoint_count);
   /// After the controller filled cmd: if the latest Modbus write selected Modbus control, use its mode and
-  /// setpoints, or the safe state when that write is older than command_timeout_ms.
-  void overrideCommand(protocol::Command& cmd, uint64_t now_ns);
+  /// setpoints (nominal gains), or the safe state when that write is older than command_timeout_ms; true when
+  /// Modbus commanded this cycle. The session's limits stage applies to the result like to any command.
+  bool overrideCommand(protocol::Command& cmd, uint64_t now_ns);
   /// After the command was sent.
   void publish(const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t cycles, uint64_t overruns,
                double jitter_us, double cycle_us, uint64_t uptime_ns, uint64_t telemetry_lost, LoopState state);

@@ -71,6 +71,12 @@ class TherapyDevice {
                                  std::array<float, kMaxChannels>& setpoint) const {
     for (std::size_t c = 0; c < channelCount(); ++c) setpoint[c] = setpointFromEffort(c, effort[c]);
   }
+  /// Real time, after observe(): the inverse of commandFromEffort — the channels' efforts a command's setpoints
+  /// exert (the patient's limits stage). The default maps each channel with effortFromSetpoint.
+  virtual void effortFromCommand(const std::array<float, kMaxChannels>& setpoint,
+                                 std::array<double, kMaxChannels>& effort) const {
+    for (std::size_t c = 0; c < channelCount(); ++c) effort[c] = effortFromSetpoint(c, setpoint[c]);
+  }
   /// Start-up parameters (e.g. the glove's strain-gauge tare) and settle time, as Controller.
   virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }
   virtual double startupSettleS() const { return 0.0; }

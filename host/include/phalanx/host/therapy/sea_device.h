@@ -46,6 +46,10 @@ class SeaTherapyDevice : public TherapyDevice {
   /// |τ_j,d| ≤ kExoTorqueLimit_Nm; the efforts are scaled with it. No valid J_n: zero torque.
   void commandFromEffort(std::array<double, kMaxChannels>& effort,
                          std::array<float, kMaxChannels>& setpoint) const override;
+  /// τ_f = J_n^{-T} τ_j (eq 9) at the last observed pose; no valid, non-singular J_n: the exoskeleton torques
+  /// themselves (J_n = I), the conservative reading for limits.
+  void effortFromCommand(const std::array<float, kMaxChannels>& setpoint,
+                         std::array<double, kMaxChannels>& effort) const override;
 
   const host::sea::SeaEstimator& estimator() const { return estimator_; }
 

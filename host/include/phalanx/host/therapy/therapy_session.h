@@ -10,6 +10,7 @@
 
 #include "phalanx/host/daemon.h"
 #include "phalanx/host/record/record_writer.h"
+#include "phalanx/host/therapy/patient_guard.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/therapy_controller.h"
 
@@ -38,6 +39,7 @@ class TherapySession : public SessionHooks {
   std::string onStart(const protocol::DeviceLayout& layout, const nlohmann::json& info) override;
   void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) override;
   void onDeviceEvent(const protocol::Event& event) override;
+  PatientLimitStage* patientLimits() override { return loop_guard_; }
   bool stopRequested() override { return stop_.load(std::memory_order_relaxed); }
   bool takeClearFaultsRequest() override { return clear_faults_.exchange(false, std::memory_order_relaxed); }
   void onEnd(const nlohmann::json& summary) override;
@@ -68,6 +70,8 @@ class TherapySession : public SessionHooks {
   mutable std::mutex ctl_mutex_;                 // guards ctl_ (API threads vs the session thread)
   std::shared_ptr<TherapyController> ctl_;       // shared with the Controller runSession runs
   TherapyController* loop_ctl_ = nullptr;        // the session thread's own pointer
+  std::shared_ptr<PatientGuard> guard_;          // the patient's limits stage (guarded by ctl_mutex_)
+  PatientGuard* loop_guard_ = nullptr;           // the session thread's own pointer
   std::shared_ptr<Pattern> pattern_;
   const protocol::DeviceLayout* layout_ = nullptr;
   std::atomic<bool> stop_{false};
