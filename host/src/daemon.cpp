@@ -54,6 +54,7 @@ struct StopRecord {
   bool safe_confirmed = false;
   uint64_t safe_rx_ns = 0;
   uint16_t ticks_to_safe = 0;
+  uint16_t device_ticks_to_safe = 0;  ///< from the device having the safe command to its safe report
 };
 
 /// The bench GPIO lines of one session, opened before the handshake and released after the device is left safe.
@@ -628,6 +629,7 @@ class SessionRunner {
     r.safe_confirmed = true;
     r.safe_rx_ns = session_->safeRxNs();
     r.ticks_to_safe = static_cast<uint16_t>(session_->safeSeq() - r.seq_at_seen);
+    r.device_ticks_to_safe = session_->deviceTicksToSafe();
     awaiting_safe_ = false;
     std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
                  "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
@@ -661,7 +663,10 @@ class SessionRunner {
     }
     link_->afterCycle(t_s);
     const bool pushed = link_->push();
-    if (awaiting_safe_ && stops_.back().sent_ns == 0) stops_.back().sent_ns = linux_hal::monotonicNs();
+    if (awaiting_safe_ && stops_.back().sent_ns == 0) {
+      stops_.back().sent_ns = linux_hal::monotonicNs();
+      session_->markSafeCommand(cmd_.seq);
+    }
     if (log_stop_) {
       log_stop_ = false;
       std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
@@ -779,6 +784,7 @@ class SessionRunner {
         if (r.safe_confirmed) {
           j["daemon_to_safe_telemetry_us"] = static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0;
           j["ticks_to_safe"] = r.ticks_to_safe;
+          j["device_ticks_to_safe"] = r.device_ticks_to_safe;
         }
         list.push_back(j);
       }

@@ -138,6 +138,11 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
       last_dev_rx_errors_ = t.rx_errors;
       ++stats_.telemetry_received;
 
+      if (safe_watch_ && safe_cmd_marked_ && !safe_cmd_arrived_ &&
+          static_cast<int16_t>(static_cast<uint16_t>(t.cmd_seq_echo - safe_cmd_seq_)) >= 0) {
+        safe_cmd_arrived_ = true;
+        safe_cmd_arrival_seq_ = t.seq;
+      }
       if (safe_watch_ && t.seq != safe_after_seq_ && t.mode == Mode::kSafe &&
           (t.state_flags & protocol::state::kOutputsActive) == 0) {
         safe_watch_ = false;

@@ -78,7 +78,19 @@ class HostSession {
     safe_watch_ = true;
     safe_seen_ = false;
     safe_after_seq_ = after_seq;
+    safe_cmd_marked_ = false;
+    safe_cmd_arrived_ = false;
   }
+  /// The sequence number of the first safe command sent for the watched stop: the first telemetry that echoes it
+  /// (or a later one) is the tick the device had it, so deviceTicksToSafe() counts the firmware's own reaction
+  /// in its ticks, free of how long the host or an emulator took to send it.
+  void markSafeCommand(uint16_t cmd_seq) {
+    safe_cmd_seq_ = cmd_seq;
+    safe_cmd_marked_ = true;
+  }
+  /// Device ticks from the telemetry that first echoed the safe command to the one that reported safe (0 when
+  /// the device was safe in the tick it had the command, or went safe before it).
+  uint16_t deviceTicksToSafe() const { return safe_cmd_arrived_ ? static_cast<uint16_t>(safe_seq_ - safe_cmd_arrival_seq_) : 0; }
   bool safeSeen() const { return safe_seen_; }
   uint16_t safeSeq() const { return safe_seq_; }
   uint64_t safeRxNs() const { return safe_rx_ns_; }  ///< the poll time of the frame that reported it
@@ -122,6 +134,10 @@ class HostSession {
   uint16_t safe_after_seq_ = 0;
   uint16_t safe_seq_ = 0;
   uint64_t safe_rx_ns_ = 0;
+  uint16_t safe_cmd_seq_ = 0;
+  bool safe_cmd_marked_ = false;
+  bool safe_cmd_arrived_ = false;
+  uint16_t safe_cmd_arrival_seq_ = 0;
 };
 
 const char* faultName(uint16_t single_bit);
