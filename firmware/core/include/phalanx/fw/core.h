@@ -33,7 +33,7 @@ class CoreObserver {
 struct CoreCounters {
   uint32_t ticks = 0;
   uint32_t commands_applied = 0;
-  uint32_t commands_rejected = 0;       ///< every Command not applied, stale ones included (an Event each, ≤ 1/tick)
+  uint32_t commands_rejected = 0;       ///< every Command not applied, stale ones included (the first of a tick: an Event)
   uint32_t cmd_lost = 0;                ///< commands missing from the sequence: a jump from n to n+k adds k−1
   uint32_t cmd_stale = 0;               ///< commands not newer than the newest received (replays, reordering)
   uint32_t frames_invalid = 0;          ///< host → device frames whose fields break the message's rules
