@@ -169,6 +169,7 @@ int main(int argc, char** argv) {
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
   cfg.firmware_build_id = PHALANX_BUILD_ID;
+  cfg.device_variant = dev->variant();  // sea_rig: the sea_finger firmware on the test rig
   fw::FirmwareCore core(board.board(), dev->app(), cfg);
   LogObserver observer;
   core.setObserver(&observer);
@@ -243,11 +244,12 @@ int main(int argc, char** argv) {
   board.board().pwm->disableAll();
   dev->app().safe();
   std::fprintf(stderr,
-               "firmware-sim: stopped ticks=%u overruns=%llu commands=%u rejected=%u cmd_lost=%u rx_crc=%u "
-               "rx_framing=%u tx_dropped=%u faults=0x%04x\n",
+               "firmware-sim: stopped ticks=%u overruns=%llu commands=%u rejected=%u cmd_lost=%u cmd_stale=%u rx_crc=%u "
+               "rx_framing=%u rx_invalid=%u rx_wrong_direction=%u tx_dropped=%u faults=0x%04x\n",
                core.counters().ticks, static_cast<unsigned long long>(overruns), core.counters().commands_applied,
-               core.counters().commands_rejected, core.counters().cmd_lost, core.rxStats().crc_errors,
-               core.rxStats().framing_errors, core.counters().tx_dropped, core.faultBits());
+               core.counters().commands_rejected, core.counters().cmd_lost, core.counters().cmd_stale,
+               core.rxStats().crc_errors, core.rxStats().framing_errors, core.counters().frames_invalid,
+               core.counters().frames_wrong_direction, core.counters().tx_dropped, core.faultBits());
   tick_times.print();
   if (use_ffs) {
     const auto& f = ffs.stats();

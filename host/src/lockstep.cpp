@@ -1,13 +1,20 @@
 #include "phalanx/host/lockstep.h"
 
 namespace phalanx::host {
+namespace {
+fw::CoreConfig coreConfig(const fw_sim::SimDevice& device, const LockstepOptions& options) {
+  fw::CoreConfig cfg{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame};
+  cfg.device_variant = device.variant();
+  return cfg;
+}
+}  // namespace
 
 LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, const LockstepOptions& options)
     : device_(device),
       controller_(controller),
       opt_(options),
       board_(device.pwmCount(), device.adcCount(), device.encoderCount(), pipe_.end(0)),
-      core_(board_.board(), device.app(), fw::CoreConfig{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame}),
+      core_(board_.board(), device.app(), coreConfig(device, options)),
       session_(pipe_.end(1)),
       host_every_(options.host_every_ticks > 0 ? options.host_every_ticks : 1u) {
   cmd_.timeout_ms = opt_.command_timeout_ms;

@@ -11,6 +11,7 @@
 #include <random>
 #include <regex>
 #include <thread>
+#include <utility>
 
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
@@ -166,5 +167,38 @@ TEST(Daemon, EverySimulatedDeviceCompletesItsHandshake) {
     Process d({binPath("phalanxd"), "--device", device, "--seconds", "0.5", "--no-realtime"});
     EXPECT_EQ(d.wait(20000), 0) << device << ": " << d.stderrText();
     EXPECT_EQ(d.stderrText().find("mismatch"), std::string::npos) << device << ": " << d.stderrText();
+  }
+}
+
+// firmware-sim --device sea_rig answers as a sea_finger (the same firmware) and names its variant in the core
+// parameter 0x0004, so a host can tell the rig from the exoskeleton on a finger.
+TEST(PtySession, TheSeaRigAndTheSeaFingerTellTheirVariantApart) {
+  using namespace phalanx;
+  for (const auto& [device, variant] : {std::pair<const char*, uint8_t>{"sea_rig", protocol::variant::kSeaTestRig},
+                                        std::pair<const char*, uint8_t>{"sea_finger", protocol::variant::kStandard}}) {
+    Process fw({binPath("firmware-sim"), "--device", device, "--scenario", "still", "--seconds", "30"});
+    const std::string pty = startFirmware(fw);
+    ASSERT_FALSE(pty.empty());
+    linux_hal::SerialLink link;
+    ASSERT_EQ(link.open(pty, 0), "");
+    host::HostSession session(link);
+    session.sendHello(5, protocol::DeviceType::kSeaFinger);
+    link.flush();
+    for (int i = 0; i < 2500 && session.handshake() == host::HandshakeResult::kPending; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      session.poll(linux_hal::monotonicNs());
+    }
+    ASSERT_EQ(session.handshake(), host::HandshakeResult::kOk) << device << ": " << session.handshakeError();
+    session.sendParamGet(protocol::core_param::kDeviceVariant);
+    link.flush();
+    for (int i = 0; i < 2500 && !session.lastParamValid(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      session.poll(linux_hal::monotonicNs());
+    }
+    ASSERT_TRUE(session.lastParamValid()) << device << ": no answer to ParamGet 0x0004";
+    EXPECT_EQ(session.lastParam().status, protocol::ParamStatus::kOk) << device;
+    EXPECT_EQ(session.lastParam().value, static_cast<float>(variant)) << device;
+    fw.signal(SIGTERM);
+    fw.wait(5000);
   }
 }

@@ -180,3 +180,24 @@ TEST(SeaRigSafety, TorqueSetpointBeyondTheDeviceLimitIsRejectedAndNothingMoves) 
   EXPECT_EQ(rig.session().lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kOutOfRange));
   EXPECT_NEAR(device.seaPlant().truth(0).motor_angle_rad, 0.0, 1e-9);
 }
+
+// The rig runs the sea_finger firmware and answers its handshake as a sea_finger; the device-variant core
+// parameter is how a host tells it from the exoskeleton on a finger (docs/protocol.md, "Core parameters").
+TEST(SeaRigIdentity, TheRigAndTheFingerReportTheirVariant) {
+  for (const auto variant : {sim::SeaVariant::kRig, sim::SeaVariant::kFinger}) {
+    sim::SeaPlantConfig c = rigConfig();
+    c.variant = variant;
+    fw_sim::SeaFingerSimDevice device(c);
+    HoldController ctl(0.0f, true);
+    host::LockstepRig rig(device, ctl);
+    ASSERT_EQ(rig.handshake(), "");
+    EXPECT_EQ(rig.session().deviceInfo().device_type, protocol::DeviceType::kSeaFinger);
+    rig.session().sendParamGet(protocol::core_param::kDeviceVariant);
+    rig.run(0.01);
+    ASSERT_TRUE(rig.session().lastParamValid());
+    EXPECT_EQ(rig.session().lastParam().status, protocol::ParamStatus::kOk);
+    EXPECT_EQ(rig.session().lastParam().value,
+              static_cast<float>(variant == sim::SeaVariant::kRig ? protocol::variant::kSeaTestRig
+                                                                  : protocol::variant::kStandard));
+  }
+}

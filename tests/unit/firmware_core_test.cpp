@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "phalanx/fw/core.h"
 #include "phalanx/host/session.h"
@@ -14,6 +15,8 @@ namespace {
 // A two-channel test app: duty = setpoint / 10; reports a sensor fault on demand.
 class TestApp : public fw::DeviceApp {
  public:
+  TestApp() = default;
+  explicit TestApp(const protocol::DeviceLayout& layout) : layout_(layout) {}
   const protocol::DeviceLayout& layout() const override { return layout_; }
   void init(hal::Board& board) override { board_ = &board; }
   uint16_t sense(float) override { return inject_sensor_fault; }
@@ -24,19 +27,29 @@ class TestApp : public fw::DeviceApp {
   }
   void safe() override { ++safe_calls; }
   void fillSamples(int16_t* s) const override { s[0] = 123; }
+  protocol::ParamStatus setParam(uint16_t id, float value) override {
+    if (id != kAppParam) return protocol::ParamStatus::kUnknownParam;
+    app_param = value;
+    return protocol::ParamStatus::kOk;
+  }
+  static constexpr uint16_t kAppParam = 0x0100;
+  float app_param = 0.0f;
   uint16_t inject_sensor_fault = 0;
   int control_calls = 0;
   int safe_calls = 0;
 
  private:
-  // A two-channel app that identifies as the SEA finger (its real layout, so the host accepts the handshake).
+  // By default a two-channel app that identifies as the SEA finger (its real layout, so the host accepts the
+  // handshake).
   protocol::DeviceLayout layout_ = protocol::kSeaFingerLayout;
   hal::Board* board_ = nullptr;
 };
 
 class CoreTest : public ::testing::Test {
  protected:
-  CoreTest() : board(2, 4, 0, pipe.end(0)), core(board.board(), app, fw::CoreConfig{1000, 7, 4 * 69}), host(pipe.end(1)) {}
+  // A build id above 2^24, which a float cannot hold exactly.
+  static constexpr uint32_t kBuildId = 3713657881u;
+  CoreTest() : board(2, 4, 0, pipe.end(0)), core(board.board(), app, fw::CoreConfig{1000, kBuildId, 4 * 69}), host(pipe.end(1)) {}
 
   // One 1 ms tick of the firmware, then let the host read.
   void tick() {
@@ -59,6 +72,29 @@ class CoreTest : public ::testing::Test {
     return c;
   }
   void send(protocol::Command c) { host.sendCommand(c, board.clock().nowUs() * 1000); }
+  /// Write a message to the device as it is, bypassing the host session (its own seq, any field values).
+  template <class Msg>
+  void sendRaw(const Msg& m) {
+    uint8_t f[protocol::kMaxEncodedFrame];
+    pipe.end(1).write(f, protocol::encodeFrame(m, f));
+  }
+  /// Write a frame with this ID and payload bytes (a valid CRC and length; any field values).
+  void sendRawPayload(protocol::MsgId id, const uint8_t* payload, size_t len) {
+    uint8_t f[protocol::kMaxEncodedFrame];
+    pipe.end(1).write(f, protocol::encodeFrameRaw(static_cast<uint8_t>(id), payload, len, f));
+  }
+  protocol::Command commandWithSeq(uint16_t seq, float sp0, uint16_t timeout_ms = 10) {
+    protocol::Command c = command(sp0, timeout_ms);
+    c.seq = seq;
+    return c;
+  }
+  /// Ask for a parameter and return the answer (status and value).
+  protocol::ParamValue paramGet(uint16_t id) {
+    host.sendParamGet(id);
+    tick();
+    EXPECT_TRUE(host.lastParamValid()) << "no answer to ParamGet " << id;
+    return host.lastParam();
+  }
 
   sim::BytePipe pipe;
   TestApp app;
@@ -82,7 +118,7 @@ TEST_F(CoreTest, OutputsStaySafeUntilTheFirstValidCommand) {
 
 TEST_F(CoreTest, HandshakeReportsIdentityAndLayout) {
   openSession();
-  EXPECT_EQ(host.deviceInfo().firmware_build_id, 7u);
+  EXPECT_EQ(host.deviceInfo().firmware_build_id, kBuildId);
   EXPECT_EQ(host.deviceInfo().tick_rate_hz, 1000);
   EXPECT_EQ(host.deviceInfo().setpoint_count, 2);
 }
@@ -248,4 +284,442 @@ TEST_F(CoreTest, ReadOnlyParametersRefuseWrites) {
   pipe.end(1).write(f, protocol::encodeFrame(s, f));
   tick();
   EXPECT_EQ(host.lastParam().status, protocol::ParamStatus::kReadOnly);
+}
+
+// --- Command sequence (docs/protocol.md, "Command sequence") ---------------------------------------------------
+
+TEST_F(CoreTest, AReplayedCommandIsDiscardedCountedAndDoesNotFeedTheWatchdog) {
+  openSession();
+  sendRaw(commandWithSeq(10, 0.5f, 10));
+  tick();
+  ASSERT_TRUE(board.io().pwm_enabled);
+  const uint64_t rx_before = host.stats().device_rx_errors;
+  bool replay_applied = false;
+  for (int i = 0; i < 200; ++i) {
+    sendRaw(commandWithSeq(10, 0.9f, 10));  // the same seq, another setpoint: must never reach the motors
+    tick();
+    replay_applied = replay_applied || std::fabs(board.io().pwm_duty[0] - 0.09f) < 1e-6f;
+  }
+  EXPECT_FALSE(replay_applied);
+  EXPECT_EQ(core.counters().commands_applied, 1u);
+  EXPECT_EQ(core.counters().cmd_stale, 200u);
+  EXPECT_EQ(core.counters().cmd_lost, 0u);
+  EXPECT_EQ(host.stats().device_rx_errors - rx_before, 200u) << "each stale command is a rejected frame";
+  // Replays are not fresh commands: the watchdog expired 10 ms after the only applied one.
+  EXPECT_TRUE(core.faultBits() & protocol::fault::kCommandTimeout);
+  EXPECT_EQ(host.lastEvent().code, protocol::EventCode::kCommandRejected);
+  EXPECT_EQ(host.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kStaleSequence));
+  EXPECT_EQ(host.lastEvent().value, 10.0f);
+}
+
+TEST_F(CoreTest, OlderCommandsAreDiscardedAcrossTheSequenceWrap) {
+  openSession();
+  sendRaw(commandWithSeq(0xFFFE, 0.1f));
+  tick();
+  sendRaw(commandWithSeq(0xFFFF, 0.2f));
+  tick();
+  sendRaw(commandWithSeq(0x0001, 0.3f));  // newer across the wrap; 0x0000 never arrived
+  tick();
+  EXPECT_EQ(core.counters().commands_applied, 3u);
+  EXPECT_EQ(core.counters().cmd_lost, 1u);
+  sendRaw(commandWithSeq(0xFFFF, 0.4f));  // older across the wrap
+  tick();
+  sendRaw(commandWithSeq(0x8001, 0.5f));  // exactly half the range ahead counts as older
+  tick();
+  EXPECT_EQ(core.counters().commands_applied, 3u);
+  EXPECT_EQ(core.counters().cmd_stale, 2u);
+  EXPECT_NEAR(board.io().pwm_duty[0], 0.03f, 1e-6f);
+  EXPECT_EQ(host.latest().cmd_seq_echo, 0x0001);
+  sendRaw(commandWithSeq(0x8000, 0.6f));  // 0x7FFF ahead: newer, 0x7FFE missing
+  tick();
+  EXPECT_EQ(core.counters().commands_applied, 4u);
+  EXPECT_EQ(core.counters().cmd_lost, 1u + 0x7FFEu);
+  EXPECT_EQ(host.latest().cmd_seq_echo, 0x8000);
+}
+
+TEST_F(CoreTest, CmdLostCountsMissingCommandsNotGaps) {
+  openSession();
+  sendRaw(commandWithSeq(1, 0.1f));
+  tick();
+  sendRaw(commandWithSeq(5, 0.1f));  // one gap of three missing commands
+  tick();
+  tick();
+  EXPECT_EQ(core.counters().cmd_lost, 3u);
+  EXPECT_EQ(host.stats().device_cmd_lost, 3u);
+}
+
+TEST_F(CoreTest, ARejectedCommandWasReceivedNotLost) {
+  openSession();
+  sendRaw(commandWithSeq(1, 0.1f));
+  tick();
+  protocol::Command bad = commandWithSeq(2, 0.1f);
+  bad.setpoint[1] = NAN;
+  sendRaw(bad);
+  tick();
+  sendRaw(commandWithSeq(3, 0.1f));
+  tick();
+  EXPECT_EQ(core.counters().commands_rejected, 1u);
+  EXPECT_EQ(core.counters().cmd_lost, 0u);
+  EXPECT_EQ(host.latest().cmd_seq_echo, 3);
+}
+
+TEST_F(CoreTest, AHelloResetsTheExpectedSequence) {
+  openSession();
+  sendRaw(commandWithSeq(500, 0.1f));
+  tick();
+  host.sendHello(12, protocol::DeviceType::kAny);
+  tick();
+  ASSERT_EQ(host.handshake(), host::HandshakeResult::kOk);
+  EXPECT_FALSE(board.io().pwm_enabled) << "a new session starts safe";
+  sendRaw(commandWithSeq(3, 0.2f));  // a new session may restart its sequence anywhere
+  tick();
+  EXPECT_TRUE(board.io().pwm_enabled);
+  EXPECT_EQ(core.counters().commands_applied, 2u);
+  EXPECT_EQ(core.counters().cmd_stale, 0u);
+  EXPECT_EQ(core.counters().cmd_lost, 0u);
+}
+
+TEST_F(CoreTest, WithoutAHelloARestartedSequenceIsStale) {
+  openSession();
+  sendRaw(commandWithSeq(500, 0.1f));
+  tick();
+  sendRaw(commandWithSeq(3, 0.2f));
+  tick();
+  EXPECT_EQ(core.counters().commands_applied, 1u);
+  EXPECT_EQ(core.counters().cmd_stale, 1u);
+  EXPECT_NEAR(board.io().pwm_duty[0], 0.01f, 1e-6f);
+}
+
+TEST_F(CoreTest, TheHostSessionsSequenceKeepsWorkingAcrossANewHandshake) {
+  openSession();
+  for (int i = 0; i < 20; ++i) {
+    send(command(0.1f));
+    tick();
+  }
+  host.sendHello(12, protocol::DeviceType::kAny);  // a reconnect: new session, the host's seq goes on
+  tick();
+  ASSERT_EQ(host.handshake(), host::HandshakeResult::kOk);
+  for (int i = 0; i < 20; ++i) {
+    send(command(0.1f));
+    tick();
+  }
+  EXPECT_EQ(core.counters().commands_applied, 40u);
+  EXPECT_EQ(core.counters().cmd_stale, 0u);
+  EXPECT_EQ(core.counters().cmd_lost, 0u);
+  EXPECT_TRUE(board.io().pwm_enabled);
+}
+
+// --- Rejections are answered and counted ------------------------------------------------------------------------
+
+TEST_F(CoreTest, ACommandBeforeAnyHelloIsAnsweredWithNoSession) {
+  send(command(0.5f));
+  tick();
+  EXPECT_FALSE(board.io().pwm_enabled);
+  ASSERT_EQ(host.stats().events, 1u);
+  EXPECT_EQ(host.lastEvent().code, protocol::EventCode::kCommandRejected);
+  EXPECT_EQ(host.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kNoSession));
+}
+
+TEST_F(CoreTest, AHelloWithAnUndefinedDeviceTypeOrReservedByteIsRejectedAndCounted) {
+  openSession();
+  send(command(0.5f, 50));
+  tick();
+  ASSERT_TRUE(board.io().pwm_enabled);
+  const uint64_t rx_before = host.stats().device_rx_errors;
+  protocol::Hello good;
+  good.session_id = 99;
+  uint8_t p[protocol::Hello::kWireSize];
+  protocol::encodePayload(good, p);
+  p[2] = 9;  // expected_device: undefined
+  sendRawPayload(protocol::MsgId::kHello, p, sizeof p);
+  tick();
+  protocol::Hello reserved = good;
+  reserved.reserved = 7;
+  sendRaw(reserved);
+  tick();
+  EXPECT_EQ(host.stats().device_rx_errors - rx_before, 2u);
+  EXPECT_EQ(core.counters().frames_invalid, 2u);
+  EXPECT_TRUE(board.io().pwm_enabled) << "a rejected Hello must not open a new session (which starts safe)";
+}
+
+TEST_F(CoreTest, AParamSetWithAReservedFieldSetIsRejectedCountedAndNotApplied) {
+  openSession();
+  tick();
+  const uint64_t rx_before = host.stats().device_rx_errors;
+  protocol::ParamSet set;
+  set.param_id = TestApp::kAppParam;
+  set.reserved = 1;
+  set.value = 2.0f;
+  sendRaw(set);
+  tick();
+  EXPECT_EQ(app.app_param, 0.0f);
+  EXPECT_FALSE(host.lastParamValid()) << "a rejected frame is not answered";
+  EXPECT_EQ(host.stats().device_rx_errors - rx_before, 1u);
+  set.reserved = 0;
+  sendRaw(set);
+  tick();
+  EXPECT_EQ(app.app_param, 2.0f);
+}
+
+TEST_F(CoreTest, DeviceToHostMessagesSentToTheDeviceAreRejectedAndCounted) {
+  openSession();
+  tick();
+  const uint64_t rx_before = host.stats().device_rx_errors;
+  sendRaw(protocol::Telemetry{});
+  sendRaw(protocol::HelloAck{});
+  sendRaw(protocol::Event{});
+  sendRaw(protocol::ParamValue{});
+  tick();
+  tick();
+  EXPECT_EQ(host.stats().device_rx_errors - rx_before, 4u);
+  EXPECT_EQ(core.counters().frames_wrong_direction, 4u);
+}
+
+namespace {
+/// A packet transport that delivers whatever the test queues, lengths included (a transport is expected to check
+/// lengths; the core must still never act on a payload that does not decode).
+class ScriptedPackets : public hal::PacketLink {
+ public:
+  void queue(protocol::MsgId id, const uint8_t* payload, size_t len) {
+    Msg m;
+    m.id = static_cast<uint8_t>(id);
+    m.len = len;
+    for (size_t i = 0; i < len; ++i) m.payload[i] = payload[i];
+    rx_.push_back(m);
+  }
+  bool send(uint8_t msg_id, const uint8_t* payload, size_t len) override {
+    Msg m;
+    m.id = msg_id;
+    m.len = len;
+    for (size_t i = 0; i < len; ++i) m.payload[i] = payload[i];
+    tx.push_back(m);
+    return true;
+  }
+  bool receive(uint8_t& msg_id, uint8_t* payload, size_t& len) override {
+    if (rx_.empty()) return false;
+    const Msg m = rx_.front();
+    rx_.erase(rx_.begin());
+    msg_id = m.id;
+    len = m.len;
+    for (size_t i = 0; i < m.len; ++i) payload[i] = m.payload[i];
+    return true;
+  }
+  hal::PacketRxStats rxStats() const override { return {}; }
+  struct Msg {
+    uint8_t id = 0;
+    size_t len = 0;
+    uint8_t payload[protocol::kMaxPayload] = {};
+  };
+  std::vector<Msg> tx;
+
+ private:
+  std::vector<Msg> rx_;
+};
+}  // namespace
+
+TEST(CorePackets, PayloadsThatFailToDecodeAreRejectedCountedAndNotAnswered) {
+  sim::BytePipe pipe;
+  TestApp app;
+  sim::SimBoard board(2, 4, 0, pipe.end(0));
+  ScriptedPackets packets;
+  board.board().packets = &packets;
+  fw::FirmwareCore core(board.board(), app, fw::CoreConfig{});
+  uint8_t p[protocol::kMaxPayload] = {};
+  protocol::Hello hello;
+  hello.session_id = 5;
+  protocol::encodePayload(hello, p);
+  packets.queue(protocol::MsgId::kHello, p, protocol::Hello::kWireSize);
+  board.clock().advanceUs(1000);
+  core.tick();
+  ASSERT_TRUE(core.sessionOpen());
+  packets.tx.clear();
+  uint8_t clear[4] = {5, 0, 0, 0};
+  packets.queue(protocol::MsgId::kClearFaults, clear, 3);
+  packets.queue(protocol::MsgId::kParamGet, p, 1);
+  packets.queue(protocol::MsgId::kParamSet, p, 7);
+  board.clock().advanceUs(1000);
+  core.tick();
+  EXPECT_EQ(core.counters().frames_invalid, 3u);
+  ASSERT_FALSE(packets.tx.empty());
+  for (const auto& m : packets.tx) {
+    EXPECT_EQ(m.id, static_cast<uint8_t>(protocol::MsgId::kTelemetry)) << "only telemetry goes out, no answer";
+  }
+  protocol::Telemetry t;
+  ASSERT_TRUE(protocol::decodePayload(packets.tx.back().payload, packets.tx.back().len, t));
+  EXPECT_EQ(t.rx_errors, 3);
+}
+
+// --- Lock ----------------------------------------------------------------------------------------------------
+
+TEST_F(CoreTest, LockOnABackDrivableDeviceIsTheSafeState) {
+  openSession();
+  protocol::Command lock = command(0.0f, 50);
+  lock.mode = Mode::kLock;
+  send(lock);
+  tick();
+  EXPECT_FALSE(board.io().pwm_enabled);
+  EXPECT_EQ(app.control_calls, 0);
+  EXPECT_EQ(host.latest().mode, Mode::kSafe);
+  EXPECT_EQ(host.latest().state_flags & protocol::state::kOutputsActive, 0);
+  EXPECT_EQ(host.latest().cmd_seq_echo, 1) << "the lock command was applied (as safe)";
+  host.sendParamSet(TestApp::kAppParam, 3.0f);
+  tick();
+  ASSERT_TRUE(host.lastParamValid());
+  EXPECT_EQ(host.lastParam().status, protocol::ParamStatus::kOk) << "outputs are off: parameters may be set";
+  EXPECT_EQ(app.app_param, 3.0f);
+}
+
+TEST(CoreLock, LockOnASelfLockingDeviceIsAnActiveMode) {
+  sim::BytePipe pipe;
+  TestApp app(protocol::kGlove5Layout);
+  sim::SimBoard board(5, 4, 0, pipe.end(0));
+  fw::FirmwareCore core(board.board(), app, fw::CoreConfig{});
+  host::HostSession host(pipe.end(1));
+  auto tick = [&]() {
+    board.clock().advanceUs(1000);
+    core.tick();
+    host.poll(board.clock().nowUs() * 1000);
+  };
+  host.sendHello(1, protocol::DeviceType::kGlove5);
+  tick();
+  ASSERT_EQ(host.handshake(), host::HandshakeResult::kOk);
+  protocol::Command lock;
+  lock.mode = Mode::kLock;
+  lock.channel_count = 5;
+  lock.timeout_ms = 50;
+  host.sendCommand(lock, 0);
+  tick();
+  EXPECT_TRUE(board.io().pwm_enabled);
+  EXPECT_EQ(app.control_calls, 1) << "the app holds its mechanism; the core keeps supervising";
+  EXPECT_EQ(host.latest().mode, Mode::kLock);
+  EXPECT_NE(host.latest().state_flags & protocol::state::kOutputsActive, 0);
+}
+
+// --- Fields that must be zero --------------------------------------------------------------------------------
+
+TEST_F(CoreTest, CommandFieldsThatMustBeZeroOrBoundedAreCheckedOnEveryChannel) {
+  openSession();
+  auto reserved = command(0.1f);
+  reserved.reserved = 1;
+  auto unused_setpoint = command(0.1f);
+  unused_setpoint.setpoint[2] = 0.5f;  // the device has two channels
+  auto unused_gain = command(0.1f);
+  unused_gain.gain_scale_permille[5] = 3000;
+  auto unused_nan = command(0.1f);
+  unused_nan.setpoint[7] = NAN;
+  struct Expect {
+    protocol::Command cmd;
+    protocol::RejectReason reason;
+    uint8_t channel;
+  };
+  const Expect cases[] = {{reserved, protocol::RejectReason::kReservedNotZero, 0xFF},
+                          {unused_setpoint, protocol::RejectReason::kOutOfRange, 2},
+                          {unused_gain, protocol::RejectReason::kOutOfRange, 5},
+                          {unused_nan, protocol::RejectReason::kNonFinite, 7}};
+  for (const Expect& e : cases) {
+    send(e.cmd);
+    tick();
+    EXPECT_FALSE(board.io().pwm_enabled);
+    EXPECT_EQ(host.lastEvent().code, protocol::EventCode::kCommandRejected);
+    EXPECT_EQ(host.lastEvent().detail, static_cast<uint8_t>(e.reason));
+    EXPECT_EQ(host.lastEvent().channel, e.channel);
+  }
+  EXPECT_EQ(core.counters().commands_rejected, 4u);
+  EXPECT_EQ(app.control_calls, 0);
+  // What every host sends: unused setpoints 0, every gain (used or not) at most 2000 permille.
+  auto nominal = command(0.1f);
+  for (auto& g : nominal.gain_scale_permille) g = 1000;
+  send(nominal);
+  tick();
+  EXPECT_TRUE(board.io().pwm_enabled);
+}
+
+// --- ClearFaults -----------------------------------------------------------------------------------------------
+
+namespace {
+void recordEvent(void* ctx, const protocol::Event& e) { static_cast<std::vector<protocol::Event>*>(ctx)->push_back(e); }
+}  // namespace
+
+TEST_F(CoreTest, ClearFaultsWithNothingLatchedChangesNothing) {
+  std::vector<protocol::Event> events;
+  host.setEventCallback(recordEvent, &events);
+  openSession();
+  send(command(0.5f, 50));
+  tick();
+  ASSERT_TRUE(board.io().pwm_enabled);
+  events.clear();
+  const int calls = app.control_calls;
+  host.sendClearFaults();
+  tick();
+  EXPECT_TRUE(board.io().pwm_enabled) << "the command in effect goes on";
+  EXPECT_EQ(app.control_calls, calls + 1);
+  EXPECT_TRUE(events.empty()) << "nothing was cleared: no event";
+}
+
+TEST_F(CoreTest, ClearFaultsIsRefusedWhileTheSensorConditionIsStillPresent) {
+  std::vector<protocol::Event> events;
+  host.setEventCallback(recordEvent, &events);
+  openSession();
+  send(command(0.5f, 50));
+  tick();
+  app.inject_sensor_fault = protocol::fault::kSensorSaturated;  // e.g. the glove's pad pressed to full scale
+  tick();
+  ASSERT_TRUE(core.faultBits() & protocol::fault::kSensorSaturated);
+  events.clear();
+  host.sendClearFaults();
+  tick();
+  ASSERT_EQ(events.size(), 1u) << "one answer: refused (not cleared, then latched again)";
+  EXPECT_EQ(events[0].code, protocol::EventCode::kClearRefused);
+  EXPECT_EQ(events[0].value, static_cast<float>(protocol::fault::kSensorSaturated));
+  EXPECT_TRUE(core.faultBits() & protocol::fault::kSensorSaturated);
+  app.inject_sensor_fault = 0;
+  tick();
+  events.clear();
+  host.sendClearFaults();
+  tick();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].code, protocol::EventCode::kFaultsCleared);
+  EXPECT_EQ(events[0].value, static_cast<float>(protocol::fault::kSensorSaturated)) << "value = the bits cleared";
+  EXPECT_EQ(core.faultBits(), 0);
+}
+
+// --- Core parameters ------------------------------------------------------------------------------------------
+
+TEST_F(CoreTest, TheBuildIdReadsExactlyFromItsTwoHalves) {
+  openSession();
+  const protocol::ParamValue lo = paramGet(protocol::core_param::kBuildIdLow);
+  const protocol::ParamValue hi = paramGet(protocol::core_param::kBuildIdHigh);
+  ASSERT_EQ(lo.status, protocol::ParamStatus::kOk);
+  ASSERT_EQ(hi.status, protocol::ParamStatus::kOk);
+  const uint32_t id = static_cast<uint32_t>(hi.value) << 16 | static_cast<uint32_t>(lo.value);
+  EXPECT_EQ(id, kBuildId);
+  EXPECT_EQ(id, host.deviceInfo().firmware_build_id);
+  protocol::ParamSet s;
+  s.param_id = protocol::core_param::kBuildIdHigh;
+  sendRaw(s);
+  tick();
+  EXPECT_EQ(host.lastParam().status, protocol::ParamStatus::kReadOnly);
+}
+
+TEST_F(CoreTest, TheDeviceVariantIsAReadOnlyCoreParameter) {
+  openSession();
+  const protocol::ParamValue v = paramGet(protocol::core_param::kDeviceVariant);
+  EXPECT_EQ(v.status, protocol::ParamStatus::kOk);
+  EXPECT_EQ(v.value, 0.0f);
+}
+
+TEST(CoreVariant, TheConfiguredVariantIsReported) {
+  sim::BytePipe pipe;
+  TestApp app;
+  sim::SimBoard board(2, 4, 0, pipe.end(0));
+  fw::CoreConfig cfg;
+  cfg.device_variant = protocol::variant::kSeaTestRig;
+  fw::FirmwareCore core(board.board(), app, cfg);
+  host::HostSession host(pipe.end(1));
+  host.sendParamGet(protocol::core_param::kDeviceVariant);
+  board.clock().advanceUs(1000);
+  core.tick();
+  host.poll(0);
+  ASSERT_TRUE(host.lastParamValid());
+  EXPECT_EQ(host.lastParam().value, static_cast<float>(protocol::variant::kSeaTestRig));
 }

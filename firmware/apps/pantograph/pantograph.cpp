@@ -59,7 +59,7 @@ uint16_t PantographApp::control(const protocol::Command& cmd, float /*dt_s*/) {
                              : static_cast<uint16_t>(0);
     if (mismatch_ticks_[i] >= cfg_.current_mismatch_ticks) faults |= protocol::fault::kCurrentLimit;
 
-    float tau = 0.0f;  // kTransparent and kLock: no torque (the direct-drive pen is back-drivable)
+    float tau = 0.0f;  // kTransparent: no torque (kLock is the core's safe state: the direct-drive pen is back-drivable)
     if (cmd.mode == protocol::Mode::kSetpoint) {
       const float gain = static_cast<float>(cmd.gain_scale_permille[i]) * 1e-3f;
       tau = clampf(cmd.setpoint[i] * gain, -cfg_.torque_limit_Nm[i], cfg_.torque_limit_Nm[i]);

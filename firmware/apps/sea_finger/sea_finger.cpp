@@ -137,9 +137,9 @@ void SeaFingerApp::resetControllers() {
 uint16_t SeaFingerApp::control(const protocol::Command& cmd, float dt_s) {
   uint16_t faults = 0;
   hal::PwmOutputs& pwm = *board_->pwm;
-  const bool hold = zero_ticks_left_ > 0 || cmd.mode == protocol::Mode::kLock;
-  if (hold) {
-    // Not zeroed yet, or "lock" (nothing to lock on a back-drivable SEA): bridges on at zero duty.
+  // kLock never gets here: on the back-drivable SEA it is the core's safe state (DeviceLayout::passive_lock).
+  if (zero_ticks_left_ > 0) {
+    // Not zeroed yet: bridges on at zero duty until the zero is known.
     for (int i = 0; i < kSeaCount; ++i) {
       ch_[i].duty = 0.0f;
       pwm.setDuty(static_cast<uint8_t>(i), 0.0f);

@@ -8,14 +8,30 @@ using protocol::Command;
 using protocol::Event;
 using protocol::EventCode;
 using protocol::Mode;
+using protocol::MsgId;
 using protocol::RejectReason;
 
 namespace {
 constexpr uint16_t kMaxTimeoutMs = 1000;
 constexpr uint16_t kMaxGainPermille = 2000;
 constexpr uint8_t kNoChannel = 0xFF;
-constexpr uint16_t kParamTickRate = 0x0001;
-constexpr uint16_t kParamBuildId = 0x0002;
+/// Newer in a wrapping 16-bit sequence: 1..32767 ahead. 0 (a duplicate) and 32768..65535 ahead (behind) are not.
+constexpr bool seqNewer(uint16_t seq, uint16_t than) {
+  const uint16_t ahead = static_cast<uint16_t>(seq - than);
+  return ahead != 0 && ahead < 0x8000u;
+}
+/// Messages only a device sends: received by a device they are rejected (wrong direction).
+bool deviceSends(MsgId id) {
+  return id == MsgId::kHelloAck || id == MsgId::kTelemetry || id == MsgId::kEvent || id == MsgId::kParamValue;
+}
+Event makeEvent(EventCode code, uint64_t now_us, float value) {
+  Event ev;
+  ev.time_us = static_cast<uint32_t>(now_us);
+  ev.code = code;
+  ev.channel = kNoChannel;
+  ev.value = value;
+  return ev;
+}
 }  // namespace
 
 FirmwareCore::FirmwareCore(hal::Board& board, DeviceApp& app, const CoreConfig& config)
@@ -47,6 +63,17 @@ void FirmwareCore::emit(const Event& event) {
   if (session_open_) send(event);
 }
 
+void FirmwareCore::answer(const Event& event) {
+  if (observer_ != nullptr) observer_->onEvent(event);
+  send(event);
+}
+
+uint32_t FirmwareCore::rxErrors() const {
+  const uint32_t transport = board_.packets != nullptr ? board_.packets->rxStats().total() : 0u;
+  return decoder_.stats().total_rejected() + transport + counters_.commands_rejected + counters_.frames_invalid +
+         counters_.frames_wrong_direction;
+}
+
 void FirmwareCore::enterSafe() {
   // Power stage off first, then let the app reset its controllers and put its outputs in their safe state.
   board_.pwm->disableAll();
@@ -62,155 +89,219 @@ void FirmwareCore::latch(uint16_t bits, uint64_t now_us) {
   faults_ = static_cast<uint16_t>(faults_ | fresh);
   enterSafe();
   have_command_ = false;
-  Event ev;
-  ev.time_us = static_cast<uint32_t>(now_us);
-  ev.code = EventCode::kFaultLatched;
-  ev.channel = kNoChannel;
-  ev.value = static_cast<float>(faults_);
-  emit(ev);
+  emit(makeEvent(EventCode::kFaultLatched, now_us, static_cast<float>(faults_)));
 }
 
 void FirmwareCore::reject(RejectReason reason, uint8_t channel, float value, uint64_t now_us) {
   ++counters_.commands_rejected;
-  Event ev;
-  ev.time_us = static_cast<uint32_t>(now_us);
-  ev.code = EventCode::kCommandRejected;
+  // One Event per tick at most: a flood of bad or replayed commands must not crowd telemetry off the link.
+  if (rejection_answered_) return;
+  rejection_answered_ = true;
+  Event ev = makeEvent(EventCode::kCommandRejected, now_us, value);
   ev.channel = channel;
   ev.detail = static_cast<uint8_t>(reason);
-  ev.value = value;
-  emit(ev);
+  answer(ev);
 }
 
-void FirmwareCore::handleCommand(const Command& cmd, uint64_t now_us) {
+bool FirmwareCore::acceptSequence(uint16_t seq) {
+  if (have_seq_ && !seqNewer(seq, newest_seq_)) return false;
+  if (have_seq_) counters_.cmd_lost += static_cast<uint16_t>(seq - newest_seq_ - 1u);
+  have_seq_ = true;
+  newest_seq_ = seq;
+  return true;
+}
+
+bool FirmwareCore::findFieldError(const Command& cmd, RejectReason& reason, uint8_t& channel, float& value) const {
   const protocol::DeviceLayout& layout = app_.layout();
-  if (!session_open_) return reject(RejectReason::kNoSession, kNoChannel, 0.0f, now_us);
-  if (cmd.flags != 0) return reject(RejectReason::kBadFlags, kNoChannel, cmd.flags, now_us);
+  channel = kNoChannel;
+  if (cmd.flags != 0) {
+    reason = RejectReason::kBadFlags;
+    value = cmd.flags;
+    return true;
+  }
+  if (cmd.reserved != 0) {
+    reason = RejectReason::kReservedNotZero;
+    value = cmd.reserved;
+    return true;
+  }
   if (cmd.channel_count != layout.setpoint_count) {
-    return reject(RejectReason::kBadChannelCount, kNoChannel, cmd.channel_count, now_us);
+    reason = RejectReason::kBadChannelCount;
+    value = cmd.channel_count;
+    return true;
   }
   if (cmd.timeout_ms == 0 || cmd.timeout_ms > kMaxTimeoutMs) {
-    return reject(RejectReason::kBadTimeout, kNoChannel, cmd.timeout_ms, now_us);
+    reason = RejectReason::kBadTimeout;
+    value = cmd.timeout_ms;
+    return true;
   }
-  for (uint8_t i = 0; i < layout.setpoint_count; ++i) {
-    if (!std::isfinite(cmd.setpoint[i])) return reject(RejectReason::kNonFinite, i, 0.0f, now_us);
-    if (std::fabs(cmd.setpoint[i]) > layout.setpoint_limit) {
-      return reject(RejectReason::kOutOfRange, i, cmd.setpoint[i], now_us);
+  // Every channel: used ones within the device's limit, unused ones 0; every gain scale at most 2000 ‰.
+  for (uint8_t i = 0; i < protocol::kMaxSetpoints; ++i) {
+    const float limit = i < layout.setpoint_count ? layout.setpoint_limit : 0.0f;
+    channel = i;
+    if (!std::isfinite(cmd.setpoint[i])) {
+      reason = RejectReason::kNonFinite;
+      value = 0.0f;
+      return true;
+    }
+    if (std::fabs(cmd.setpoint[i]) > limit) {
+      reason = RejectReason::kOutOfRange;
+      value = cmd.setpoint[i];
+      return true;
     }
     if (cmd.gain_scale_permille[i] > kMaxGainPermille) {
-      return reject(RejectReason::kOutOfRange, i, cmd.gain_scale_permille[i], now_us);
+      reason = RejectReason::kOutOfRange;
+      value = cmd.gain_scale_permille[i];
+      return true;
     }
   }
-  if (have_seq_) {
-    const uint16_t gap = static_cast<uint16_t>(cmd.seq - last_seq_ - 1u);
-    if (gap != 0 && gap < 0x8000u) counters_.cmd_lost += gap;
-  }
-  have_seq_ = true;
-  last_seq_ = cmd.seq;
+  return false;
+}
+
+void FirmwareCore::apply(const Command& cmd, uint64_t now_us) {
   ++counters_.commands_applied;
+  applied_seq_ = cmd.seq;
   command_ = cmd;
   deadline_us_ = now_us + static_cast<uint64_t>(cmd.timeout_ms) * 1000u;
   have_command_ = true;
 }
 
+void FirmwareCore::handleCommandFrame(const protocol::Frame& frame, uint64_t now_us) {
+  if (!session_open_) return reject(RejectReason::kNoSession, kNoChannel, 0.0f, now_us);
+  // The sequence is judged first, on the raw seq: a command that is received counts as received (not lost)
+  // even when its fields are then rejected, and a stale one is never judged further.
+  const uint16_t seq = static_cast<uint16_t>(frame.payload[0] | (frame.payload[1] << 8));
+  if (!acceptSequence(seq)) {
+    ++counters_.cmd_stale;
+    return reject(RejectReason::kStaleSequence, kNoChannel, static_cast<float>(seq), now_us);
+  }
+  Command cmd;
+  if (!protocol::decodePayload(frame.payload, frame.len, cmd)) {
+    return reject(RejectReason::kBadMode, kNoChannel, frame.payload[4], now_us);
+  }
+  RejectReason reason = RejectReason::kNoSession;
+  uint8_t channel = kNoChannel;
+  float value = 0.0f;
+  if (findFieldError(cmd, reason, channel, value)) return reject(reason, channel, value, now_us);
+  apply(cmd, now_us);
+}
+
+void FirmwareCore::handleHello(const protocol::Frame& frame, uint64_t now_us) {
+  protocol::Hello hello;
+  if (!protocol::decodePayload(frame.payload, frame.len, hello) || hello.reserved != 0) {
+    ++counters_.frames_invalid;
+    return;
+  }
+  protocol::HelloAck ack;
+  ack.device_type = app_.layout().type;
+  ack.session_id = hello.session_id;
+  ack.firmware_build_id = config_.firmware_build_id;
+  ack.tick_rate_hz = config_.tick_rate_hz;
+  ack.setpoint_count = app_.layout().setpoint_count;
+  ack.sample_count = app_.layout().sample_count;
+  if (hello.protocol_version != protocol::kProtocolVersion) {
+    ack.status = protocol::HandshakeStatus::kVersionMismatch;
+  } else if (hello.expected_device != protocol::DeviceType::kAny && hello.expected_device != ack.device_type) {
+    ack.status = protocol::HandshakeStatus::kDeviceMismatch;
+  }
+  const bool ok = ack.status == protocol::HandshakeStatus::kOk;
+  // A new session never inherits the previous one's command: outputs stay safe until its first command, whose
+  // sequence number starts the session's sequence.
+  if (ok) {
+    if (outputs_active_) enterSafe();
+    have_command_ = false;
+    have_seq_ = false;
+    session_open_ = true;
+    session_id_ = hello.session_id;
+  }
+  send(ack);
+  if (ok) emit(makeEvent(EventCode::kSessionOpened, now_us, static_cast<float>(faults_)));
+}
+
+uint16_t FirmwareCore::presentConditions() const {
+  const bool estop = board_.gpio != nullptr && board_.gpio->estopPressed();
+  return static_cast<uint16_t>(sensor_conditions_ | (estop ? protocol::fault::kEstop : 0u));
+}
+
+void FirmwareCore::handleClearFaults(const protocol::Frame& frame, uint64_t now_us) {
+  protocol::ClearFaults clear;
+  if (!protocol::decodePayload(frame.payload, frame.len, clear) || !session_open_ || clear.session_id != session_id_) {
+    ++counters_.frames_invalid;
+    return;
+  }
+  const uint16_t present = presentConditions();
+  if (present != 0) {
+    emit(makeEvent(EventCode::kClearRefused, now_us, static_cast<float>(present)));
+    return;
+  }
+  if (faults_ == 0) return;  // nothing latched: nothing changes, the command in effect goes on
+  const uint16_t cleared = faults_;
+  faults_ = 0;
+  have_command_ = false;  // resume only on a fresh command
+  emit(makeEvent(EventCode::kFaultsCleared, now_us, static_cast<float>(cleared)));
+}
+
+bool FirmwareCore::coreParam(uint16_t id, float& value) const {
+  switch (id) {
+    case protocol::core_param::kTickRate: value = static_cast<float>(config_.tick_rate_hz); return true;
+    case protocol::core_param::kBuildIdLow: value = static_cast<float>(config_.firmware_build_id & 0xFFFFu); return true;
+    case protocol::core_param::kBuildIdHigh: value = static_cast<float>(config_.firmware_build_id >> 16); return true;
+    case protocol::core_param::kDeviceVariant: value = static_cast<float>(config_.device_variant); return true;
+    default: return false;
+  }
+}
+
+void FirmwareCore::handleParamGet(const protocol::Frame& frame) {
+  protocol::ParamGet get;
+  if (!protocol::decodePayload(frame.payload, frame.len, get)) {
+    ++counters_.frames_invalid;
+    return;
+  }
+  protocol::ParamValue answer;
+  answer.param_id = get.param_id;
+  if (!coreParam(get.param_id, answer.value)) answer.status = app_.getParam(get.param_id, answer.value);
+  send(answer);
+}
+
+void FirmwareCore::handleParamSet(const protocol::Frame& frame) {
+  protocol::ParamSet set;
+  if (!protocol::decodePayload(frame.payload, frame.len, set) || set.reserved != 0) {
+    ++counters_.frames_invalid;
+    return;
+  }
+  protocol::ParamValue answer;
+  answer.param_id = set.param_id;
+  answer.value = set.value;
+  float core_value = 0.0f;
+  if (coreParam(set.param_id, core_value)) {
+    answer.status = protocol::ParamStatus::kReadOnly;
+  } else if (outputs_active_) {
+    answer.status = protocol::ParamStatus::kBusy;
+  } else if (!std::isfinite(set.value)) {
+    answer.status = protocol::ParamStatus::kOutOfRange;
+  } else {
+    answer.status = app_.setParam(set.param_id, set.value);
+  }
+  send(answer);
+}
+
 void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
-  using protocol::MsgId;
-  switch (static_cast<MsgId>(frame.id)) {
-    case MsgId::kHello: {
-      protocol::Hello hello;
-      if (!protocol::decodePayload(frame.payload, frame.len, hello)) return;
-      protocol::HelloAck ack;
-      ack.device_type = app_.layout().type;
-      ack.session_id = hello.session_id;
-      ack.firmware_build_id = config_.firmware_build_id;
-      ack.tick_rate_hz = config_.tick_rate_hz;
-      ack.setpoint_count = app_.layout().setpoint_count;
-      ack.sample_count = app_.layout().sample_count;
-      if (hello.protocol_version != protocol::kProtocolVersion) {
-        ack.status = protocol::HandshakeStatus::kVersionMismatch;
-      } else if (hello.expected_device != protocol::DeviceType::kAny && hello.expected_device != ack.device_type) {
-        ack.status = protocol::HandshakeStatus::kDeviceMismatch;
-      }
-      // A new session never inherits the previous one's command: outputs stay safe until its first command.
-      if (ack.status == protocol::HandshakeStatus::kOk) {
-        if (outputs_active_) enterSafe();
-        have_command_ = false;
-        have_seq_ = false;
-        session_open_ = true;
-        session_id_ = hello.session_id;
-      }
-      send(ack);
-      if (ack.status == protocol::HandshakeStatus::kOk) {
-        Event ev;
-        ev.time_us = static_cast<uint32_t>(now_us);
-        ev.code = EventCode::kSessionOpened;
-        ev.channel = kNoChannel;
-        ev.value = static_cast<float>(faults_);
-        emit(ev);
-      }
-      return;
-    }
-    case MsgId::kCommand: {
-      Command cmd;
-      if (!protocol::decodePayload(frame.payload, frame.len, cmd)) {
-        return reject(RejectReason::kBadMode, kNoChannel, frame.payload[4], now_us);
-      }
-      return handleCommand(cmd, now_us);
-    }
-    case MsgId::kClearFaults: {
-      protocol::ClearFaults clear;
-      if (!protocol::decodePayload(frame.payload, frame.len, clear) || !session_open_ ||
-          clear.session_id != session_id_) {
+  const auto id = static_cast<MsgId>(frame.id);
+  if (deviceSends(id)) {
+    ++counters_.frames_wrong_direction;
+    return;
+  }
+  switch (id) {
+    case MsgId::kHello: return handleHello(frame, now_us);
+    case MsgId::kCommand:
+      if (frame.len != Command::kWireSize) {
+        ++counters_.frames_invalid;
         return;
       }
-      Event ev;
-      ev.time_us = static_cast<uint32_t>(now_us);
-      ev.channel = kNoChannel;
-      const bool estop = board_.gpio != nullptr && board_.gpio->estopPressed();
-      if (estop) {
-        ev.code = EventCode::kClearRefused;
-        ev.value = static_cast<float>(protocol::fault::kEstop);
-      } else {
-        faults_ = 0;
-        have_command_ = false;  // resume only on a fresh command
-        ev.code = EventCode::kFaultsCleared;
-      }
-      emit(ev);
-      return;
-    }
-    case MsgId::kParamGet:
-    case MsgId::kParamSet: {
-      protocol::ParamValue answer;
-      if (static_cast<MsgId>(frame.id) == MsgId::kParamGet) {
-        protocol::ParamGet get;
-        if (!protocol::decodePayload(frame.payload, frame.len, get)) return;
-        answer.param_id = get.param_id;
-        if (get.param_id == kParamTickRate) {
-          answer.value = static_cast<float>(config_.tick_rate_hz);
-        } else if (get.param_id == kParamBuildId) {
-          answer.value = static_cast<float>(config_.firmware_build_id);
-        } else {
-          answer.status = app_.getParam(get.param_id, answer.value);
-        }
-      } else {
-        protocol::ParamSet set;
-        if (!protocol::decodePayload(frame.payload, frame.len, set)) return;
-        answer.param_id = set.param_id;
-        answer.value = set.value;
-        if (set.param_id == kParamTickRate || set.param_id == kParamBuildId) {
-          answer.status = protocol::ParamStatus::kReadOnly;
-        } else if (outputs_active_) {
-          answer.status = protocol::ParamStatus::kBusy;
-        } else if (!std::isfinite(set.value)) {
-          answer.status = protocol::ParamStatus::kOutOfRange;
-        } else {
-          answer.status = app_.setParam(set.param_id, set.value);
-        }
-      }
-      send(answer);
-      return;
-    }
-    default:
-      return;  // device → host messages are ignored if echoed back
+      return handleCommandFrame(frame, now_us);
+    case MsgId::kClearFaults: return handleClearFaults(frame, now_us);
+    case MsgId::kParamGet: return handleParamGet(frame);
+    case MsgId::kParamSet: return handleParamSet(frame);
+    default: ++counters_.frames_invalid; return;  // an ID no transport should have delivered
   }
 }
 
@@ -237,12 +328,17 @@ void FirmwareCore::receive(uint64_t now_us) {
   }
 }
 
+bool FirmwareCore::drivesOutputs(Mode mode) const {
+  if (mode == Mode::kSafe) return false;
+  return mode != Mode::kLock || app_.layout().passive_lock;
+}
+
 void FirmwareCore::sendTelemetry(uint64_t now_us) {
   if (!session_open_) return;
   protocol::Telemetry t;
   t.time_us = static_cast<uint32_t>(now_us);
   t.seq = telemetry_seq_++;
-  t.cmd_seq_echo = last_seq_;
+  t.cmd_seq_echo = applied_seq_;
   t.mode = outputs_active_ ? command_.mode : Mode::kSafe;
   t.fault_bits = faults_;
   t.state_flags = static_cast<uint8_t>((faults_ != 0 ? protocol::state::kFaultLatched : 0) |
@@ -250,8 +346,7 @@ void FirmwareCore::sendTelemetry(uint64_t now_us) {
                                        (outputs_active_ ? protocol::state::kOutputsActive : 0));
   if (board_.gpio != nullptr && board_.gpio->estopPressed()) t.state_flags |= protocol::state::kEstopPressed;
   t.cmd_lost = static_cast<uint8_t>(counters_.cmd_lost);
-  const uint32_t transport_rejected = board_.packets != nullptr ? board_.packets->rxStats().total() : 0u;
-  t.rx_errors = static_cast<uint8_t>(decoder_.stats().total_rejected() + transport_rejected + counters_.commands_rejected);
+  t.rx_errors = static_cast<uint8_t>(rxErrors());
   app_.fillSamples(t.sample);
   send(t);
 }
@@ -259,15 +354,16 @@ void FirmwareCore::sendTelemetry(uint64_t now_us) {
 void FirmwareCore::tick() {
   const uint64_t now_us = board_.clock->nowUs();
   ++counters_.ticks;
+  rejection_answered_ = false;
   receive(now_us);
 
   // Supervisor: the firmware never depends on the host for safety.
   if (have_command_ && now_us > deadline_us_) latch(protocol::fault::kCommandTimeout, now_us);
   if (board_.gpio != nullptr && board_.gpio->estopPressed()) latch(protocol::fault::kEstop, now_us);
-  const uint16_t sensor_faults = app_.sense(dt_s_);
-  if (sensor_faults != 0) latch(sensor_faults, now_us);
+  sensor_conditions_ = app_.sense(dt_s_);
+  if (sensor_conditions_ != 0) latch(sensor_conditions_, now_us);
 
-  const bool run = faults_ == 0 && have_command_ && command_.mode != Mode::kSafe;
+  const bool run = faults_ == 0 && have_command_ && drivesOutputs(command_.mode);
   if (run) {
     if (!outputs_active_ && board_.gpio != nullptr) board_.gpio->setDriveEnable(true);
     outputs_active_ = true;

@@ -359,6 +359,9 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = kTickHz;
   cfg.firmware_build_id = PHALANX_BUILD_ID;
+#if defined(PHALANX_MCU_APP_SEA_FINGER)
+  cfg.device_variant = protocol::variant::kSeaTestRig;  // the emulated SEA board drives the §7.1 rig (sim_devices.h)
+#endif
   // Bound the receive work of one tick to one maximum frame (70 bytes; at most two frame completions): that
   // bounds the worst-case tick, and 70 bytes per 1 ms tick still exceeds a 1 kHz command stream (61 bytes per
   // command). Bursts wait in the 512-byte receive ring for the next ticks.

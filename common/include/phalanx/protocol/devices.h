@@ -39,6 +39,13 @@ inline int16_t encodeSample(float value, SampleKind kind) {
 
 inline float decodeSample(int16_t raw, SampleKind kind) { return static_cast<float>(raw) * sampleScale(kind); }
 
+/// What a device of a given type is mounted on or built as (core parameter core_param::kDeviceVariant): the
+/// device type and layout stay the same, the host can tell the variants apart.
+namespace variant {
+constexpr uint8_t kStandard = 0;    ///< the device as such (glove5 on a hand, sea_finger on a finger, the pen)
+constexpr uint8_t kSeaTestRig = 1;  ///< sea_finger on the §7.1 test rig: both joints clamped to load cells
+}  // namespace variant
+
 /// A device's channel layout.
 struct DeviceLayout {
   DeviceType type;
@@ -47,6 +54,9 @@ struct DeviceLayout {
   float setpoint_limit;        ///< |setpoint| hard limit in SI units (device side rejects beyond)
   uint8_t sample_count;
   SampleKind sample_kind[kMaxSamples];
+  /// Mode kLock holds the mechanism passively (the glove's self-locking worm drives): an active mode, the app
+  /// runs. false (back-drivable devices): kLock is the safe state, outputs off.
+  bool passive_lock = false;
 };
 
 /// glove5: samples 0..14 mechanism angles α (3·finger + joint), 15..19 fingertip pad force, 20..24 motor duty.
@@ -57,7 +67,8 @@ constexpr DeviceLayout kGlove5Layout{
      SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
      SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle, SampleKind::kAngle,
      SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce, SampleKind::kForce,
-     SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty}};
+     SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty, SampleKind::kDuty},
+    true};
 
 /// sea_finger: samples 0..4 joint angle sensors (moving-averaged, sensor frame; 0 = exoskeleton MCP joint θ_1r,
 /// 1 = exoskeleton PIP joint θ_6r, 4 = redundant), 5..6 motor angles θ_m (MCP, PIP, since zeroing), 7..8 SEA

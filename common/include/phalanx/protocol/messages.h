@@ -121,28 +121,40 @@ struct Telemetry {
   Mode mode = Mode::kSafe;    ///< mode in effect this tick (kSafe whenever faulted)
   uint8_t state_flags = 0;    ///< state::*
   uint16_t fault_bits = 0;    ///< fault::* (latched)
-  uint8_t cmd_lost = 0;       ///< running count mod 256 of command sequence gaps seen by the device
-  uint8_t rx_errors = 0;      ///< running count mod 256 of rejected frames (CRC, framing, unknown ID, bad length)
+  uint8_t cmd_lost = 0;       ///< running count mod 256 of commands missing from the sequence (a jump of n+1: n)
+  uint8_t rx_errors = 0;      ///< running count mod 256 of rejected frames (framing, CRC, ID, length, fields, stale)
   int16_t sample[kMaxSamples] = {};
 };
 
 enum class EventCode : uint16_t {
-  kFaultLatched = 1,    ///< value = the new fault bits
-  kFaultsCleared = 2,
-  kClearRefused = 3,    ///< a fault condition is still present (e.g. e-stop held); value = its bits
-  kCommandRejected = 4, ///< value = reason (RejectReason)
-  kSessionOpened = 5,
+  kFaultLatched = 1,    ///< value = all latched fault bits
+  kFaultsCleared = 2,   ///< value = the bits cleared (never sent when nothing was latched)
+  kClearRefused = 3,    ///< a fault condition is still present (e-stop held, sensor still implausible); value = its bits
+  kCommandRejected = 4, ///< detail = RejectReason, channel and value say what was wrong
+  kSessionOpened = 5,   ///< value = latched fault bits
 };
 
+/// Why a Command was rejected (Event kCommandRejected, detail). Explicit and never renumbered.
 enum class RejectReason : uint8_t {
   kNoSession = 1,
   kBadMode = 2,
   kBadChannelCount = 3,
-  kNonFinite = 4,
-  kOutOfRange = 5,
+  kNonFinite = 4,        ///< channel = the setpoint (used or unused)
+  kOutOfRange = 5,       ///< channel = the setpoint or gain; value = it. Unused channels: setpoint ≠ 0 or gain > 2000
   kBadTimeout = 6,
   kBadFlags = 7,
+  kReservedNotZero = 8,  ///< the reserved byte; value = it
+  kStaleSequence = 9,    ///< seq not newer than the newest received this session; value = that seq
 };
+
+/// Core parameters (ParamGet/ParamSet IDs 0x0001..0x007F, answered by the firmware core, all read-only). MCU boards
+/// answer 0x0080..0x00FF (board diagnostics, phalanx/fw_mcu/board_diag.h); device parameters start at 0x0100.
+namespace core_param {
+constexpr uint16_t kTickRate = 0x0001;       ///< firmware control tick rate, Hz
+constexpr uint16_t kBuildIdLow = 0x0002;     ///< firmware_build_id bits 0..15 (exact in an f32)
+constexpr uint16_t kBuildIdHigh = 0x0003;    ///< firmware_build_id bits 16..31
+constexpr uint16_t kDeviceVariant = 0x0004;  ///< protocol::variant::* (what the firmware is mounted on)
+}  // namespace core_param
 
 struct Event {
   static constexpr MsgId kId = MsgId::kEvent;

@@ -30,7 +30,7 @@ struct LinkStats {
   uint64_t telemetry_lost = 0;       ///< gaps in the telemetry sequence
   uint64_t commands_sent = 0;
   uint64_t commands_unsent = 0;      ///< link buffer full
-  uint64_t device_cmd_lost = 0;      ///< command gaps the device reported (unwrapped)
+  uint64_t device_cmd_lost = 0;      ///< commands the device reported missing from the sequence (unwrapped)
   uint64_t device_rx_errors = 0;     ///< frames the device rejected (unwrapped)
   protocol::DecodeStats host_rx;     ///< frames the host rejected
   uint64_t events = 0;

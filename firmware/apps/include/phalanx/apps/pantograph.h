@@ -6,7 +6,7 @@
 /// The pen is an impedance device: the firmware is a joint-torque servo. Each tick:
 ///   q_i     = counts_i · 2π/4000                 joint angle relative to home (the host adds q_home)
 ///   q̇_i     = low-pass(Δq_i / dt)                for telemetry and the velocity plausibility check
-///   τ_i     = clamp(setpoint_i · gain_i, ±τmax_i) kSetpoint; 0 in kTransparent / kLock (back-drivable)
+///   τ_i     = clamp(setpoint_i · gain_i, ±τmax_i) kSetpoint; 0 in kTransparent (kLock: the core's safe state, back-drivable)
 ///   duty_i  = τ_i / (K_t · I_peak)
 /// Safety (faults latch in the core, which then calls safe(): every duty 0, bridges off): encoder jump beyond a
 /// physical speed (kSensorRange), joint outside its window (kJointLimit), measured current beyond the amplifier

@@ -17,7 +17,8 @@
 ///           the feed-forward (adds ±b̂/2 in the direction the cable must move), and (iii) a motor position loop
 ///           with velocity, spring-load and sheath-friction feed-forward and back-EMF compensation.
 /// Modes: kSetpoint tracks the exoskeleton joint torques in the command (N·m); kTransparent tracks zero torque;
-/// kSafe/kLock: bridges off (the core's safe state; the SEAs relax by back-driving the geared motors).
+/// kSafe/kLock: bridges off (the core's safe state, mode 0 in telemetry: the SEA is back-drivable, nothing holds it;
+/// the SEAs relax by back-driving the geared motors).
 /// Freestanding: no heap, no exceptions, single precision, bounded loops.
 #include <cstdint>
 

@@ -21,6 +21,10 @@ class SeaFingerSimDevice : public SimDevice {
   uint8_t pwmCount() const override { return sea::board::kPwmChannelCount; }
   uint8_t adcCount() const override { return sea::board::kAdcChannelCount; }
   uint8_t encoderCount() const override { return sea::board::kEncoderChannelCount; }
+  /// The rig answers as a sea_finger (same firmware, same layout); its variant tells the host it is the rig.
+  uint8_t variant() const override {
+    return plant_.config().variant == sim::SeaVariant::kRig ? protocol::variant::kSeaTestRig : protocol::variant::kStandard;
+  }
   sim::SeaPlant& seaPlant() { return plant_; }
   apps::SeaFingerApp& seaApp() { return app_; }
 

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "phalanx/fw/app.h"
+#include "phalanx/protocol/devices.h"
 #include "phalanx/sim/plant.h"
 
 namespace phalanx::fw_sim {
@@ -24,9 +25,11 @@ class SimDevice {
   virtual uint8_t pwmCount() const = 0;
   virtual uint8_t adcCount() const = 0;
   virtual uint8_t encoderCount() const = 0;
+  /// protocol::variant::* the firmware reports (core parameter kDeviceVariant): what the app is mounted on.
+  virtual uint8_t variant() const { return protocol::variant::kStandard; }
 };
 
-/// name: glove5 | sea_finger | pantograph. Returns nullptr and sets error for an unknown or unbuilt device.
+/// name: glove5 | sea_finger | sea_rig | pantograph. Returns nullptr and sets error for an unknown or unbuilt device.
 std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDeviceOptions& options, std::string& error);
 
 }  // namespace phalanx::fw_sim
