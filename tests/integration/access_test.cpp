@@ -292,11 +292,18 @@ TEST(Stop, ApiStopEndsTheSessionWhileAProfilesRequestAndASlowClientArePending) {
   ::close(slow);
 }
 
-// Item 2 (signal): SIGTERM ends the session and the daemon while a request is pending.
+// Item 2 (signal): SIGTERM ends the session and the daemon while requests are pending: a profiles listing with
+// a 50 MB file (unfixed: ~11 s of parsing on the daemon's only request path) and a FIFO, and a slow client.
 TEST(Stop, SignalEndsTheSessionWhileARequestIsPending) {
   Daemon d;
   ASSERT_TRUE(d.started());
   d.startSession();
+  {
+    std::ofstream big(d.dir() + "/big.yaml");
+    big << "version: 1\npatient: big\ndevice: glove5\nnotes:\n";
+    const std::string item = "  - " + std::string(60, 'x') + "\n";
+    for (size_t n = 0; n < 50u * 1024 * 1024; n += item.size()) big << item;
+  }
   const std::string fifo = d.addFifo("zzz.yaml");
   auto profiles = std::async(std::launch::async, [&] {
     nlohmann::json resp;
@@ -308,11 +315,11 @@ TEST(Stop, SignalEndsTheSessionWhileARequestIsPending) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const auto t0 = Clock::now();
   d.process().signal(SIGTERM);
-  const int rc = d.process().wait(8000);
+  const int rc = d.process().wait(4000);
   const double s = secondsSince(t0);
   releaseFifo(fifo);
-  EXPECT_EQ(rc, 0) << "the daemon did not end within 8 s of SIGTERM: " << d.process().stderrText();
-  EXPECT_LE(s, 8.0);
+  EXPECT_EQ(rc, 0) << "the daemon did not end within 4 s of SIGTERM: " << d.process().stderrText();
+  EXPECT_LE(s, 4.0);
   EXPECT_NE(d.process().stderrText().find("phalanxd: stopping"), std::string::npos) << d.process().stderrText();
   profiles.wait();
   ::close(slow);
@@ -415,21 +422,29 @@ TEST(Limits, DashboardBodiesOver64KiBAreRefusedChunkedOrNot) {
 TEST(Devices, StartRefusesDevicesTheDaemonDoesNotAllow) {
   phalanx::linux_hal::PtyMaster tty;  // a terminal that is not a Phalanx device
   ASSERT_EQ(tty.open(), "");
+  Daemon d;
+  ASSERT_TRUE(d.started());
+  const nlohmann::json r = d.call({{"cmd", "start"}, {"device", "serial:" + tty.slavePath()}});
+  EXPECT_EQ(r.value("ok", true), false) << r.dump();
+  EXPECT_NE(r.value("error", std::string()).find("is not a device this daemon may open (allowed: sim:glove5"),
+            std::string::npos)
+      << r.dump();
+  const HttpAnswer h = postRequest(d, nlohmann::json{{"cmd", "start"}, {"device", "serial:" + tty.slavePath()}}.dump());
+  EXPECT_NE(h.body.find("is not a device this daemon may open"), std::string::npos) << h.body;
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  uint8_t buf[256];
+  EXPECT_EQ(tty.read(buf, sizeof buf), 0u) << "the daemon wrote to a terminal it was not allowed to open";
+  EXPECT_FALSE(d.sessionRunning());
+}
+
+TEST(Devices, AnAllowedSerialDeviceMustBeACharacterDevice) {
   const std::string dir = tempDir();
   const std::string plain = dir + "/plain-file";
   std::ofstream(plain) << "x";
   Daemon d({"--allow-device", "serial:" + plain}, dir);
   ASSERT_TRUE(d.started());
-  const nlohmann::json r = d.call({{"cmd", "start"}, {"device", "serial:" + tty.slavePath()}});
-  EXPECT_EQ(r.value("ok", true), false) << r.dump();
-  EXPECT_NE(r.value("error", std::string()).find("is not a device this daemon may open"), std::string::npos) << r.dump();
-  const HttpAnswer h = postRequest(d, nlohmann::json{{"cmd", "start"}, {"device", "serial:" + tty.slavePath()}}.dump());
-  EXPECT_NE(h.body.find("is not a device this daemon may open"), std::string::npos) << h.body;
   const nlohmann::json f = d.call({{"cmd", "start"}, {"device", "serial:" + plain}});
-  EXPECT_NE(f.value("error", std::string()).find("is not a character device"), std::string::npos) << f.dump();
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  uint8_t buf[256];
-  EXPECT_EQ(tty.read(buf, sizeof buf), 0u) << "the daemon wrote to a terminal it was not allowed to open";
+  EXPECT_NE(f.value("error", std::string()).find(plain + " is not a character device"), std::string::npos) << f.dump();
   EXPECT_FALSE(d.sessionRunning());
 }
 
