@@ -126,6 +126,9 @@ class Daemon {
     } catch (const RequestError& e) {
       resp["ok"] = false;
       resp["error"] = e.message;
+    } catch (const std::exception& e) {  // a request the checks above missed must not end the daemon
+      resp["ok"] = false;
+      resp["error"] = std::string("request refused: ") + e.what();
     }
     return resp;
   }

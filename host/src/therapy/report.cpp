@@ -422,10 +422,17 @@ namespace {
 /// The report carries patient data: mode 0640 like the session record (record_writer.cpp), also when it replaces
 /// an older file of another mode. Written in full or reported as failed.
 std::string writePrivateFile(const std::string& path, const std::string& text) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0640);
+  // O_NONBLOCK: a FIFO at the path fails the open (ENXIO) instead of waiting for a reader.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0640);
+  if (fd < 0 && errno == ELOOP) return "cannot write " + path + ": it is a symbolic link (not followed)";
   if (fd < 0) return "cannot write " + path + ": " + std::strerror(errno);
   std::string err;
-  if (::fchmod(fd, 0640) != 0) err = "cannot set mode 0640 on " + path + ": " + std::strerror(errno);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    err = "cannot write " + path + ": not a regular file";
+  } else if (::fchmod(fd, 0640) != 0) {
+    err = "cannot set mode 0640 on " + path + ": " + std::strerror(errno);
+  }
   for (std::size_t done = 0; err.empty() && done < text.size();) {
     const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
     if (n < 0 && errno == EINTR) continue;
