@@ -1,6 +1,9 @@
 // phalanxd: the Phalanx host daemon. Runs one device session at the configured rate until stopped, or, with
 // --api, serves the therapist's control API on a UNIX socket and runs the sessions it is asked to start.
+#include <grp.h>
+
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 #include "common_options.h"
@@ -28,7 +31,17 @@ int main(int argc, char** argv) {
   app.add_option("--exercise-params", exercise_params, "exercise parameters as a JSON object");
   app.add_option("--report", tcfg.report_path, "HTML report written at session end (needs --session-record)");
   app.add_option("--previous-record", tcfg.previous_record, "previous session's record, for the report's comparison");
-  app.add_option("--api", api_cfg.socket_path, "serve the control API on this UNIX socket (docs/api.md)");
+  app.add_option("--api", api_cfg.socket_path,
+                 "serve the control API on this UNIX socket (docs/api.md); without a path: " +
+                     api::defaultSocketPath())
+      ->expected(0, 1);
+  app.add_option("--allow-device", api_cfg.allowed_devices,
+                 "API mode: a device a start request may name besides --device (repeatable; docs/security.md)")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  std::string api_group;
+  app.add_option("--api-group", api_group,
+                 "API mode: group (name or id) whose members may use the API besides this user and root "
+                 "(default: this process's group)");
   app.add_option("--records-dir", api_cfg.records_dir, "API mode: directory for session records and reports");
   app.add_option("--profiles-dir", api_cfg.profiles_dir, "API mode: directory of patient profiles");
   std::string dashboard_spec;
@@ -54,6 +67,18 @@ int main(int argc, char** argv) {
   if (!dashboard_spec.empty()) {
     if (const std::string err = api::parseDashboardSpec(dashboard_spec, opt.dashboard); !err.empty()) {
       std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
+      return 2;
+    }
+  }
+  const bool api_mode = app.count("--api") > 0;
+  if (api_mode && api_cfg.socket_path.empty()) api_cfg.socket_path = api::defaultSocketPath();
+  if (!api_group.empty()) {
+    if (const group* g = ::getgrnam(api_group.c_str()); g != nullptr) {
+      api_cfg.api_group = static_cast<long>(g->gr_gid);
+    } else if (api_group.find_first_not_of("0123456789") == std::string::npos && api_group.size() < 10) {
+      api_cfg.api_group = std::atol(api_group.c_str());
+    } else {
+      std::fprintf(stderr, "phalanxd: error: --api-group: no group '%s'\n", api_group.c_str());
       return 2;
     }
   }

@@ -19,6 +19,7 @@ namespace phalanx::host::cli {
 
 struct TherapyCli {
   std::string socket = api::defaultSocketPath();
+  long daemon_uid = -1;  ///< a daemon account to trust besides root and the caller (socket_access.h)
   bool json = false;
   std::map<std::string, CLI::App*> cmds;
   // start
@@ -40,6 +41,8 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   auto client = [&](const char* name, const char* help) {
     CLI::App* sc = app.add_subcommand(name, help);
     sc->add_option("--socket", t.socket, "phalanxd's API socket");
+    sc->add_option("--daemon-uid", t.daemon_uid,
+                   "also trust a phalanxd running as this uid (default: only root or yourself)");
     sc->add_flag("--json", t.json, "print the daemon's JSON answer");
     t.cmds[name] = sc;
     return sc;
@@ -193,7 +196,7 @@ inline int runTherapyCommands(TherapyCli& t) {
       line = req.dump();
     }
     std::string answer;
-    if (const std::string err = api::callRaw(t.socket, line, answer); !err.empty()) {
+    if (const std::string err = api::callRaw(t.socket, line, answer, 15000, t.daemon_uid); !err.empty()) {
       std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
       return 3;
     }

@@ -1,7 +1,9 @@
 #include "phalanx/linux/fd_link.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/ioctl.h>
+#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -138,10 +140,23 @@ bool FdLink::flush() {
 
 std::string SerialLink::open(const std::string& path, unsigned baud) {
   const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0 && errno == EBUSY) return "device busy: " + path + " is in use by another process (opened exclusively)";
   if (fd < 0) return errnoText(("cannot open serial device " + path).c_str());
-  if (!isatty(fd)) {
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISCHR(st.st_mode) || !isatty(fd)) {
     ::close(fd);
     return path + " is not a serial device (not a tty)";
+  }
+  // One process per device: a second daemon opening it would answer the device's telemetry with its own Hello
+  // and take the stream over. flock is advisory, held by this open file description until it is closed, and
+  // honoured by every Phalanx process (TIOCEXCL below keeps out non-root openers that do not lock; root
+  // ignores TIOCEXCL, hence the lock).
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int e = errno;
+    ::close(fd);
+    if (e == EWOULDBLOCK) return "device busy: " + path + " is in use by another process";
+    errno = e;
+    return errnoText(("cannot lock serial device " + path).c_str());
   }
   speed_t speed = 0;
   if (baud != 0) {

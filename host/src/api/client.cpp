@@ -1,5 +1,7 @@
 #include "phalanx/host/api/client.h"
 
+#include "phalanx/host/api/socket_access.h"
+
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -12,7 +14,7 @@
 namespace phalanx::host::api {
 
 std::string callRaw(const std::string& socket_path, const std::string& line, std::string& response_line,
-                    int timeout_ms) {
+                    int timeout_ms, long trusted_uid) {
   response_line.clear();
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
@@ -23,6 +25,11 @@ std::string callRaw(const std::string& socket_path, const std::string& line, std
   if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
     const std::string err = "cannot connect to phalanxd at " + socket_path + ": " + std::strerror(errno) +
                             (errno == ENOENT || errno == ECONNREFUSED ? " (is phalanxd running with --api?)" : "");
+    ::close(fd);
+    return err;
+  }
+  // Before anything is sent: whoever answers on this path must be root or us (a squatter's "ok" is no answer).
+  if (std::string err = refuseServer(fd, socket_path, trusted_uid); !err.empty()) {
     ::close(fd);
     return err;
   }
@@ -61,9 +68,9 @@ std::string callRaw(const std::string& socket_path, const std::string& line, std
 }
 
 std::string call(const std::string& socket_path, const nlohmann::json& request, nlohmann::json& response,
-                 int timeout_ms) {
+                 int timeout_ms, long trusted_uid) {
   std::string line;
-  if (std::string err = callRaw(socket_path, request.dump(), line, timeout_ms); !err.empty()) return err;
+  if (std::string err = callRaw(socket_path, request.dump(), line, timeout_ms, trusted_uid); !err.empty()) return err;
   response = nlohmann::json::parse(line, nullptr, false);
   if (response.is_discarded()) return "phalanxd answered something that is not JSON: " + line;
   return {};

@@ -1,13 +1,18 @@
 #include "phalanx/host/api/dashboard.h"
 
 #include <arpa/inet.h>
+#include <poll.h>
 #include <sys/random.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include <httplib.h>
 
 #include <chrono>
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <set>
 
@@ -20,10 +25,165 @@ const char* dashboardJs();
 
 namespace {
 
-/// 4 workers: a page keeps one keep-alive connection polling; a clinic has one or two screens open.
-constexpr int kWorkers = 4;
+/// Connections served at once. A page keeps one keep-alive connection polling; a clinic has one or two screens
+/// open. Every served connection has its own worker, so a slow client never queues another one's STOP.
+constexpr int kMaxConnections = 16;
+/// Workers: one per served connection, plus spares that answer connections over the limit with a 503 at once.
+constexpr int kWorkers = kMaxConnections + 4;
 /// The largest valid API request is < 1 KiB; the socket API's limit.
 constexpr std::size_t kMaxBodyBytes = 64 * 1024;
+/// A request (line, headers and body) must arrive whole within this time, and be at most this many bytes on
+/// the wire (chunk framing included): a client sending a byte now and then holds its connection 10 s at most.
+constexpr auto kRequestDeadline = std::chrono::seconds(10);
+constexpr std::size_t kMaxRequestWireBytes = 1024 * 1024;
+constexpr int kReadTimeoutMs = 5000;
+constexpr int kWriteTimeoutMs = 5000;
+constexpr int kKeepAliveTimeoutMs = 2000;
+constexpr std::size_t kKeepAliveMaxCount = 200;
+
+std::string bodyTooLong() {
+  return "{\"ok\":false,\"error\":\"request body longer than " + std::to_string(kMaxBodyBytes) + " bytes\"}";
+}
+
+bool waitFor(int fd, short events, int timeout_ms) {
+  pollfd p{fd, events, 0};
+  for (;;) {
+    const int r = ::poll(&p, 1, timeout_ms);
+    if (r < 0 && errno == EINTR) continue;
+    return r > 0 && (p.revents & (events | POLLHUP | POLLERR)) != 0;
+  }
+}
+
+void addressOf(int fd, bool peer, std::string& ip, int& port) {
+  sockaddr_storage ss{};
+  socklen_t len = sizeof ss;
+  const int rc = peer ? ::getpeername(fd, reinterpret_cast<sockaddr*>(&ss), &len)
+                      : ::getsockname(fd, reinterpret_cast<sockaddr*>(&ss), &len);
+  char buf[INET6_ADDRSTRLEN] = "";
+  port = 0;
+  if (rc == 0 && ss.ss_family == AF_INET) {
+    const auto* a = reinterpret_cast<const sockaddr_in*>(&ss);
+    ::inet_ntop(AF_INET, &a->sin_addr, buf, sizeof buf);
+    port = ntohs(a->sin_port);
+  } else if (rc == 0 && ss.ss_family == AF_INET6) {
+    const auto* a = reinterpret_cast<const sockaddr_in6*>(&ss);
+    ::inet_ntop(AF_INET6, &a->sin6_addr, buf, sizeof buf);
+    port = ntohs(a->sin6_port);
+  }
+  ip = buf;
+}
+
+/// One request's view of its connection: reads end at the request's deadline or byte budget (each read also
+/// waits at most kReadTimeoutMs), writes wait at most kWriteTimeoutMs.
+class RequestStream final : public httplib::Stream {
+ public:
+  explicit RequestStream(int fd) : fd_(fd), deadline_(std::chrono::steady_clock::now() + kRequestDeadline) {}
+
+  bool is_readable() const override { return pos_ < len_ || waitFor(fd_, POLLIN, readWaitMs()); }
+  bool is_writable() const override { return waitFor(fd_, POLLOUT, kWriteTimeoutMs); }
+  ssize_t read(char* ptr, size_t size) override {
+    if (pos_ == len_ && !fill()) return -1;
+    const size_t n = std::min(size, len_ - pos_);
+    std::memcpy(ptr, buf_ + pos_, n);
+    pos_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    if (!is_writable()) return -1;
+    return ::send(fd_, ptr, size, MSG_NOSIGNAL);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override { addressOf(fd_, true, ip, port); }
+  void get_local_ip_and_port(std::string& ip, int& port) const override { addressOf(fd_, false, ip, port); }
+  socket_t socket() const override { return fd_; }
+
+  /// The request ran into its deadline or byte budget, or its handler asked for the connection to close.
+  bool mustClose() const { return exhausted_ || close_; }
+  void closeAfterResponse() { close_ = true; }
+
+ private:
+  int readWaitMs() const {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline_ - std::chrono::steady_clock::now());
+    return static_cast<int>(std::max<long>(0, std::min<long>(left.count(), kReadTimeoutMs)));
+  }
+  bool fill() {
+    if (received_ >= kMaxRequestWireBytes || std::chrono::steady_clock::now() >= deadline_ ||
+        !waitFor(fd_, POLLIN, readWaitMs())) {
+      exhausted_ = true;
+      return false;
+    }
+    const size_t want = std::min(sizeof buf_, kMaxRequestWireBytes - received_);
+    const ssize_t n = ::recv(fd_, buf_, want, 0);
+    if (n <= 0) {
+      exhausted_ = true;
+      return false;
+    }
+    received_ += static_cast<size_t>(n);
+    pos_ = 0;
+    len_ = static_cast<size_t>(n);
+    return true;
+  }
+
+  int fd_;
+  std::chrono::steady_clock::time_point deadline_;
+  char buf_[4096];
+  size_t pos_ = 0, len_ = 0, received_ = 0;
+  bool exhausted_ = false, close_ = false;
+};
+
+/// The stream of the request this worker thread is serving (for handlers that must close the connection).
+thread_local RequestStream* t_stream = nullptr;
+
+/// cpp-httplib's server with its connection loop replaced: at most kMaxConnections served (more get a 503 at
+/// once, never a place in a queue), each request bounded by RequestStream, idle keep-alive ended after
+/// kKeepAliveTimeoutMs. cpp-httplib 0.11's own loop bounds only each single read, so a client sending a
+/// header byte every few seconds held a worker for ever.
+class BoundedServer final : public httplib::Server {
+ public:
+  std::atomic<int> connections{0};
+
+ private:
+  bool process_and_close_socket(socket_t sock) override {
+    const int served = ++connections;
+    bool ok = false;
+    if (served > kMaxConnections) {
+      refuseBusy(sock);
+    } else {
+      ok = serveRequests(sock);
+    }
+    --connections;
+    ::shutdown(sock, SHUT_RDWR);
+    ::close(sock);
+    return ok;
+  }
+
+  bool serveRequests(int sock) {
+    bool ok = false;
+    for (size_t left = kKeepAliveMaxCount; left > 0 && waitForRequest(sock); --left) {
+      RequestStream strm(sock);
+      t_stream = &strm;
+      bool closed = false;
+      ok = process_request(strm, left == 1, closed, nullptr);
+      t_stream = nullptr;
+      if (!ok || closed || strm.mustClose()) break;
+    }
+    return ok;
+  }
+
+  bool waitForRequest(int sock) const {
+    for (int waited = 0; waited < kKeepAliveTimeoutMs && is_running(); waited += 100) {
+      if (waitFor(sock, POLLIN, 100)) return true;
+    }
+    return false;
+  }
+
+  static void refuseBusy(int sock) {
+    const std::string body = "{\"ok\":false,\"error\":\"dashboard busy: " + std::to_string(kMaxConnections) +
+                             " connections are open\"}";
+    const std::string resp = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nContent-Length: " +
+                             std::to_string(body.size()) + "\r\nConnection: close\r\nCache-Control: no-store\r\n\r\n" + body;
+    (void)!::send(sock, resp.data(), resp.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  }
+};
 
 std::string hostPort(const std::string& address, uint16_t port) {
   const bool v6 = address.find(':') != std::string::npos;
@@ -93,7 +253,7 @@ std::string validateDashboardOptions(const DashboardOptions& opt) {
 }
 
 struct Dashboard::Http {
-  httplib::Server server;
+  BoundedServer server;
 };
 
 Dashboard::Dashboard(const DashboardOptions& options, RequestHandler handler)
@@ -121,11 +281,9 @@ std::string Dashboard::start() {
     int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
+  // Bodies with a Content-Length above the limit are refused before they are read (413); chunked bodies are
+  // counted as they arrive (/api/request below); timeouts and connection limits are BoundedServer's.
   s.set_payload_max_length(kMaxBodyBytes);
-  s.set_read_timeout(5, 0);
-  s.set_write_timeout(5, 0);
-  s.set_keep_alive_timeout(2);
-  s.set_keep_alive_max_count(200);
 
   s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     res.set_header("Cache-Control", "no-store");
@@ -181,12 +339,36 @@ std::string Dashboard::start() {
     }
     res.set_content(samplesAfter(after).dump(), "application/json");
   });
-  s.Post("/api/request", [this](const httplib::Request& req, httplib::Response& res) {
+  s.Post("/api/request", [this](const httplib::Request&, httplib::Response& res, const httplib::ContentReader& reader) {
+    std::string body;
+    bool too_long = false;
+    const bool read = reader([&](const char* data, size_t len) {
+      if (body.size() + len > kMaxBodyBytes) {
+        too_long = true;
+        return false;
+      }
+      body.append(data, len);
+      return true;
+    });
+    if (too_long || res.status == 413) {
+      res.status = 413;
+      res.set_content(bodyTooLong(), "application/json");
+      if (t_stream != nullptr) t_stream->closeAfterResponse();  // the rest of the body is never read
+      return;
+    }
+    if (!read) {
+      res.status = 400;
+      res.set_content("{\"ok\":false,\"error\":\"request body incomplete\"}", "application/json");
+      if (t_stream != nullptr) t_stream->closeAfterResponse();
+      return;
+    }
     // The same validated handler as the UNIX socket: one JSON request, one answer.
-    res.set_content(handler_(req.body).dump(), "application/json");
+    res.set_content(handler_(body).dump(), "application/json");
   });
   s.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    if (res.body.empty()) {
+    if (res.status == 413) {
+      res.set_content(bodyTooLong(), "application/json");
+    } else if (res.body.empty()) {
       res.set_content("{\"ok\":false,\"error\":\"HTTP " + std::to_string(res.status) + "\"}", "application/json");
     }
   });

@@ -15,6 +15,7 @@
 #include <csignal>
 #include <cstring>
 #include <ctime>
+#include <functional>
 #include <map>
 #include <memory>
 #include <regex>
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "phalanx/host/api/dashboard.h"
+#include "phalanx/host/api/socket_access.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
@@ -35,12 +37,44 @@ void onApiStop(int) { g_api_stop = 1; }
 /// 64 KiB: far above any valid request (the largest, "start" with parameters, is < 1 KiB).
 constexpr std::size_t kMaxRequestBytes = 64 * 1024;
 constexpr int kMaxClients = 16;
+/// A request line must be complete this long after its first byte arrived.
+constexpr int kLineTimeoutMs = 10000;
+/// A connection that sends no request for this long is closed (the CLI's connections last one request).
+constexpr int kIdleTimeoutMs = 300000;
+/// A client that does not take its answer within this time is dropped.
+constexpr int kSendTimeoutMs = 5000;
 
 const char* kApiVersion = "1";
 
 struct RequestError {
   std::string message;
 };
+
+/// The hooks runSession polls: the therapy session's, and SIGINT/SIGTERM of the API daemon, so that a signal
+/// ends a running session at the loop's next cycle whatever the request threads are doing.
+class SignalAwareHooks final : public SessionHooks {
+ public:
+  explicit SignalAwareHooks(therapy::TherapySession& s) : s_(s) {}
+  std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, std::string& error) override {
+    return s_.makeController(layout, error);
+  }
+  std::string onStart(const protocol::DeviceLayout& layout, const nlohmann::json& info) override {
+    return s_.onStart(layout, info);
+  }
+  void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) override {
+    s_.onCycle(wake_ns, t_s, tel, cmd);
+  }
+  void onDeviceEvent(const protocol::Event& event) override { s_.onDeviceEvent(event); }
+  bool stopRequested() override { return g_api_stop != 0 || s_.stopRequested(); }
+  bool takeClearFaultsRequest() override { return s_.takeClearFaultsRequest(); }
+  void onEnd(const nlohmann::json& summary) override { s_.onEnd(summary); }
+
+ private:
+  therapy::TherapySession& s_;
+};
+
+/// lstat: a regular file (never a FIFO, device or symlink, whose open could wait or lead elsewhere).
+bool isRegularFile(const std::string& path, struct stat& st) { return ::lstat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode); }
 
 /// Field checks: unknown fields and wrong types are errors naming the field.
 void allowFields(const nlohmann::json& req, const std::set<std::string>& allowed) {
@@ -92,12 +126,17 @@ class Daemon {
     } catch (const RequestError& e) {
       resp["ok"] = false;
       resp["error"] = e.message;
+    } catch (const std::exception& e) {  // a request the checks above missed must not end the daemon
+      resp["ok"] = false;
+      resp["error"] = std::string("request refused: ") + e.what();
     }
     return resp;
   }
 
+  /// From the accept loop: never waits for a request that holds the lock (a stop writing its report).
   void housekeeping() {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) return;
     if (session_) session_->housekeeping();
     if (session_ && session_done_.load() && thread_.joinable()) {
       thread_.join();
@@ -106,8 +145,19 @@ class Daemon {
   }
 
   void stopSession() {
+    requestStopNow();
     std::lock_guard<std::mutex> lock(mutex_);
     stopLocked();
+  }
+
+  /// STOP's first step, for every transport: sets the running session's stop flag, which its loop polls every
+  /// cycle. Takes only stop_mutex_, which nothing holds across I/O, so it never waits behind another request.
+  /// Returns whether a session was running.
+  bool requestStopNow() {
+    std::lock_guard<std::mutex> lock(stop_mutex_);
+    if (stoppable_ == nullptr || session_done_.load()) return false;
+    stoppable_->requestStop();
+    return true;
   }
 
  private:
@@ -124,9 +174,10 @@ class Daemon {
     if (cmd == "start") return start(req);
     if (cmd == "stop") {
       allowFields(req, {});
+      const bool was_running = requestStopNow();  // the loop ends at its next cycle, whatever holds mutex_
       std::lock_guard<std::mutex> lock(mutex_);
-      if (!running()) throw RequestError{"no session is running"};
-      return stopLocked();
+      if (!was_running) throw RequestError{"no session is running"};
+      return stopLocked();  // waits for the session's end: record closed, report written
     }
     if (cmd == "exercise" || cmd == "mode") {
       allowFields(req, {"exercise", "params"});
@@ -182,7 +233,7 @@ class Daemon {
       for (const auto& f : listDir(cfg_.records_dir, ".phrec")) {
         if (!patient.empty() && f.rfind(patient + "-", 0) != 0) continue;
         struct stat st {};
-        ::stat((cfg_.records_dir + "/" + f).c_str(), &st);
+        if (!isRegularFile(cfg_.records_dir + "/" + f, st)) continue;
         const std::string html = f.substr(0, f.size() - 6) + ".html";
         out.push_back({{"file", f}, {"bytes", st.st_size},
                        {"report", ::access((cfg_.records_dir + "/" + html).c_str(), R_OK) == 0 ? html : ""}});
@@ -229,6 +280,9 @@ class Daemon {
     }
     RunOptions opt = cfg_.defaults;
     opt.device = strField(req, "device", opt.device);
+    if (req.contains("device")) {
+      if (const std::string err = deviceRefusal(opt.device); !err.empty()) throw RequestError{err};
+    }
     opt.scenario = strField(req, "scenario", opt.scenario);
     if (req.contains("seconds")) {
       if (!req["seconds"].is_number()) throw RequestError{"field 'seconds': expected a number"};
@@ -270,13 +324,25 @@ class Daemon {
     // The previous session of this patient, for the report's range-of-motion comparison.
     const std::string prefix = (patient.empty() ? "anonymous" : patient) + "-";
     for (const auto& f : listDir(cfg_.records_dir, ".phrec")) {
-      if (f.rfind(prefix, 0) == 0) tcfg.previous_record = cfg_.records_dir + "/" + f;
+      struct stat st {};
+      if (f.rfind(prefix, 0) == 0 && isRegularFile(cfg_.records_dir + "/" + f, st)) {
+        tcfg.previous_record = cfg_.records_dir + "/" + f;
+      }
+    }
+    {
+      std::lock_guard<std::mutex> stop_lock(stop_mutex_);
+      stoppable_ = nullptr;
     }
     session_ = std::make_unique<therapy::TherapySession>(tcfg);
     session_done_ = false;
+    {
+      std::lock_guard<std::mutex> stop_lock(stop_mutex_);
+      stoppable_ = session_.get();
+    }
     therapy::TherapySession* s = session_.get();
     thread_ = std::thread([this, s, opt]() mutable {
-      opt.hooks = s;
+      SignalAwareHooks hooks(*s);
+      opt.hooks = &hooks;
       nlohmann::json summary;
       const int rc = runSession(opt, summary);
       summary["exit_code"] = rc;
@@ -295,59 +361,192 @@ class Daemon {
     return last_summary_;
   }
 
+  /// "" when a client may name `device` in a start request: it is the daemon's own device or on its
+  /// --allow-device list, and a serial device is a character device.
+  std::string deviceRefusal(const std::string& device) const {
+    const auto& allowed = cfg_.allowed_devices;
+    if (device != cfg_.defaults.device && std::find(allowed.begin(), allowed.end(), device) == allowed.end()) {
+      std::string list = cfg_.defaults.device;
+      for (const auto& a : allowed) list += ", " + a;
+      return "field 'device': '" + device + "' is not a device this daemon may open (allowed: " + list +
+             "; the daemon's --device and --allow-device name them)";
+    }
+    if (device.rfind("serial:", 0) != 0) return {};
+    const std::string path = device.substr(7, device.find('@') == std::string::npos ? std::string::npos : device.find('@') - 7);
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) return "field 'device': " + path + ": " + std::strerror(errno);
+    if (!S_ISCHR(st.st_mode)) return "field 'device': " + path + " is not a character device";
+    return {};
+  }
+
   ServerConfig cfg_;
   std::mutex mutex_;
+  std::mutex stop_mutex_;                      // guards stoppable_ only; never held across I/O
+  therapy::TherapySession* stoppable_ = nullptr;  // session_.get() for requestStopNow()
   std::unique_ptr<therapy::TherapySession> session_;
   std::atomic<bool> session_done_{true};
   std::thread thread_;
   nlohmann::json last_summary_;
 };
 
-struct Client {
-  int fd = -1;
+/// Sends all of `text` within kSendTimeoutMs; false if the client does not take it.
+bool sendAll(int fd, const std::string& text) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(kSendTimeoutMs);
+  for (std::size_t done = 0; done < text.size();) {
+    const ssize_t n = ::send(fd, text.data() + done, text.size() - done, MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n > 0) {
+      done += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return false;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now());
+    pollfd p{fd, POLLOUT, 0};
+    if (left.count() <= 0 || ::poll(&p, 1, static_cast<int>(left.count())) <= 0) return false;
+  }
+  return true;
+}
+
+std::string errorLine(const std::string& message) {
+  return nlohmann::json{{"ok", false}, {"error", message}}.dump() + "\n";
+}
+
+using Handler = std::function<nlohmann::json(const std::string&)>;
+
+/// One client connection, on its own thread: reads JSON lines, answers each in order. Bounded: a line of at
+/// most kMaxRequestBytes, complete within kLineTimeoutMs; idle connections closed after kIdleTimeoutMs. A slow
+/// or blocking request on one connection never delays another connection's STOP (no lock across requests).
+void serveClient(int fd, const Handler& handle) {
   std::string in;
+  auto line_started = std::chrono::steady_clock::now();
+  auto last_activity = line_started;
+  for (;;) {
+    for (std::size_t nl; (nl = in.find('\n')) != std::string::npos;) {
+      if (nl > kMaxRequestBytes) {
+        (void)sendAll(fd, errorLine("request longer than " + std::to_string(kMaxRequestBytes) + " bytes"));
+        return;
+      }
+      const std::string line = in.substr(0, nl);
+      in.erase(0, nl + 1);
+      if (!sendAll(fd, handle(line).dump() + "\n")) return;
+      last_activity = line_started = std::chrono::steady_clock::now();
+    }
+    if (in.size() > kMaxRequestBytes) {
+      (void)sendAll(fd, errorLine("request longer than " + std::to_string(kMaxRequestBytes) + " bytes"));
+      return;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    const auto deadline = in.empty() ? last_activity + std::chrono::milliseconds(kIdleTimeoutMs)
+                                     : line_started + std::chrono::milliseconds(kLineTimeoutMs);
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count();
+    if (left <= 0) {
+      if (!in.empty()) {
+        (void)sendAll(fd, errorLine("request line not completed within " + std::to_string(kLineTimeoutMs / 1000) + " s"));
+      }
+      return;
+    }
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::min<long>(left, 1000)));
+    if (ready < 0 && errno != EINTR) return;
+    if (ready <= 0 || (p.revents & (POLLIN | POLLHUP | POLLERR)) == 0) continue;
+    char buf[4096];
+    const ssize_t n = ::recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) continue;
+    if (n <= 0) return;
+    if (in.empty()) line_started = std::chrono::steady_clock::now();
+    in.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
+/// The connection threads of the UNIX socket. Only the accept loop's thread touches this object.
+class ClientThreads {
+ public:
+  explicit ClientThreads(Handler handle) : handle_(std::move(handle)) {}
+  ~ClientThreads() { closeAll(); }
+
+  std::size_t size() const { return clients_.size(); }
+
+  void add(int fd) {
+    auto c = std::make_unique<Client>();
+    c->fd = fd;
+    Client* raw = c.get();
+    c->thread = std::thread([this, raw] {
+      serveClient(raw->fd, handle_);
+      raw->done = true;
+    });
+    clients_.push_back(std::move(c));
+  }
+
+  /// Joins and closes the connections whose thread has finished.
+  void reap() {
+    for (auto& c : clients_) {
+      if (c->done.load()) finish(*c);
+    }
+    clients_.erase(std::remove_if(clients_.begin(), clients_.end(), [](const auto& c) { return c->fd < 0; }),
+                   clients_.end());
+  }
+
+  /// Wakes every connection thread (shutdown of its socket) and joins it.
+  void closeAll() {
+    for (auto& c : clients_) {
+      if (c->fd >= 0) ::shutdown(c->fd, SHUT_RDWR);
+    }
+    for (auto& c : clients_) finish(*c);
+    clients_.clear();
+  }
+
+ private:
+  struct Client {
+    int fd = -1;
+    std::thread thread;
+    std::atomic<bool> done{false};
+  };
+  static void finish(Client& c) {
+    if (c.thread.joinable()) c.thread.join();
+    if (c.fd >= 0) ::close(c.fd);
+    c.fd = -1;
+  }
+
+  Handler handle_;
+  std::vector<std::unique_ptr<Client>> clients_;
 };
 
 }  // namespace
 
-std::string defaultSocketPath() {
-  if (const char* x = std::getenv("XDG_RUNTIME_DIR"); x != nullptr && *x != 0) return std::string(x) + "/phalanxd.sock";
-  return "/tmp/phalanxd-" + std::to_string(::getuid()) + ".sock";
-}
+namespace {
 
-int serve(const ServerConfig& config) {
-  struct sigaction sa {};
-  sa.sa_handler = onApiStop;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGPIPE, SIG_IGN);
-
+/// Binds and listens on config.socket_path (a stale socket of a crashed daemon replaced, a live one or any
+/// other file refused). Returns the listening descriptor, or -1 after printing why.
+int listenOn(const ServerConfig& config) {
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   if (config.socket_path.empty() || config.socket_path.size() >= sizeof addr.sun_path) {
     std::fprintf(stderr, "phalanxd: error: --api: socket path empty or longer than %zu bytes\n", sizeof addr.sun_path - 1);
-    return 2;
+    return -1;
+  }
+  if (const std::string err = prepareSocketDirectory(config.socket_path, config.api_group); !err.empty()) {
+    std::fprintf(stderr, "phalanxd: error: --api %s: %s\n", config.socket_path.c_str(), err.c_str());
+    return -1;
   }
   std::memcpy(addr.sun_path, config.socket_path.c_str(), config.socket_path.size() + 1);
   const int lfd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (lfd < 0) {
     std::fprintf(stderr, "phalanxd: error: socket: %s\n", std::strerror(errno));
-    return 3;
+    return -1;
   }
-  // A socket file left by a crashed daemon is replaced; one a live daemon answers on is not.
   struct stat st {};
   if (::lstat(config.socket_path.c_str(), &st) == 0) {
     if (!S_ISSOCK(st.st_mode)) {
       std::fprintf(stderr, "phalanxd: error: %s exists and is not a socket\n", config.socket_path.c_str());
-      return 3;
+      ::close(lfd);
+      return -1;
     }
     const int probe = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
     const bool live = ::connect(probe, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0;
     ::close(probe);
     if (live) {
       std::fprintf(stderr, "phalanxd: error: another phalanxd already serves %s\n", config.socket_path.c_str());
-      return 3;
+      ::close(lfd);
+      return -1;
     }
     ::unlink(config.socket_path.c_str());
   }
@@ -357,20 +556,62 @@ int serve(const ServerConfig& config) {
   if (brc != 0 || ::listen(lfd, kMaxClients) != 0) {
     std::fprintf(stderr, "phalanxd: error: cannot serve %s: %s\n", config.socket_path.c_str(), std::strerror(errno));
     ::close(lfd);
-    return 3;
+    return -1;
   }
   ::chmod(config.socket_path.c_str(), config.socket_mode);
+  return lfd;
+}
+
+/// Accepts every pending connection: refused (with a one-line answer) when the peer's credentials are not
+/// allowed or kMaxClients are connected, else served on its own thread.
+void acceptClients(int lfd, const ServerConfig& config, ClientThreads& clients) {
+  for (;;) {
+    const int cfd = ::accept4(lfd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (cfd < 0) return;
+    std::string refusal = refusePeer(cfd, config.api_group);
+    if (refusal.empty() && clients.size() >= static_cast<std::size_t>(kMaxClients)) {
+      refusal = "too many clients (" + std::to_string(kMaxClients) + " connected)";
+    }
+    if (!refusal.empty()) {
+      const std::string line = errorLine(refusal);
+      (void)!::send(cfd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      ::close(cfd);
+      continue;
+    }
+    clients.add(cfd);
+  }
+}
+
+void writeDashboardUrlFile(const std::string& url_file, const std::string& url, unsigned mode) {
+  ::unlink(url_file.c_str());
+  const int ufd = ::open(url_file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (ufd < 0) return;
+  const std::string text = url + "\n";
+  (void)!::write(ufd, text.data(), text.size());
+  ::fchmod(ufd, mode);
+  ::close(ufd);
+}
+
+}  // namespace
+
+int serve(const ServerConfig& config) {
+  struct sigaction sa {};
+  sa.sa_handler = onApiStop;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  const int lfd = listenOn(config);
+  if (lfd < 0) return 3;
   std::fprintf(stderr, "phalanxd: control API on %s\n", config.socket_path.c_str());
   std::printf("API %s\n", config.socket_path.c_str());
   std::fflush(stdout);
 
   Daemon daemon(config);
-  // One request at a time, whichever way it came (UNIX socket or the dashboard): the same validated handler.
-  std::mutex request_mutex;
-  auto handle = [&daemon, &request_mutex](const std::string& line) {
-    std::lock_guard<std::mutex> lock(request_mutex);
-    return daemon.handle(line);
-  };
+  // Requests from every connection and from the dashboard run concurrently, each on its own thread: the daemon
+  // state they touch is guarded inside Daemon, and STOP never waits behind another request (requestStopNow).
+  auto handle = [&daemon](const std::string& line) { return daemon.handle(line); };
   std::unique_ptr<Dashboard> dashboard;
   const std::string url_file = config.socket_path + ".dashboard";
   if (config.dashboard.enabled) {
@@ -381,77 +622,28 @@ int serve(const ServerConfig& config) {
       ::unlink(config.socket_path.c_str());
       return 3;
     }
-    ::unlink(url_file.c_str());
-    const int ufd = ::open(url_file.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
-    if (ufd >= 0) {
-      const std::string text = dashboard->url() + "\n";
-      (void)!::write(ufd, text.data(), text.size());
-      ::fchmod(ufd, config.socket_mode);
-      ::close(ufd);
-    }
+    writeDashboardUrlFile(url_file, dashboard->url(), config.socket_mode);
     std::fprintf(stderr, "phalanxd: dashboard on http://%s:%u/ (URL with its access token in %s)\n",
                  config.dashboard.address.c_str(), dashboard->port(), url_file.c_str());
     std::printf("DASHBOARD %s\n", dashboard->url().c_str());
     std::fflush(stdout);
   }
-  std::vector<Client> clients;
+  ClientThreads clients(handle);
   while (g_api_stop == 0) {
-    std::vector<pollfd> fds;
-    fds.push_back({lfd, POLLIN, 0});
-    for (const auto& c : clients) fds.push_back({c.fd, POLLIN, 0});
-    ::poll(fds.data(), fds.size(), 100);
+    pollfd p{lfd, POLLIN, 0};
+    ::poll(&p, 1, 100);
     daemon.housekeeping();
-    if (fds[0].revents & POLLIN) {
-      for (;;) {
-        const int cfd = ::accept4(lfd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (cfd < 0) break;
-        if (clients.size() >= static_cast<std::size_t>(kMaxClients)) {
-          const char* msg = "{\"ok\":false,\"error\":\"too many clients\"}\n";
-          (void)!::send(cfd, msg, std::strlen(msg), MSG_NOSIGNAL);
-          ::close(cfd);
-          continue;
-        }
-        clients.push_back({cfd, {}});
-      }
-    }
-    for (std::size_t i = 1; i < fds.size(); ++i) {
-      if ((fds[i].revents & (POLLIN | POLLHUP | POLLERR)) == 0) continue;
-      Client& c = clients[i - 1];
-      char buf[4096];
-      const ssize_t n = ::recv(c.fd, buf, sizeof buf, 0);
-      if (n <= 0) {
-        ::close(c.fd);
-        c.fd = -1;
-        continue;
-      }
-      c.in.append(buf, static_cast<std::size_t>(n));
-      for (std::size_t nl; c.fd >= 0 && (nl = c.in.find('\n')) != std::string::npos;) {
-        const std::string line = c.in.substr(0, nl);
-        c.in.erase(0, nl + 1);
-        const std::string out = handle(line).dump() + "\n";
-        // Replies are small; a client that does not read its answer is dropped rather than blocking the daemon.
-        if (::send(c.fd, out.data(), out.size(), MSG_NOSIGNAL | MSG_DONTWAIT) != static_cast<ssize_t>(out.size())) {
-          ::close(c.fd);
-          c.fd = -1;
-        }
-      }
-      if (c.fd >= 0 && c.in.size() > kMaxRequestBytes) {
-        const char* msg = "{\"ok\":false,\"error\":\"request longer than 65536 bytes\"}\n";
-        (void)!::send(c.fd, msg, std::strlen(msg), MSG_NOSIGNAL | MSG_DONTWAIT);
-        ::close(c.fd);
-        c.fd = -1;
-      }
-    }
-    clients.erase(std::remove_if(clients.begin(), clients.end(), [](const Client& c) { return c.fd < 0; }),
-                  clients.end());
+    clients.reap();
+    if (p.revents & POLLIN) acceptClients(lfd, config, clients);
   }
   std::fprintf(stderr, "phalanxd: stopping\n");
+  daemon.requestStopNow();
   if (dashboard) {
     dashboard->stop();
     ::unlink(url_file.c_str());
   }
+  clients.closeAll();
   daemon.stopSession();
-  for (const auto& c : clients) ::close(c.fd);
   ::close(lfd);
   ::unlink(config.socket_path.c_str());
   return 0;

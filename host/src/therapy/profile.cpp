@@ -1,9 +1,13 @@
 #include "phalanx/host/therapy/profile.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cerrno>
 #include <cmath>
-#include <fstream>
+#include <cstring>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -227,12 +231,47 @@ std::string loadProfileText(const std::string& yaml_text, const std::string& sou
   return {};
 }
 
+std::string readProfileFile(const std::string& path, std::string& text) {
+  // O_NONBLOCK: opening a FIFO (or a device) must not wait for a writer; O_NOFOLLOW: a symlink planted in the
+  // profiles directory cannot make the daemon read a file elsewhere. Only regular files are read, and only
+  // up to kMaxProfileBytes, so a request naming a profile is bounded in time and memory.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOFOLLOW | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) {
+    if (errno == ELOOP) return path + ": is a symbolic link (profiles are read only from regular files)";
+    return path + ": cannot read profile: " + std::strerror(errno);
+  }
+  struct stat st {};
+  std::string err;
+  if (::fstat(fd, &st) != 0) {
+    err = path + ": cannot read profile: " + std::strerror(errno);
+  } else if (!S_ISREG(st.st_mode)) {
+    err = path + ": not a regular file (profiles are read only from regular files)";
+  } else if (st.st_size > static_cast<off_t>(kMaxProfileBytes)) {
+    err = path + ": " + std::to_string(st.st_size) + " bytes, larger than the " + std::to_string(kMaxProfileBytes) +
+          "-byte limit of a profile";
+  }
+  text.clear();
+  char buf[8192];
+  while (err.empty()) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n == 0) break;
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      err = path + ": cannot read profile: " + std::strerror(errno);
+    } else if (text.size() + static_cast<std::size_t>(n) > kMaxProfileBytes) {
+      err = path + ": larger than the " + std::to_string(kMaxProfileBytes) + "-byte limit of a profile";
+    } else {
+      text.append(buf, static_cast<std::size_t>(n));
+    }
+  }
+  ::close(fd);
+  return err;
+}
+
 std::string loadProfileFile(const std::string& path, Profile& out) {
-  std::ifstream in(path);
-  if (!in) return path + ": cannot read profile";
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return loadProfileText(ss.str(), path, out);
+  std::string text;
+  if (std::string err = readProfileFile(path, text); !err.empty()) return err;
+  return loadProfileText(text, path, out);
 }
 
 }  // namespace phalanx::host::therapy

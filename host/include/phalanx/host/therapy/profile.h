@@ -44,6 +44,13 @@ struct Profile {
 /// Parse and validate; nothing in `out` changes unless the whole profile is valid. Returns "" or
 /// "<source>: <key>: <problem>".
 std::string loadProfileText(const std::string& yaml_text, const std::string& source, Profile& out);
+/// Reads `path` with readProfileFile, then loadProfileText.
 std::string loadProfileFile(const std::string& path, Profile& out);
+
+/// The largest profile file read (a real one is < 4 KiB).
+constexpr std::size_t kMaxProfileBytes = 1024 * 1024;
+/// Reads a profile file without ever waiting: opened O_NONBLOCK|O_NOFOLLOW, refused unless a regular file of at
+/// most kMaxProfileBytes. Returns "" or "<path>: <why>".
+std::string readProfileFile(const std::string& path, std::string& text);
 
 }  // namespace phalanx::host::therapy
