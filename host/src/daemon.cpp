@@ -347,6 +347,7 @@ class SessionRunner {
       return fail("device answered the handshake but sends no telemetry", 4);
     }
     if (int rc = clearPriorFaults(); rc != 0) return rc;
+    if (int rc = checkVariant(); rc != 0) return rc;
     if (int rc = checkRequiredParams(); rc != 0) return rc;
     if (int rc = setStartupParams(); rc != 0) return rc;
     readBackStartupParams();
@@ -399,6 +400,18 @@ class SessionRunner {
     session_->sendParamGet(id);
     link_->push();
     return pollUntil([&] { return session_->lastParamValid() && session_->lastParam().param_id == id; });
+  }
+
+  /// The rig and the finger are one device type; the variant parameter says which one answered.
+  int checkVariant() {
+    const int want = link_->expectedVariant();
+    if (want < 0) return 0;
+    if (!getParam(protocol::core_param::kDeviceVariant) || session_->lastParam().status != protocol::ParamStatus::kOk ||
+        session_->lastParam().value != static_cast<float>(want)) {
+      return fail("device variant: " + opt_.device + " answered as another " + layout_->name + " variant: refused", 2);
+    }
+    summary_["device_variant"] = want == protocol::variant::kSeaTestRig ? "sea_rig" : "standard";
+    return 0;
   }
 
   /// A model from a geometry file must match the geometry the firmware was built with (fingerprint parameter):

@@ -154,7 +154,8 @@ class SimDeviceLink : public DeviceLink {
  public:
   std::string open(const RunOptions& opt, const std::string& name) {
     name_ = name;
-    // sim:sea_rig is the sea_finger firmware on the §7.1 test-rig plant: it answers as a sea_finger.
+    // sim:sea_rig is the sea_finger firmware on the §7.1 test-rig plant: it answers as a sea_finger and reports its
+    // variant in core parameter 0x0004 (checked by the runner, expectedVariant()).
     expected_ = name == "glove5"                            ? protocol::DeviceType::kGlove5
                 : name == "sea_finger" || name == "sea_rig" ? protocol::DeviceType::kSeaFinger
                                                             : protocol::DeviceType::kPantograph;
@@ -163,6 +164,10 @@ class SimDeviceLink : public DeviceLink {
   }
   HostSession makeSession() override { return HostSession(link_); }
   protocol::DeviceType expectedDevice() const override { return expected_; }
+  int expectedVariant() const override {
+    if (name_ == "sea_rig") return protocol::variant::kSeaTestRig;
+    return name_ == "sea_finger" ? protocol::variant::kStandard : -1;
+  }
   bool push() override { return link_.flush(); }
   std::string linkError() const override { return link_.error(); }
   std::string deviceGone() override {

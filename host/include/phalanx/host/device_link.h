@@ -22,6 +22,9 @@ class DeviceLink : public RecoveryLink {
   virtual HostSession makeSession() = 0;
   /// The device type to ask for in the Hello (kAny unless the link knows what it runs: sim:*).
   virtual protocol::DeviceType expectedDevice() const { return protocol::DeviceType::kAny; }
+  /// The device variant (core parameter 0x0004, protocol::variant::*) the link expects, or -1 for any: sim:sea_rig
+  /// and sim:sea_finger are the same device type, told apart by it.
+  virtual int expectedVariant() const { return -1; }
   /// Push queued output to the transport. false: a hard error that ends the session (linkError() says which);
   /// an unplug of a link that reconnects is not one (lost() reports it instead).
   virtual bool push() = 0;
