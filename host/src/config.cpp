@@ -6,6 +6,8 @@
 #include <set>
 #include <sstream>
 
+#include "phalanx/host/yaml_keys.h"
+
 namespace phalanx::host {
 namespace {
 
@@ -111,7 +113,9 @@ void apply(const YAML::Node& root, RunOptions& opt) {
 std::string loadConfigText(const std::string& yaml_text, const std::string& source, RunOptions& opt) {
   RunOptions candidate = opt;  // nothing changes unless the whole file is valid
   try {
-    apply(YAML::Load(yaml_text), candidate);
+    const YAML::Node root = YAML::Load(yaml_text);
+    if (std::string dup = findDuplicateKey(root); !dup.empty()) throw ConfigError{dup};
+    apply(root, candidate);
   } catch (const ConfigError& e) {
     return source + ": " + e.message;
   } catch (const YAML::Exception& e) {

@@ -65,3 +65,12 @@ TEST(Config, RejectsAnUnknownDeviceAndScenario) {
   EXPECT_NE(loadConfigText("glove: {scenario: dance}\n", "x", o).find("scenario"), std::string::npos);
   EXPECT_NE(loadConfigText("version: 2\n", "x", o).find("version"), std::string::npos);
 }
+
+TEST(Config, RefusesARepeatedKeyInsteadOfKeepingTheFirst) {
+  RunOptions o;
+  const std::string err = loadConfigText("rate_hz: 100\nrate_hz: 4000\n", "x.yaml", o);
+  EXPECT_EQ(err, "x.yaml: rate_hz: duplicate key (line 2; first at line 1)");
+  EXPECT_EQ(o.rate_hz, RunOptions{}.rate_hz);  // nothing applied
+  const std::string nested = loadConfigText("modbus:\n  enabled: false\n  port: 1502\n  port: 502\n", "x.yaml", o);
+  EXPECT_NE(nested.find("x.yaml: modbus.port: duplicate key"), std::string::npos) << nested;
+}
