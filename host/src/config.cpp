@@ -123,8 +123,21 @@ std::string loadConfigText(const std::string& yaml_text, const std::string& sour
   }
   const std::string problem = validate(candidate);
   if (!problem.empty()) return source + ": " + problem;
+  if (const std::string err = checkSessionLength(candidate.seconds, candidate.rate_hz); !err.empty()) {
+    return source + ": seconds: " + err;
+  }
   opt = candidate;
   return {};
+}
+
+std::string checkSessionLength(double seconds_s, unsigned rate_hz) {
+  if (!(seconds_s > 0.0) || rate_hz == 0) return {};  // 0 means until stopped; the range is validate()'s
+  // 1e-9: a length of exactly one period (0.001 s at 1 kHz) is one cycle, whatever its binary rounding.
+  if (seconds_s * rate_hz >= 1.0 - 1e-9) return {};
+  std::ostringstream os;
+  os << seconds_s << " s is shorter than one host period (" << 1.0 / rate_hz << " s at " << rate_hz
+     << " Hz); give 0 to run until stopped";
+  return os.str();
 }
 
 std::string loadConfigFile(const std::string& path, RunOptions& opt) {

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "phalanx/host/api/dashboard.h"
+#include "phalanx/host/config.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
@@ -241,6 +242,9 @@ class Daemon {
     opt.record_csv.clear();
     opt.live_view = false;
     if (const std::string err = validate(opt); !err.empty()) throw RequestError{err};
+    if (const std::string err = checkSessionLength(opt.seconds, opt.rate_hz); !err.empty()) {
+      throw RequestError{(req.contains("seconds") ? "field 'seconds': " : "seconds: ") + err};
+    }
     // Validate the exercise before anything starts: a refused request changes nothing.
     {
       std::string err;
