@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "cli_args.h"
 #include "phalanx/host/daemon.h"
 
 namespace phalanx::host {
@@ -14,13 +15,13 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--config", config_path, "YAML configuration file (command-line options override it)")
       ->check(CLI::ExistingFile);
   app.add_option("--device", opt.device, "sim:glove5 | sim:sea_finger | sim:sea_rig | sim:pantograph | serial:/dev/ttyACM0[@baud] | can:can0[:node][@fd|@fd-compact|@classic]");
-  app.add_option("--seconds", opt.seconds, "session length in seconds (0: until Ctrl-C)")->check(CLI::Range(0.0, 86400.0));
-  app.add_option("--rate-hz", opt.rate_hz, "host loop rate")->check(CLI::Range(100u, 4000u));
+  app.add_option("--seconds", opt.seconds, "session length in seconds (0: until Ctrl-C)")->check(cli::inRange(0.0, 86400.0));
+  app.add_option("--rate-hz", opt.rate_hz, "host loop rate")->check(cli::inRange(100u, 4000u));
   app.add_option("--command-timeout-ms", opt.command_timeout_ms, "timeout carried by every command")
-      ->check(CLI::Range(2u, 1000u));
+      ->check(cli::inRange(2u, 1000u));
   app.add_option("--telemetry-timeout-ms", opt.telemetry_timeout_ms,
                  "no new telemetry for this long ends the session as a lost link (exit 6)")
-      ->check(CLI::Range(10u, 10000u));
+      ->check(cli::inRange(10u, 10000u));
   app.add_option("--record", opt.record_csv, "record every cycle to this CSV file");
   app.add_option("--scenario", opt.scenario, "simulated hand: still|close-open|grasp|random")
       ->check(CLI::IsMember({"still", "close-open", "grasp", "random"}));
@@ -51,7 +52,7 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--sync", opt.gpio.sync, "motion-capture sync pulse output CHIP:LINE@HZ (e.g. gpiochip0:2@480)");
   app.add_option("--estop-release-ms", opt.gpio.estop_release_ms,
                  "the e-stop must stay released this long before a reset is accepted")
-      ->check(CLI::Range(1.0, 1000.0));
+      ->check(cli::inRange(1.0, 1000.0));
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");
   app.add_flag("--live", opt.live_view, "live per-finger view on the terminal");
   app.add_flag("--json", json, "print the end-of-session summary as JSON on stdout");

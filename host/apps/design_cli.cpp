@@ -1,5 +1,7 @@
 #include "design_cli.h"
 
+#include "cli_args.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -110,31 +112,31 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
       ->check(CLI::IsMember({"thumb", "index", "middle", "ring", "little"}));
   m.gw->add_option("--geometry", m.geometry_yaml, "geometry YAML written by glove-optimize (instead of --finger)")
       ->check(CLI::ExistingFile);
-  m.gw->add_option("--grid", m.grid, "theta samples per finger joint")->check(CLI::Range(2, 201));
+  m.gw->add_option("--grid", m.grid, "theta samples per finger joint")->check(cli::inRange(2, 201));
   m.gw->add_option("--svg", m.svg_path, "write the Fig. 6 workspace plot here");
   m.gw->add_option("--yaml", m.yaml_path, "write the device geometry YAML here");
-  m.gw->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(CLI::Range(3, 61));
+  m.gw->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(cli::inRange(3, 61));
 
   m.go = m.design->add_subcommand("glove-optimize", "link-length optimisation, eq 17-23 (000 §3.7), NLopt");
-  m.go->add_option("--p1", m.p1, "proximal phalanx (mm; default Table 2: 48.3)")->check(CLI::Range(10.0, 120.0));
-  m.go->add_option("--p2", m.p2, "middle phalanx (mm; default 28.2)")->check(CLI::Range(5.0, 80.0));
-  m.go->add_option("--p3", m.p3, "distal phalanx (mm; default 19.1)")->check(CLI::Range(5.0, 60.0));
+  m.go->add_option("--p1", m.p1, "proximal phalanx (mm; default Table 2: 48.3)")->check(cli::inRange(10.0, 120.0));
+  m.go->add_option("--p2", m.p2, "middle phalanx (mm; default 28.2)")->check(cli::inRange(5.0, 80.0));
+  m.go->add_option("--p3", m.p3, "distal phalanx (mm; default 19.1)")->check(cli::inRange(5.0, 60.0));
   m.go->add_option("--population", m.population_scales,
                    "design for a population: finger scale factors, e.g. 0.9 1.0 1.1 (3.3 stochastic workspace)")
-      ->check(CLI::Range(0.5, 1.5));
-  m.go->add_option("--starts", m.starts, "multi-start count")->check(CLI::Range(1, 64));
-  m.go->add_option("--grid", m.opt_grid, "theta samples per finger joint in the objective")->check(CLI::Range(3, 61));
-  m.go->add_option("--w1", m.w1, "eq 23 weight of z1")->check(CLI::Range(0.0, 100.0));
-  m.go->add_option("--w2", m.w2, "eq 23 weight of z2")->check(CLI::Range(0.0, 100.0));
+      ->check(cli::inRange(0.5, 1.5));
+  m.go->add_option("--starts", m.starts, "multi-start count")->check(cli::inRange(1, 64));
+  m.go->add_option("--grid", m.opt_grid, "theta samples per finger joint in the objective")->check(cli::inRange(3, 61));
+  m.go->add_option("--w1", m.w1, "eq 23 weight of z1")->check(cli::inRange(0.0, 100.0));
+  m.go->add_option("--w2", m.w2, "eq 23 weight of z2")->check(cli::inRange(0.0, 100.0));
   m.go->add_flag("--slsqp", m.slsqp, "SLSQP with finite-difference gradients instead of COBYLA");
   m.go->add_option("--link1-corner-deg", m.corner_deg, "L-shaped link 1 in the collision test (0: straight chord)")
-      ->check(CLI::Range(0.0, 80.0));
+      ->check(cli::inRange(0.0, 80.0));
   m.gw->add_option("--link1-corner-deg", m.corner_deg, "L-shaped link 1 in the collision test (0: straight chord)")
-      ->check(CLI::Range(0.0, 80.0));
+      ->check(cli::inRange(0.0, 80.0));
   m.go->add_flag("--no-collision", m.no_collision, "drop the 3.6 collision constraint");
   m.go->add_option("--svg", m.svg_path, "write the workspace plot of the optimum here");
   m.go->add_option("--yaml", m.yaml_path, "write the optimum device geometry YAML here");
-  m.go->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(CLI::Range(3, 61));
+  m.go->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(cli::inRange(3, 61));
 
   m.pg = m.design->add_subcommand("pen-gii", "Twin-Pantograph GII optimum by culling (004 eq 10-19, Tables VI-IX)");
   const char* range_help = "range min:max:step (cm; Q1 unitless)";
@@ -147,21 +149,22 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.pg->add_option("--wj", m.r_wj, "workspace j range (cm, default 0:5:0.5)");
   m.pg->add_option("--wk", m.r_wk, "workspace k range around the centre (cm, default -5:5:0.5)");
   m.pg->add_option("--distance-cm", m.distance_cm, "workspace centre distance along k (Table VII: 25)")
-      ->check(CLI::Range(5.0, 100.0));
-  m.pg->add_option("--tilt-deg", m.tilt_deg, "orientation workspace half-angle")->check(CLI::Range(0.0, 80.0));
-  m.pg->add_option("--rings", m.rings, "eq 16 rings N (0: eq 15)")->check(CLI::Range(0, 200));
+      ->check(cli::inRange(5.0, 100.0));
+  m.pg->add_option("--tilt-deg", m.tilt_deg, "orientation workspace half-angle")->check(cli::inRange(0.0, 80.0));
+  m.pg->add_option("--rings", m.rings, "eq 16 rings N (0: eq 15)")->check(cli::inRange(0, 200));
   m.pg->add_option("--mode", m.mode, "force (eq 19) | velocity (eq 26-27, Table IX)")
       ->check(CLI::IsMember({"force", "velocity"}));
   m.pg->add_flag("--velocity-literal-inverse", m.velocity_literal_inverse,
                  "velocity mode: S_J J S_T^-1 with eq 27's S_T literally (default S_J J S_T)");
-  m.pg->add_option("--threads", m.threads, "worker threads")->check(CLI::Range(1, 64));
+  m.pg->add_option("--threads", m.threads, "worker threads")->check(cli::inRange(1, 64));
   m.pg->add_option("--yaml", m.pen_yaml_path,
                    "write the optimum as a pen geometry YAML (phalanx run --pen-geometry / config pen.geometry)");
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
   m.pg->add_option("--progress-s", m.progress_s, "progress to stderr every N s");
   m.pg->add_option("--eval", m.eval_design, "also report the exact GII of this design: l1 l2 l3 l6 Q1")
-      ->expected(5);
+      ->expected(5)
+      ->multi_option_policy(CLI::MultiOptionPolicy::Throw);  // not the design's TakeLast: 2 or 6 values are an error
 
   m.pp = m.design->add_subcommand("pen-gii-plot", "plot GII vs workspace distance (004 Fig. 15) from pen-gii JSON outputs");
   m.pp->add_option("inputs", m.plot_inputs, "pen-gii JSON files (any distances, force or velocity mode)")

@@ -6,121 +6,172 @@
 #include <cstdlib>
 #include <iostream>
 
+#include "cli_args.h"
 #include "common_options.h"
 #include "phalanx/host/api/server.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
-int main(int argc, char** argv) {
-  using namespace phalanx::host;
-  CLI::App app{"phalanxd - Phalanx host daemon"};
+namespace {
+
+using namespace phalanx::host;
+
+struct DaemonArgs {
   RunOptions opt;
   std::string config_path;
   bool no_rt = false;
   bool json = false;
-  addRunOptions(app, opt, config_path, no_rt, json);
   therapy::TherapySessionConfig tcfg;
   std::string profile_path;
   std::string exercise_params;
   api::ServerConfig api_cfg;
-  app.add_option("--session-record", tcfg.record_path,
+  std::string api_group;
+  std::string dashboard_spec;
+};
+
+// Options of one session run by phalanxd itself; with --api every session is started by a request instead.
+constexpr const char* kSessionOnlyOptions[] = {"--session-record", "--profile", "--exercise", "--exercise-params",
+                                               "--report", "--previous-record", "--record", "--live"};
+constexpr const char* kApiOnlyOptions[] = {"--records-dir", "--profiles-dir", "--allow-device", "--api-group"};
+
+void addDaemonOptions(CLI::App& app, DaemonArgs& a) {
+  addRunOptions(app, a.opt, a.config_path, a.no_rt, a.json);
+  app.add_option("--session-record", a.tcfg.record_path,
                  "crash-safe session record (.phrec) of every cycle, setpoint and event (must not exist)");
-  app.add_option("--profile", profile_path, "patient profile (YAML); its limits are enforced")->check(CLI::ExistingFile);
-  app.add_option("--exercise", tcfg.exercise,
+  app.add_option("--profile", a.profile_path, "patient profile (YAML); its limits are enforced")->check(CLI::ExistingFile);
+  app.add_option("--exercise", a.tcfg.exercise,
                  "therapy exercise: idle|assessment|resistance|assistance|record-pattern|playback|grasp");
-  app.add_option("--exercise-params", exercise_params, "exercise parameters as a JSON object");
-  app.add_option("--report", tcfg.report_path, "HTML report written at session end (needs --session-record)");
-  app.add_option("--previous-record", tcfg.previous_record, "previous session's record, for the report's comparison");
-  app.add_option("--api", api_cfg.socket_path,
-                 "serve the control API on this UNIX socket (docs/api.md); without a path: " +
-                     api::defaultSocketPath())
+  app.add_option("--exercise-params", a.exercise_params, "exercise parameters as a JSON object");
+  app.add_option("--report", a.tcfg.report_path, "HTML report written at session end (needs --session-record)");
+  app.add_option("--previous-record", a.tcfg.previous_record, "previous session's record, for the report's comparison");
+  app.add_option("--api", a.api_cfg.socket_path,
+                 "serve the control API on this UNIX socket (docs/api.md); without a path: " + api::defaultSocketPath())
       ->expected(0, 1);
-  app.add_option("--allow-device", api_cfg.allowed_devices,
+  app.add_option("--allow-device", a.api_cfg.allowed_devices,
                  "API mode: a device a start request may name besides --device (repeatable; docs/security.md)")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  std::string api_group;
-  app.add_option("--api-group", api_group,
+  app.add_option("--api-group", a.api_group,
                  "API mode: group (name or id) whose members may use the API besides this user and root "
                  "(default: this process's group)");
-  app.add_option("--records-dir", api_cfg.records_dir, "API mode: directory for session records and reports");
-  app.add_option("--profiles-dir", api_cfg.profiles_dir, "API mode: directory of patient profiles");
-  std::string dashboard_spec;
-  app.add_option("--dashboard", dashboard_spec,
+  app.add_option("--records-dir", a.api_cfg.records_dir, "API mode: directory for session records and reports");
+  app.add_option("--profiles-dir", a.api_cfg.profiles_dir, "API mode: directory of patient profiles");
+  app.add_option("--dashboard", a.dashboard_spec,
                  "API mode: serve the live dashboard on ADDRESS:PORT (loopback; docs/dashboard.md; port 0: any free)");
-  // Parse twice: first to find --config, then apply the file, then let the command line override it.
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-  if (!config_path.empty()) {
-    RunOptions from_file;
-    if (const std::string err = loadConfigFile(config_path, from_file); !err.empty()) {
-      std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
-      return 2;
+  cli::refuseEmptyValues(app);
+}
+
+int badArguments(const std::string& message) {
+  std::fprintf(stderr, "phalanxd: error: %s\n", message.c_str());
+  return cli::kExitBadArguments;
+}
+
+/// An option of the other mode would be ignored without a word: refuse it, naming it.
+std::string modeConflict(const CLI::App& app) {
+  const bool api = app.count("--api") > 0;
+  if (api) {
+    for (const char* o : kSessionOnlyOptions) {
+      if (app.count(o) > 0) return std::string(o) + ": not used with --api (each session comes from a start request)";
     }
-    opt = from_file;
-    app.parse(argc, argv);
+  } else {
+    for (const char* o : kApiOnlyOptions) {
+      if (app.count(o) > 0) return std::string(o) + ": only used with --api";
+    }
   }
-  if (no_rt) opt.realtime = false;
-  installStopSignals();
-  if (!dashboard_spec.empty()) {
-    if (const std::string err = api::parseDashboardSpec(dashboard_spec, opt.dashboard); !err.empty()) {
-      std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
-      return 2;
+  return {};
+}
+
+/// Command line, then the --config file under it, then the command line again over the file. Returns -1 to go on.
+int parseArguments(CLI::App& app, DaemonArgs& a, int argc, char** argv) {
+  int rc = 0;
+  if (!cli::parseArgs(app, argc, argv, "phalanxd", rc)) return rc;
+  if (!a.config_path.empty()) {
+    RunOptions from_file;
+    if (const std::string err = loadConfigFile(a.config_path, from_file); !err.empty()) return badArguments(err);
+    a.opt = from_file;
+    if (!cli::parseArgs(app, argc, argv, "phalanxd", rc)) return rc;
+  }
+  if (const std::string err = modeConflict(app); !err.empty()) return badArguments(err);
+  if (const std::string err = checkSessionLength(a.opt.seconds, a.opt.rate_hz); !err.empty()) {
+    return badArguments((app.count("--seconds") > 0 ? "--seconds: " : a.config_path + ": seconds: ") + err);
+  }
+  if (a.no_rt) a.opt.realtime = false;
+  if (!a.dashboard_spec.empty()) {
+    if (const std::string err = api::parseDashboardSpec(a.dashboard_spec, a.opt.dashboard); !err.empty()) {
+      return badArguments(err);
     }
   }
   const bool api_mode = app.count("--api") > 0;
-  if (api_mode && api_cfg.socket_path.empty()) api_cfg.socket_path = api::defaultSocketPath();
-  if (!api_group.empty()) {
-    if (const group* g = ::getgrnam(api_group.c_str()); g != nullptr) {
-      api_cfg.api_group = static_cast<long>(g->gr_gid);
-    } else if (api_group.find_first_not_of("0123456789") == std::string::npos && api_group.size() < 10) {
-      api_cfg.api_group = std::atol(api_group.c_str());
+  // `--api` alone takes the default path; `--api ""` names an empty one (CLI11 reads both as ""): the words say.
+  for (int i = 1; i < argc; ++i) {
+    const std::string w = argv[i];
+    if (w == "--api=" || (w == "--api" && i + 1 < argc && argv[i + 1][0] == '\0')) {
+      return badArguments("--api: must not be empty (give a socket path, or --api alone for the default)");
+    }
+  }
+  if (api_mode && a.api_cfg.socket_path.empty()) a.api_cfg.socket_path = api::defaultSocketPath();
+  if (!a.api_group.empty()) {
+    if (const group* g = ::getgrnam(a.api_group.c_str()); g != nullptr) {
+      a.api_cfg.api_group = static_cast<long>(g->gr_gid);
+    } else if (a.api_group.find_first_not_of("0123456789") == std::string::npos && a.api_group.size() < 10) {
+      a.api_cfg.api_group = std::atol(a.api_group.c_str());
     } else {
-      std::fprintf(stderr, "phalanxd: error: --api-group: no group '%s'\n", api_group.c_str());
-      return 2;
+      return badArguments("--api-group: no group '" + a.api_group + "'");
     }
   }
-  if (opt.dashboard.enabled && api_cfg.socket_path.empty()) {
-    std::fprintf(stderr, "phalanxd: error: the dashboard needs --api (its controls are control-API requests)\n");
-    return 2;
+  if (a.opt.dashboard.enabled && a.api_cfg.socket_path.empty()) {
+    return badArguments("the dashboard needs --api (its controls are control-API requests)");
   }
-  if (!api_cfg.socket_path.empty()) {
-    api_cfg.defaults = opt;
-    api_cfg.dashboard = opt.dashboard;
-    return api::serve(api_cfg);
-  }
-  if (!profile_path.empty()) {
-    if (const std::string err = therapy::loadProfileFile(profile_path, tcfg.profile); !err.empty()) {
-      std::fprintf(stderr, "phalanxd: error: profile refused: %s\n", err.c_str());
-      return 2;
+  return -1;
+}
+
+/// The one-session mode's therapy options. Returns -1 to go on.
+int prepareTherapy(DaemonArgs& a) {
+  if (!a.profile_path.empty()) {
+    if (const std::string err = therapy::loadProfileFile(a.profile_path, a.tcfg.profile); !err.empty()) {
+      return badArguments("profile refused: " + err);
     }
-    tcfg.have_profile = true;
+    a.tcfg.have_profile = true;
   }
-  if (!exercise_params.empty()) {
-    tcfg.exercise_params = nlohmann::json::parse(exercise_params, nullptr, false);
-    if (tcfg.exercise_params.is_discarded() || !tcfg.exercise_params.is_object()) {
-      std::fprintf(stderr, "phalanxd: error: --exercise-params: not a JSON object\n");
-      return 2;
+  if (!a.exercise_params.empty()) {
+    a.tcfg.exercise_params = nlohmann::json::parse(a.exercise_params, nullptr, false);
+    if (a.tcfg.exercise_params.is_discarded() || !a.tcfg.exercise_params.is_object()) {
+      return badArguments("--exercise-params: not a JSON object");
     }
   }
-  if (!tcfg.report_path.empty() && tcfg.record_path.empty()) {
-    std::fprintf(stderr, "phalanxd: error: --report needs --session-record\n");
-    return 2;
-  }
-  if (tcfg.have_profile && tcfg.exercise.empty()) tcfg.exercise = "idle";  // profile limits need the therapy layer
+  if (!a.tcfg.report_path.empty() && a.tcfg.record_path.empty()) return badArguments("--report needs --session-record");
+  if (a.tcfg.have_profile && a.tcfg.exercise.empty()) a.tcfg.exercise = "idle";  // profile limits need the therapy layer
+  return -1;
+}
+
+int runOneSession(DaemonArgs& a) {
   nlohmann::json summary;
   int rc = 0;
-  if (tcfg.record_path.empty() && tcfg.exercise.empty()) {
-    rc = runSession(opt, summary);
+  if (a.tcfg.record_path.empty() && a.tcfg.exercise.empty()) {
+    rc = runSession(a.opt, summary);
   } else {
-    therapy::TherapySession session(tcfg);
-    opt.hooks = &session;
-    rc = runSession(opt, summary);
+    therapy::TherapySession session(a.tcfg);
+    a.opt.hooks = &session;
+    rc = runSession(a.opt, summary);
     session.finish(summary);
     summary = session.endSummary();
   }
-  printSummary(summary, json);
+  printSummary(summary, a.json);
   return rc;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"phalanxd - Phalanx host daemon"};
+  DaemonArgs a;
+  addDaemonOptions(app, a);
+  if (const int rc = parseArguments(app, a, argc, argv); rc >= 0) return rc;
+  installStopSignals();
+  if (!a.api_cfg.socket_path.empty()) {
+    a.api_cfg.defaults = a.opt;
+    a.api_cfg.dashboard = a.opt.dashboard;
+    return api::serve(a.api_cfg);
+  }
+  if (const int rc = prepareTherapy(a); rc >= 0) return rc;
+  return runOneSession(a);
 }

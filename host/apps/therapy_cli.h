@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_args.h"
 #include "phalanx/host/api/client.h"
 #include "phalanx/host/api/server.h"
 #include "phalanx/host/record/record_reader.h"
@@ -54,8 +55,8 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   start->add_option("--params", t.params, "exercise parameters (JSON object)");
   start->add_option("--device", t.device, "device (default: the daemon's)");
   start->add_option("--scenario", t.scenario, "simulated hand (sim devices)");
-  start->add_option("--seconds", t.seconds, "session length (0: until stop)");
-  start->add_option("--seed", t.seed, "simulation seed");
+  start->add_option("--seconds", t.seconds, "session length (0: until stop)")->check(inRange(0.0, 86400.0));
+  start->add_option("--seed", t.seed, "simulation seed")->check(inRange(0L, 4294967295L));
   client("stop", "stop the session (device left safe; record closed; report written)");
   for (const char* name : {"exercise", "mode"}) {
     CLI::App* sc = client(name, "switch the running session's exercise");

@@ -6,6 +6,8 @@
 #include <set>
 #include <sstream>
 
+#include "phalanx/host/yaml_keys.h"
+
 namespace phalanx::host {
 namespace {
 
@@ -115,7 +117,9 @@ void apply(const YAML::Node& root, RunOptions& opt) {
 std::string loadConfigText(const std::string& yaml_text, const std::string& source, RunOptions& opt) {
   RunOptions candidate = opt;  // nothing changes unless the whole file is valid
   try {
-    apply(YAML::Load(yaml_text), candidate);
+    const YAML::Node root = YAML::Load(yaml_text);
+    if (std::string dup = findDuplicateKey(root); !dup.empty()) throw ConfigError{dup};
+    apply(root, candidate);
   } catch (const ConfigError& e) {
     return source + ": " + e.message;
   } catch (const YAML::Exception& e) {
@@ -123,8 +127,21 @@ std::string loadConfigText(const std::string& yaml_text, const std::string& sour
   }
   const std::string problem = validate(candidate);
   if (!problem.empty()) return source + ": " + problem;
+  if (const std::string err = checkSessionLength(candidate.seconds, candidate.rate_hz); !err.empty()) {
+    return source + ": seconds: " + err;
+  }
   opt = candidate;
   return {};
+}
+
+std::string checkSessionLength(double seconds_s, unsigned rate_hz) {
+  if (!(seconds_s > 0.0) || rate_hz == 0) return {};  // 0 means until stopped; the range is validate()'s
+  // 1e-9: a length of exactly one period (0.001 s at 1 kHz) is one cycle, whatever its binary rounding.
+  if (seconds_s * rate_hz >= 1.0 - 1e-9) return {};
+  std::ostringstream os;
+  os << seconds_s << " s is shorter than one host period (" << 1.0 / rate_hz << " s at " << rate_hz
+     << " Hz); give 0 to run until stopped";
+  return os.str();
 }
 
 std::string loadConfigFile(const std::string& path, RunOptions& opt) {

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "phalanx/host/command_limits.h"
+#include "phalanx/host/config.h"
 #include "phalanx/host/controller.h"
 #include "phalanx/host/device_link.h"
 #include "phalanx/host/design/glove_design.h"
@@ -195,12 +196,7 @@ std::string validate(const RunOptions& opt) {
   }
   if (!std::isfinite(opt.seconds) || opt.seconds < 0 || opt.seconds > 86400) return "seconds: must be in [0, 86400]";
   if (opt.rate_hz < 100 || opt.rate_hz > 4000) return "rate_hz: must be in [100, 4000]";
-  // seconds × rate rounds to the cycle count, and 0 cycles means "until stopped": a positive length shorter than
-  // one period would run forever.
-  if (opt.seconds > 0 && std::llround(opt.seconds * opt.rate_hz) < 1) {
-    return "seconds: must be 0 (until stopped) or at least one period (" + std::to_string(1.0 / opt.rate_hz) +
-           " s at " + std::to_string(opt.rate_hz) + " Hz)";
-  }
+  if (std::string err = checkSessionLength(opt.seconds, opt.rate_hz); !err.empty()) return "seconds: " + err;
   if (opt.command_timeout_ms < 2 || opt.command_timeout_ms > 1000) return "command_timeout_ms: must be in [2, 1000]";
   if (opt.command_timeout_ms * opt.rate_hz < 2000) {
     return "command_timeout_ms: must cover at least two host periods (" + std::to_string(2000 / opt.rate_hz + 1) + " ms at " +

@@ -212,6 +212,9 @@ TEST(ControlApi, MalformedAndInvalidRequestsAreRefusedAndChangeNothing) {
             std::string::npos);
   EXPECT_NE(d.refused({{"cmd", "start"}, {"device", "tcp:1.2.3.4"}}).find("device"), std::string::npos);
   EXPECT_NE(d.refused({{"cmd", "start"}, {"seconds", "ten"}}).find("seconds"), std::string::npos);
+  // 0.0001 s at 1 kHz would round to zero cycles, i.e. a session that runs until stopped.
+  EXPECT_NE(d.refused({{"cmd", "start"}, {"seconds", 0.0001}}).find("field 'seconds': 0.0001 s is shorter than one host period"),
+            std::string::npos);
   EXPECT_NE(d.refused({{"cmd", "start"}, {"exercise", "playback"}}).find("no grip/release pattern"), std::string::npos);
   EXPECT_EQ(d.ok({{"cmd", "status"}})["session_running"], false) << "no refused start may start a session";
   EXPECT_EQ(d.ok({{"cmd", "recordings"}}).size(), 0u) << "no refused start may create a record";

@@ -240,6 +240,12 @@ TEST(BenchRun, PlanErrorsNameTheKey) {
             std::string::npos);
 }
 
+TEST(BenchRun, APlanWithARepeatedKeyIsRefusedNamingIt) {
+  br::Plan p;
+  const std::string err = br::loadPlanText("steps:\n  - kind: sea-rig-sine\n    peak_Nm: 0.1\n    peak_Nm: 0.3\n", "p", p);
+  EXPECT_NE(err.find("p: steps[0].peak_Nm: duplicate key"), std::string::npos) << err;
+}
+
 TEST(BenchRun, MetricsFollowTheirDefinitions) {
   // y = r exactly: zero error, 100 % fidelity, |G| = 0 dB everywhere (bandwidth beyond the band).
   std::vector<double> r(8000), y(8000), half(8000);

@@ -65,3 +65,27 @@ TEST(Config, RejectsAnUnknownDeviceAndScenario) {
   EXPECT_NE(loadConfigText("glove: {scenario: dance}\n", "x", o).find("scenario"), std::string::npos);
   EXPECT_NE(loadConfigText("version: 2\n", "x", o).find("version"), std::string::npos);
 }
+
+TEST(Config, RefusesARepeatedKeyInsteadOfKeepingTheFirst) {
+  RunOptions o;
+  const std::string err = loadConfigText("rate_hz: 100\nrate_hz: 4000\n", "x.yaml", o);
+  EXPECT_EQ(err, "x.yaml: rate_hz: duplicate key (line 2; first at line 1)");
+  EXPECT_EQ(o.rate_hz, RunOptions{}.rate_hz);  // nothing applied
+  const std::string nested = loadConfigText("modbus:\n  enabled: false\n  port: 1502\n  port: 502\n", "x.yaml", o);
+  EXPECT_NE(nested.find("x.yaml: modbus.port: duplicate key"), std::string::npos) << nested;
+}
+
+TEST(Config, RefusesAPositiveLengthShorterThanOneHostPeriod) {
+  RunOptions o;
+  // 0.0004 s at 1 kHz rounds to zero cycles, which the runner reads as "until stopped".
+  const std::string err = loadConfigText("seconds: 0.0004\n", "x.yaml", o);
+  EXPECT_NE(err.find("x.yaml: seconds: 0.0004 s is shorter than one host period (0.001 s at 1000 Hz)"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(loadConfigText("seconds: 0.0008\nrate_hz: 1000\n", "x.yaml", o), "");
+  EXPECT_EQ(loadConfigText("seconds: 0.0008\nrate_hz: 2000\n", "x.yaml", o), "");  // 1.6 periods: 2 cycles
+  EXPECT_EQ(loadConfigText("seconds: 0.001\n", "x.yaml", o), "");                   // exactly one period
+  EXPECT_EQ(loadConfigText("seconds: 0\n", "x.yaml", o), "");                       // until stopped
+  EXPECT_EQ(phalanx::host::checkSessionLength(0.0025, 400), "");
+  EXPECT_NE(phalanx::host::checkSessionLength(0.0024, 400), "");
+}

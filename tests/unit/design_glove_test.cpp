@@ -171,5 +171,12 @@ TEST(DesignGlove, GeometryYamlRoundTripsAndBadFilesAreRejectedByName) {
     f << "glove_finger_geometry:\n  finger: {p_mm: [48, 28]}\n";
   }
   EXPECT_NE(d::loadGloveGeometryYaml(path, back).find("finger.p_mm"), std::string::npos);
+  {
+    std::ofstream f(path);
+    f << d::gloveGeometryYaml(m, a, "test") << "  mechanism: {l_mm: [1, 1, 1]}\n";  // a second 'mechanism'
+  }
+  EXPECT_NE(d::loadGloveGeometryYaml(path, back).find("glove_finger_geometry.mechanism: duplicate key"),
+            std::string::npos)
+      << d::loadGloveGeometryYaml(path, back);
   std::remove(path.c_str());
 }

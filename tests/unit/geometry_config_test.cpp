@@ -160,6 +160,8 @@ TEST(GeometryConfig, BadGeometryFilesAreRefusedByName) {
   refuse("pen:\n  geometry: " + far + "\n", {far, "home pose", "unreachable"});
   const std::string oldreading = writeFile("reading.yaml", edit("centre to universal joint (pen length 2 l6)", "pen length"));
   refuse("pen:\n  geometry: " + oldreading + "\n", {oldreading, "pen_geometry.l6_reading"});
+  const std::string twice = writeFile("twice.yaml", edit("l2_m: 0.145", "l2_m: 0.145\n  l2_m: 0.17"));
+  refuse("pen:\n  geometry: " + twice + "\n", {"pen.geometry", twice, "pen_geometry.l2_m: duplicate key"});
   // A glove file given as a pen geometry, and a pen file given as a glove finger.
   glove::Model<double> gm = glove::defaultModel<double>(glove::FingerId::kIndex);
   const std::string glovefile = writeFile("glove.yaml", d::gloveGeometryYaml(gm, d::analyseGlove(gm, d::SweepGrid{{3, 3, 3}}), "g"));
@@ -175,7 +177,7 @@ TEST(GeometryConfig, BadGeometryFilesAreRefusedByName) {
   EXPECT_EQ(host::makeController(protocol::kGlove5Layout, opt, err), nullptr);
   EXPECT_NE(err.find("pen.geometry"), std::string::npos) << err;
   EXPECT_NE(err.find("glove5"), std::string::npos) << err;
-  for (const std::string& p : {unknown, negative, text, cm, far, oldreading, glovefile, penfile}) std::remove(p.c_str());
+  for (const std::string& p : {unknown, negative, text, cm, far, oldreading, twice, glovefile, penfile}) std::remove(p.c_str());
 }
 
 TEST(GeometryConfig, FingerprintIsTheSameInFloatAndDoubleAndSeesEveryLength) {

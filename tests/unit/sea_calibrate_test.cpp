@@ -396,6 +396,25 @@ TEST(SeaCalibrate, SubjectYamlRoundTripKeepsOtherKeysAndRejectsUnknownOnes) {
   std::remove(path.c_str());
 }
 
+TEST(SeaCalibrate, ASubjectFileWithARepeatedKeyIsRefusedOnReadAndBeforeItIsRewritten) {
+  const std::string path = ::testing::TempDir() + "sea_subject_dup.yaml";
+  {
+    std::ofstream f(path);
+    f << "sea_subject:\n  l_CE_m: 0.051\n  l_CE_m: 0.06\n";
+  }
+  SubjectParams sp = ps::table4Initial<double>();
+  ps::FixedGeometry<double> fixed = ps::defaultModel<double>().fixed;
+  EXPECT_NE(loadSubjectYaml(path, sp, fixed).find("sea_subject.l_CE_m: duplicate key"), std::string::npos);
+  {
+    std::ofstream f(path);
+    f << "name: a\nname: b\n";
+  }
+  CalibrationResult r;
+  r.estimate = ps::table4Initial<double>();
+  EXPECT_NE(writeSubjectYaml(path, r, fixed, "test.csv").find("name: duplicate key"), std::string::npos);
+  std::remove(path.c_str());
+}
+
 TEST(SeaCalibrate, CommandReadsARecorderCsvAndWritesTheSubjectFile) {
   // `phalanx sea-calibrate --recording <csv> --subject <yaml>` end to end, on the columns phalanx run --record
   // writes for sea_finger.

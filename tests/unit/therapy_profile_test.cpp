@@ -93,6 +93,14 @@ TEST(Profile, EveryInvalidProfileIsRefusedNamingWhatWasWrong) {
   }
 }
 
+TEST(Profile, ARepeatedKeyIsRefusedInsteadOfTheLastOneWinning) {
+  Profile p;
+  const std::string err = load(with("effort_max: {default: 4, thumb: 2.5}", "effort_max: {default: 2, index: 1, index: 9}"), p);
+  EXPECT_NE(err.find("p.yaml: limits.effort_max.index: duplicate key"), std::string::npos) << err;
+  const std::string top = load(with("size: S\n", "size: S\nsize: L\n"), p);
+  EXPECT_NE(top.find("p.yaml: size: duplicate key"), std::string::npos) << top;
+}
+
 TEST(Profile, TheShippedDemoProfileIsValid) {
   Profile p;
   EXPECT_EQ(loadProfileFile(std::string(PHALANX_SOURCE_DIR) + "/config/profiles/demo-001.yaml", p), "");

@@ -25,6 +25,7 @@
 
 #include "phalanx/host/api/dashboard.h"
 #include "phalanx/host/api/socket_access.h"
+#include "phalanx/host/config.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
@@ -294,6 +295,9 @@ class Daemon {
     }
     opt.record_csv.clear();
     opt.live_view = false;
+    if (const std::string err = checkSessionLength(opt.seconds, opt.rate_hz); !err.empty()) {
+      throw RequestError{(req.contains("seconds") ? "field 'seconds': " : "seconds: ") + err};
+    }
     if (const std::string err = validate(opt); !err.empty()) throw RequestError{err};
     // Validate the exercise before anything starts: a refused request changes nothing.
     {

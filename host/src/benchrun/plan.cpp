@@ -8,6 +8,7 @@
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/host/pen/pen_scene.h"
+#include "phalanx/host/yaml_keys.h"
 
 namespace phalanx::host::benchrun {
 namespace {
@@ -165,7 +166,9 @@ std::string loadPlanText(const std::string& yaml, const std::string& source, Pla
   p.instrument.type = "int32";
   p.instrument.scale = 1e-5;
   try {
-    apply(YAML::Load(yaml), p);
+    const YAML::Node root = YAML::Load(yaml);
+    if (std::string dup = findDuplicateKey(root); !dup.empty()) throw Bad{dup};
+    apply(root, p);
   } catch (const Bad& b) {
     return source + ": " + b.what;
   } catch (const YAML::Exception& e) {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "phalanx/host/design/svg.h"
+#include "phalanx/host/yaml_keys.h"
 
 namespace phalanx::host::design {
 
@@ -426,6 +427,7 @@ std::string loadGloveGeometryYaml(const std::string& path, GloveModel& out) {
   } catch (const std::exception& ex) {
     return "cannot read '" + path + "': " + ex.what();
   }
+  if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
   const YAML::Node g = root["glove_finger_geometry"];
   if (!g) return path + ": missing 'glove_finger_geometry'";
   auto vec = [&](const YAML::Node& n, std::size_t size, const char* name, std::vector<double>& v) -> std::string {

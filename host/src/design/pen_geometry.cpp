@@ -5,6 +5,8 @@
 #include <cmath>
 #include <set>
 
+#include "phalanx/host/yaml_keys.h"
+
 namespace phalanx::host::design {
 
 namespace {
@@ -43,6 +45,7 @@ std::string loadPenGeometryYaml(const std::string& path, pen::Geometry<double>& 
   } catch (const YAML::Exception& ex) {
     return path + ": YAML syntax error at line " + std::to_string(ex.mark.line + 1) + ": " + ex.msg;
   }
+  if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
   if (root.IsMap() && root["glove_finger_geometry"]) {
     return path + ": is a glove finger geometry (glove_finger_geometry), not a pen geometry";
   }

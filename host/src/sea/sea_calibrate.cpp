@@ -12,6 +12,8 @@
 #include <limits>
 #include <sstream>
 
+#include "phalanx/host/yaml_keys.h"
+
 namespace phalanx::host::sea {
 
 namespace ps = phalanx::sea;
@@ -439,6 +441,7 @@ std::string loadSubjectYaml(const std::string& path, SubjectParams& subject, Fix
   } catch (const YAML::Exception& e) {
     return path + ": " + e.what();
   }
+  if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
   const YAML::Node s = root["sea_subject"];
   if (!s) return path + ": no 'sea_subject' mapping";
   if (!s.IsMap()) return path + ": sea_subject: must be a mapping";
@@ -485,6 +488,8 @@ std::string writeSubjectYaml(const std::string& path, const CalibrationResult& r
       } catch (const YAML::Exception& e) {
         return path + ": " + e.what();
       }
+      // The file is rewritten with its other keys kept: a repeated one would be written twice again.
+      if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
     }
   }
   if (!root.IsMap()) root = YAML::Node(YAML::NodeType::Map);

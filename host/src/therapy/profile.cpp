@@ -12,6 +12,8 @@
 #include <set>
 #include <sstream>
 
+#include "phalanx/host/yaml_keys.h"
+
 namespace phalanx::host::therapy {
 namespace {
 
@@ -221,6 +223,7 @@ std::string loadProfileText(const std::string& yaml_text, const std::string& sou
   try {
     const YAML::Node root = YAML::Load(yaml_text);
     if (!root || root.IsNull()) return source + ": empty profile";
+    if (std::string dup = findDuplicateKey(root); !dup.empty()) return source + ": " + dup;
     parse(root, p);
   } catch (const ProfileError& e) {
     return source + ": " + e.message;
