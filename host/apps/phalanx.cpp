@@ -44,18 +44,18 @@ int main(int argc, char** argv) {
   mcu_diag->add_option("--device", mcu_diag_device, "serial:<path> of the board (e.g. the QEMU board's pty)")
       ->required();
   mcu_diag->add_option("--timeout", mcu_diag_timeout_s, "seconds to wait for each answer")
-      ->check(phalanx::host::cli::inRange(0.1, 60.0));
+      ->check(cli::inRange(0.1, 60.0));
   CLI::App* can = app.add_subcommand("can", "CAN bus-load budget (computed) and measurement (from candump -L)");
   can->require_subcommand(1);
   double can_rate_hz = 1000, can_bps = 1e6, can_data_bps = 5e6;
   std::string can_log;
   CLI::App* can_budget = can->add_subcommand("budget", "bus load of every device per tick, from the CAN mapping");
-  can_budget->add_option("--rate-hz", can_rate_hz, "ticks per second")->check(phalanx::host::cli::inRange(1.0, 10000.0));
-  can_budget->add_option("--bitrate", can_bps, "nominal bit rate")->check(phalanx::host::cli::inRange(1e4, 1e6));
+  can_budget->add_option("--rate-hz", can_rate_hz, "ticks per second")->check(cli::inRange(1.0, 10000.0));
+  can_budget->add_option("--bitrate", can_bps, "nominal bit rate")->check(cli::inRange(1e4, 1e6));
   CLI::App* can_load = can->add_subcommand("load", "bus load measured from a candump -L log");
   can_load->add_option("--log", can_log, "candump -L log file")->required();
-  can_load->add_option("--bitrate", can_bps, "nominal bit rate")->check(phalanx::host::cli::inRange(1e4, 1e6));
-  can_load->add_option("--data-bitrate", can_data_bps, "CAN-FD data-phase bit rate")->check(phalanx::host::cli::inRange(1e4, 1.2e7));
+  can_load->add_option("--bitrate", can_bps, "nominal bit rate")->check(cli::inRange(1e4, 1e6));
+  can_load->add_option("--data-bitrate", can_data_bps, "CAN-FD data-phase bit rate")->check(cli::inRange(1e4, 1.2e7));
 
   CLI::App* bench = app.add_subcommand("bench", "run a bench scenario and print its metrics");
   bench->require_subcommand(1);
@@ -64,14 +64,14 @@ int main(int argc, char** argv) {
   bool bench_no_drift = false;
   auto add_bench_options = [&](CLI::App* sc) {
     sc->add_option("--seconds", bench_opt.seconds, "scenario length (0: its default)")
-        ->check(phalanx::host::cli::inRange(0.0, 600.0))
-        ->check(phalanx::host::cli::zeroOrAtLeast(kBenchStep_s, "its default"));
+        ->check(cli::inRange(0.0, 600.0))
+        ->check(cli::zeroOrAtLeast(kBenchStep_s, "its default"));
     sc->add_option("--seed", bench_opt.seed, "simulation seed");
     sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
     sc->add_flag("--no-drift", bench_no_drift, "simulated strain gauges without their thermal zero drift (noise stays)");
     sc->add_option("--worn-s", bench_opt.worn_s,
                    "how long the glove was worn before the start (s; the pad is still warming up; default 60)")
-        ->check(phalanx::host::cli::inRange(0.0, 86400.0));
+        ->check(cli::inRange(0.0, 86400.0));
     sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
   };
   CLI::App* free_motion = bench->add_subcommand("glove-free-motion", "close/open maneuvers at zero force (000 §4.3)");
@@ -83,24 +83,24 @@ int main(int argc, char** argv) {
   auto add_sea_options = [&](CLI::App* sc) {
     sc->option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
     sc->add_option("--seconds", sea_opt.seconds, "scenario length (0: its default)")
-        ->check(phalanx::host::cli::inRange(0.0, 600.0))
-        ->check(phalanx::host::cli::zeroOrAtLeast(kBenchStep_s, "its default"));
+        ->check(cli::inRange(0.0, 600.0))
+        ->check(cli::zeroOrAtLeast(kBenchStep_s, "its default"));
     sc->add_option("--seed", sea_opt.seed, "simulation seed");
     sc->add_flag("--no-noise", bench_no_noise, "simulated sensors without noise");
     sc->add_flag("--json", json, "JSON output (the default; kept for scripts)");
     sc->add_option("--controller", sea_opt.controller, "both | paper (001 plain PID, eq 7-8) | ours")
         ->check(CLI::IsMember({"both", "paper", "ours"}));
     sc->add_option("--plant-backlash-scale", sea_opt.plant_backlash_scale,
-                   "scale the simulated cable play (model mismatch)")->check(phalanx::host::cli::inRange(0.0, 5.0));
+                   "scale the simulated cable play (model mismatch)")->check(cli::inRange(0.0, 5.0));
   };
   CLI::App* sea_sine = bench->add_subcommand("sea-rig-sine", "SEA test rig, sinusoidal torque (001 §7.1.1-7.1.2, eq 15)");
   add_sea_options(sea_sine);
-  sea_sine->add_option("--peak-Nm", sea_opt.peak_Nm, "peak torque (paper: 0.15 or 0.3)")->check(phalanx::host::cli::inRange(0.0, 0.4));
-  sea_sine->add_option("--hz", sea_opt.hz, "frequency (paper: 0.5)")->check(phalanx::host::cli::inRange(0.01, 20.0));
+  sea_sine->add_option("--peak-Nm", sea_opt.peak_Nm, "peak torque (paper: 0.15 or 0.3)")->check(cli::inRange(0.0, 0.4));
+  sea_sine->add_option("--hz", sea_opt.hz, "frequency (paper: 0.5)")->check(cli::inRange(0.01, 20.0));
   CLI::App* sea_chirp = bench->add_subcommand("sea-rig-chirp", "SEA test rig, linear chirp, -3 dB bandwidth (001 §7.1.3, eq 16-17)");
   add_sea_options(sea_chirp);
-  sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(phalanx::host::cli::inRange(0.01, 0.4));
-  sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(phalanx::host::cli::inRange(2.0, 50.0));
+  sea_chirp->add_option("--amplitude-Nm", sea_opt.chirp_amplitude_Nm, "chirp amplitude tau_A")->check(cli::inRange(0.01, 0.4));
+  sea_chirp->add_option("--fmax-hz", sea_opt.chirp_fmax_hz, "frequency at the end of the sweep")->check(cli::inRange(2.0, 50.0));
   CLI::App* sea_finger_torque =
       bench->add_subcommand("sea-finger-torque", "SEA exoskeleton on the simulated finger: finger MCP/PIP torque tracking (001 §7.6, eq 9-11)");
   add_sea_options(sea_finger_torque);
@@ -116,30 +116,30 @@ int main(int argc, char** argv) {
   sea_cal->add_option("--recording", sea_cal_csv, "CSV over a full range of motion (phalanx run --record; recommended: 60 s at 1 kHz, --smooth 51 --stride 10)")->required();
   sea_cal->add_option("--subject", sea_cal_subject, "subject YAML to update (created if absent)")->required();
   int sea_cal_smooth = 1;
-  sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(phalanx::host::cli::inRange(1, 1000));
+  sea_cal->add_option("--stride", sea_cal_stride, "use every n-th row")->check(cli::inRange(1, 1000));
   sea_cal->add_option("--smooth", sea_cal_smooth, "centred quadratic Savitzky-Golay smoothing over n rows before the fit (1 kHz recording: 51)")
-      ->check(phalanx::host::cli::inRange(1, 1001));
+      ->check(cli::inRange(1, 1001));
   sea_cal->add_flag("--json", json, "JSON output");
 
   phalanx::host::pen::PenSplitBenchOptions pen_split_opt;
   CLI::App* pen_split = bench->add_subcommand("pen-split", "pen force split over the workspace: accuracy, effort, saturation (004 Fig. 18)");
   pen_split->add_option("--seed", pen_split_opt.seed, "random-wrench seed");
-  pen_split->add_option("--grid", pen_split_opt.grid, "samples per workspace axis (grid^5 poses)")->check(phalanx::host::cli::inRange(2, 15));
+  pen_split->add_option("--grid", pen_split_opt.grid, "samples per workspace axis (grid^5 poses)")->check(cli::inRange(2, 15));
   pen_split->add_option("--wrenches-per-pose", pen_split_opt.wrenches_per_pose, "random wrenches per pose and class")
-      ->check(phalanx::host::cli::inRange(1, 1000));
+      ->check(cli::inRange(1, 1000));
   pen_split->add_flag("--json", json, "JSON output (the default; kept for scripts)");
 
   phalanx::host::pen::PenWallBenchOptions pen_wall_opt;
   bool pen_wall_no_braking = false, pen_wall_no_noise = false;
   CLI::App* pen_wall = bench->add_subcommand("pen-wall", "pen tip pressed into the stiff box walls and corners, PD+B in lockstep (004 Fig. 19-20)");
   pen_wall->add_option("--stiffness-N-per-cm", pen_wall_opt.stiffness_N_per_cm, "horizontal wall stiffness (floor: 0.7x)")
-      ->check(phalanx::host::cli::inRange(0.1, 200.0));
-  pen_wall->add_option("--damping-scale", pen_wall_opt.damping_scale, "x the paper's box damping")->check(phalanx::host::cli::inRange(0.0, 100.0));
+      ->check(cli::inRange(0.1, 200.0));
+  pen_wall->add_option("--damping-scale", pen_wall_opt.damping_scale, "x the paper's box damping")->check(cli::inRange(0.0, 100.0));
   pen_wall->add_flag("--no-braking", pen_wall_no_braking, "no braking pulse at contact onset");
   bool pen_wall_no_cap = false;
   pen_wall->add_flag("--no-brake-cap", pen_wall_no_cap, "the paper's braking pulse without the momentum cap");
   pen_wall->add_option("--velocity-filter-hz", pen_wall_opt.velocity_filter_hz, "end-velocity low-pass cutoff")
-      ->check(phalanx::host::cli::inRange(1.0, 500.0));
+      ->check(cli::inRange(1.0, 500.0));
   pen_wall->add_flag("--sweep", pen_wall_opt.sweep, "also sweep the stiffness with and without braking");
   pen_wall->add_option("--seed", pen_wall_opt.seed, "simulation seed");
   pen_wall->add_flag("--no-noise", pen_wall_no_noise, "simulated sensors without noise");
@@ -152,9 +152,9 @@ int main(int argc, char** argv) {
   plan_run->add_option("--report", plan_report, "HTML report path (default: the plan's report key, or PLAN.html)");
 
   DesignCommands design_cmds(app);
-  phalanx::host::cli::refuseEmptyValues(app);
+  cli::refuseEmptyValues(app);
 
-  if (int rc = 0; !phalanx::host::cli::parseArgs(app, argc, argv, "phalanx", rc)) return rc;
+  if (int rc = 0; !cli::parseArgs(app, argc, argv, "phalanx", rc)) return rc;
   if (design_cmds.parsed()) return design_cmds.run();
   if (plan_run->parsed()) return phalanx::host::benchrun::benchRunMain(plan_path, plan_report);
   if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
@@ -223,12 +223,12 @@ int main(int argc, char** argv) {
       return 2;
     }
     opt = from_file;
-    if (int rc = 0; !phalanx::host::cli::parseArgs(app, argc, argv, "phalanx", rc)) return rc;
+    if (int rc = 0; !cli::parseArgs(app, argc, argv, "phalanx", rc)) return rc;
   }
   if (const std::string err = checkSessionLength(opt.seconds, opt.rate_hz); !err.empty()) {
     const std::string where = run->count("--seconds") > 0 ? "--seconds" : config_path + ": seconds";
     std::fprintf(stderr, "phalanx: error: %s: %s\n", where.c_str(), err.c_str());
-    return phalanx::host::cli::kExitBadArguments;
+    return cli::kExitBadArguments;
   }
   if (no_rt) opt.realtime = false;
   if (opt.seconds == 0.0 && json) opt.seconds = 10.0;
