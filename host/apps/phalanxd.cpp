@@ -91,9 +91,14 @@ int main(int argc, char** argv) {
     rc = runSession(opt, summary);
   } else {
     therapy::TherapySession session(tcfg);
+    // The record file first: a path that cannot be created refuses the session before the device is touched.
+    if (const std::string err = session.createRecord(); !err.empty()) {
+      std::fprintf(stderr, "phalanxd: error: --session-record: %s\n", err.c_str());
+      return 2;
+    }
     opt.hooks = &session;
     rc = runSession(opt, summary);
-    session.finish(summary);
+    rc = session.finish(summary, rc);
     summary = session.endSummary();
   }
   printSummary(summary, json);

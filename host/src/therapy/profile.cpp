@@ -1,17 +1,24 @@
 #include "phalanx/host/therapy/profile.h"
 
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <regex>
 #include <set>
 #include <sstream>
 
+#include "phalanx/host/therapy/records_dir.h"
+
 namespace phalanx::host::therapy {
 namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
+/// Far above any real profile (a few hundred bytes); bounds what a wrong path (a log, a device file) can cost.
+constexpr off_t kMaxProfileBytes = 1 << 20;
 
 struct ProfileError {
   std::string message;
@@ -68,6 +75,9 @@ void parse(const YAML::Node& root, Profile& p) {
   p.patient = text(root["patient"], "patient");
   if (!std::regex_match(p.patient, std::regex("[A-Za-z0-9_-]{1,64}"))) {
     throw ProfileError{"patient: '" + p.patient + "' must be 1-64 letters, digits, '-' or '_' (an id, not a name)"};
+  }
+  if (p.patient == kAnonymousPatient) {
+    throw ProfileError{"patient: '" + p.patient + "' is reserved (the records of sessions without a profile)"};
   }
   if (!root["device"]) throw ProfileError{"device: missing"};
   p.device = text(root["device"], "device");
@@ -228,11 +238,30 @@ std::string loadProfileText(const std::string& yaml_text, const std::string& sou
 }
 
 std::string loadProfileFile(const std::string& path, Profile& out) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return path + ": cannot read profile: " + std::strerror(errno);
+  if (!S_ISREG(st.st_mode)) return path + ": cannot read profile: not a regular file";
+  if (st.st_size > kMaxProfileBytes) {
+    return path + ": cannot read profile: " + std::to_string(st.st_size) + " bytes (a profile is at most " +
+           std::to_string(kMaxProfileBytes) + ")";
+  }
   std::ifstream in(path);
   if (!in) return path + ": cannot read profile";
   std::stringstream ss;
   ss << in.rdbuf();
-  return loadProfileText(ss.str(), path, out);
+  Profile p;
+  if (std::string err = loadProfileText(ss.str(), path, p); !err.empty()) return err;
+  // The file name is the patient id (<patient>.yaml): a profile holding another patient's id is refused, so no
+  // session can record one patient under another's name.
+  const std::string file = path.substr(path.rfind('/') + 1);
+  const auto dot = file.rfind('.');
+  const std::string stem = dot == std::string::npos ? file : file.substr(0, dot);
+  if (stem != p.patient) {
+    return path + ": patient: '" + p.patient + "' does not match the file name '" + file + "' (the profile of patient '" +
+           p.patient + "' must be " + p.patient + ".yaml)";
+  }
+  out = std::move(p);
+  return {};
 }
 
 }  // namespace phalanx::host::therapy
