@@ -84,29 +84,29 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
       ->check(CLI::ExistingFile);
 }
 
-inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
-  if (cmd == "status" && r.contains("session")) {
-    const auto& s = r["session"];
-    std::printf("session %s", s.value("phase", "?").c_str());
-    if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
-    if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
-    if (s.contains("t_s")) {
-      std::printf(", %.1f s, device %s, faults %s%s", s["t_s"].get<double>(), s["device_mode"].get<std::string>().c_str(),
-                  s["faults"].get<std::string>().c_str(), s["estop"].get<bool>() ? ", E-STOP" : "");
-    }
-    std::printf("\n");
-    if (s.contains("record_error")) std::printf("  RECORD FAILED: %s\n", s["record_error"].get<std::string>().c_str());
-    if (s.contains("channels")) {
-      for (const auto& [name, c] : s["channels"].items()) {
-        auto f = [&](const char* k) { return c[k].is_number() ? c[k].get<double>() : 0.0; };
-        std::printf("  %-8s q %6.1f deg  effort %6.2f (cmd %6.2f, max %.2f) %s\n", name.c_str(), f("q_deg"),
-                    f("effort_measured"), f("effort_command"), f("effort_max"), s["effort_unit"].get<std::string>().c_str());
-      }
-    }
-    return;
+inline void printSessionStatus(const nlohmann::json& s) {
+  std::printf("session %s", s.value("phase", "?").c_str());
+  if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
+  if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
+  if (s.contains("t_s")) {
+    std::printf(", %.1f s, device %s, faults %s%s", s["t_s"].get<double>(), s["device_mode"].get<std::string>().c_str(),
+                s["faults"].get<std::string>().c_str(), s["estop"].get<bool>() ? ", E-STOP" : "");
   }
+  std::printf("\n");
+  if (s.contains("record_error")) std::printf("  RECORD FAILED: %s\n", s["record_error"].get<std::string>().c_str());
+  if (s.contains("channels")) {
+    for (const auto& [name, c] : s["channels"].items()) {
+      auto f = [&](const char* k) { return c[k].is_number() ? c[k].get<double>() : 0.0; };
+      std::printf("  %-8s q %6.1f deg  effort %6.2f (cmd %6.2f, max %.2f) %s\n", name.c_str(), f("q_deg"),
+                  f("effort_measured"), f("effort_command"), f("effort_max"), s["effort_unit"].get<std::string>().c_str());
+    }
+  }
+}
+
+inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
   if (cmd == "status") {
-    std::printf("no session%s\n", r.contains("last_session") ? " running (a previous one ended)" : "");
+    if (r.contains("session")) printSessionStatus(r["session"]);
+    else std::printf("no session%s\n", r.contains("last_session") ? " running (a previous one ended)" : "");
     if (r.contains("last_session") && r["last_session"].contains("error")) {
       std::printf("the last session ended with an error: %s\n", r["last_session"]["error"].get<std::string>().c_str());
     }
