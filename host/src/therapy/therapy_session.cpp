@@ -312,7 +312,7 @@ int TherapySession::finish(const nlohmann::json& summary, int runner_rc) {
       std::fprintf(stderr, "%s: therapy session stopped: its record %s cannot be written; the device was left safe\n",
                    program_invocation_short_name, config_.record_path.c_str());
     }
-    end["record"] = r;
+    end["session_record"] = r;
   }
   if (!config_.report_path.empty() && !config_.record_path.empty()) {
     if (!recorded || writer_.failed()) {

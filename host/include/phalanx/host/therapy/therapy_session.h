@@ -4,7 +4,7 @@
 ///
 /// A therapy session never continues unrecorded: when its record cannot be written (records disk full, read-only,
 /// failing), stopRequested() turns true at the writer's first error, runSession ends the session the normal way
-/// (device commanded safe), and finish() reports the error (summary "error" and "record.error", exit code
+/// (device commanded safe), and finish() reports the error (summary "error" and "session_record.error", exit code
 /// record::kExitRecordFailed). docs/therapy.md, "When the records disk fails".
 #include <atomic>
 #include <ctime>
@@ -71,9 +71,9 @@ class TherapySession : public SessionHooks {
   /// Free retired exercises (call periodically off the loop).
   void housekeeping();
   /// Called by the owner after runSession returned (any outcome) with runSession's exit code: closes the record,
-  /// writes the report and the end summary ("record": path, cycles_written, cycles_lost[, error]; "exit_code").
+  /// writes the report and the end summary ("session_record": path, cycles_written, cycles_lost[, error]; "exit_code").
   /// Returns the session's exit code: runner_rc, or record::kExitRecordFailed when only the record failed.
-  int finish(const nlohmann::json& summary, int runner_rc);
+  int finish(const nlohmann::json& summary, int runner_rc = 0);
   const TherapySessionConfig& config() const { return config_; }
   /// "starting" | "running" | "ended"
   std::string phase() const;
