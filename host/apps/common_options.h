@@ -76,8 +76,11 @@ inline void printSummary(const nlohmann::json& s, bool json) {
               num("period_jitter", "p50_us"), num("period_jitter", "p99_us"),
               s["faults_seen"].get<std::string>().c_str(), s["final_mode"].get<std::string>().c_str());
   if (s.contains("recording")) {
-    std::printf("recorded %llu rows to %s\n", s["recording"]["rows"].get<unsigned long long>(),
-                s["recording"]["path"].get<std::string>().c_str());
+    const auto& r = s["recording"];
+    std::printf("recorded %llu rows to %s", r["rows"].get<unsigned long long>(), r["path"].get<std::string>().c_str());
+    if (r.value("dropped_rows", 0ull) > 0) std::printf(", %llu rows lost", r["dropped_rows"].get<unsigned long long>());
+    std::printf("\n");
+    if (r.contains("error")) std::printf("RECORDING FAILED: %s\n", r["error"].get<std::string>().c_str());
   }
 }
 

@@ -150,9 +150,14 @@ int runOneSession(DaemonArgs& a) {
     rc = runSession(a.opt, summary);
   } else {
     therapy::TherapySession session(a.tcfg);
+    // The record file first: a path that cannot be created refuses the session before the device is touched.
+    if (const std::string err = session.createRecord(); !err.empty()) {
+      std::fprintf(stderr, "phalanxd: error: --session-record: %s\n", err.c_str());
+      return 2;
+    }
     a.opt.hooks = &session;
     rc = runSession(a.opt, summary);
-    session.finish(summary);
+    rc = session.finish(summary, rc);
     summary = session.endSummary();
   }
   printSummary(summary, a.json);

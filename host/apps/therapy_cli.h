@@ -76,43 +76,55 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_export = t.record->add_subcommand("export", "export a record to CSV");
   t.rec_export->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_export->add_flag("--csv", t.csv, "CSV output (the only format)")->required();
-  t.rec_export->add_option("--out", t.rec_out, "output file (default: FILE with .csv)");
+  t.rec_export->add_option("--out", t.rec_out, "output file (default: FILE with .csv; never the record itself)");
   t.rec_info = t.record->add_subcommand("info", "header, counts and integrity of a record");
   t.rec_info->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_report = t.record->add_subcommand("report", "write the HTML report of a record");
   t.rec_report->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_report->add_option("--previous", t.rec_previous, "previous session's record, for comparison");
-  t.rec_report->add_option("--out", t.rec_out, "output file (default: FILE with .html)");
+  t.rec_report->add_option("--out", t.rec_out, "output file (default: FILE with .html; never one of the inputs)");
   t.rec_report->add_option("--reference", t.rec_reference,
                            "device-free recording of the same motion (CSV t_s,<joint>_deg,...): transparency Pearson r")
       ->check(CLI::ExistingFile);
 }
 
-inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
-  if (cmd == "status" && r.contains("session")) {
-    const auto& s = r["session"];
-    std::printf("session %s", s.value("phase", "?").c_str());
-    if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
-    if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
-    if (s.contains("t_s")) {
-      std::printf(", %.1f s, device %s, faults %s%s", s["t_s"].get<double>(), s["device_mode"].get<std::string>().c_str(),
-                  s["faults"].get<std::string>().c_str(), s["estop"].get<bool>() ? ", E-STOP" : "");
-    }
-    std::printf("\n");
-    if (s.contains("channels")) {
-      for (const auto& [name, c] : s["channels"].items()) {
-        auto f = [&](const char* k) { return c[k].is_number() ? c[k].get<double>() : 0.0; };
-        std::printf("  %-8s q %6.1f deg  effort %6.2f (cmd %6.2f, max %.2f) %s\n", name.c_str(), f("q_deg"),
-                    f("effort_measured"), f("effort_command"), f("effort_max"), s["effort_unit"].get<std::string>().c_str());
-      }
-    }
-    return;
+inline void printSessionStatus(const nlohmann::json& s) {
+  std::printf("session %s", s.value("phase", "?").c_str());
+  if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
+  if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
+  if (s.contains("t_s")) {
+    std::printf(", %.1f s, device %s, faults %s%s", s["t_s"].get<double>(), s["device_mode"].get<std::string>().c_str(),
+                s["faults"].get<std::string>().c_str(), s["estop"].get<bool>() ? ", E-STOP" : "");
   }
+  std::printf("\n");
+  if (s.contains("record_error")) std::printf("  RECORD FAILED: %s\n", s["record_error"].get<std::string>().c_str());
+  if (s.contains("channels")) {
+    for (const auto& [name, c] : s["channels"].items()) {
+      auto f = [&](const char* k) { return c[k].is_number() ? c[k].get<double>() : 0.0; };
+      std::printf("  %-8s q %6.1f deg  effort %6.2f (cmd %6.2f, max %.2f) %s\n", name.c_str(), f("q_deg"),
+                  f("effort_measured"), f("effort_command"), f("effort_max"), s["effort_unit"].get<std::string>().c_str());
+    }
+  }
+}
+
+inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
   if (cmd == "status") {
-    std::printf("no session%s\n", r.contains("last_session") ? " running (a previous one ended)" : "");
+    if (r.contains("session")) printSessionStatus(r["session"]);
+    else std::printf("no session%s\n", r.contains("last_session") ? " running (a previous one ended)" : "");
+    if (r.contains("last_session") && r["last_session"].contains("error")) {
+      std::printf("the last session ended with an error: %s\n", r["last_session"]["error"].get<std::string>().c_str());
+    }
     return;
   }
   std::cout << r.dump(2) << std::endl;
+}
+
+/// path with the extension of its file name (not of a directory's) replaced by ext.
+inline std::string withExtension(const std::string& path, const std::string& ext) {
+  const auto slash = path.rfind('/');
+  const auto dot = path.rfind('.');
+  const bool has_ext = dot != std::string::npos && (slash == std::string::npos || dot > slash + 1);
+  return (has_ext ? path.substr(0, dot) : path) + ext;
 }
 
 /// Runs the parsed therapy/record subcommand; returns -1 if none of them was given.
@@ -123,7 +135,7 @@ inline int runTherapyCommands(TherapyCli& t) {
       if (total > 0) std::fprintf(stderr, "\r%3.0f %%", 100.0 * static_cast<double>(done) / static_cast<double>(total));
     };
     if (t.rec_report->parsed()) {
-      const std::string out = t.rec_out.empty() ? t.rec_file.substr(0, t.rec_file.rfind('.')) + ".html" : t.rec_out;
+      const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".html") : t.rec_out;
       const std::string err = therapy::writeReport(t.rec_file, t.rec_previous, out,
                                                    [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); },
                                                    t.rec_reference);
@@ -148,7 +160,7 @@ inline int runTherapyCommands(TherapyCli& t) {
       std::cout << j.dump(2) << std::endl;
       return 0;
     }
-    const std::string out = t.rec_out.empty() ? t.rec_file.substr(0, t.rec_file.rfind('.')) + ".csv" : t.rec_out;
+    const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".csv") : t.rec_out;
     if (const std::string err = record::exportCsv(rec, out, progress); !err.empty()) {
       std::fprintf(stderr, "\nphalanx: error: %s\n", err.c_str());
       return 1;

@@ -531,7 +531,7 @@ class SessionRunner {
     recorder_.row(t_s, tel, cmd_, io_.have_sync ? io_.sync.pulses() : 0);
     if (opt_.hooks != nullptr) opt_.hooks->onCycle(wake_ns, t_s, tel, cmd_);
     publish(tel, wake_ns, t_s);
-    return true;
+    return !recorder_.failed();  // a recording asked for and failing ends the session (exit 7), never silently
   }
 
   uint64_t waitForPeriod(linux_hal::PeriodicTimer& timer) {
@@ -728,6 +728,7 @@ class SessionRunner {
                    summary_["link_error"].get<std::string>().c_str());
       return 6;
     }
+    if (recorder_.failed()) return record::kExitRecordFailed;  // checked after close(): it can latch fsync/close
     return 0;
   }
 
@@ -772,7 +773,9 @@ class SessionRunner {
     summary_["final_mode"] = modeName(session_->latest().mode);
     summarizeGpio();
     if (!opt_.record_csv.empty()) {
-      summary_["recording"] = {{"path", opt_.record_csv}, {"rows", recorder_.rows()}, {"dropped_rows", recorder_.dropped()}};
+      summary_["recording"] = {{"path", opt_.record_csv}, {"rows", recorder_.rowsWritten()},
+                               {"dropped_rows", recorder_.rowsLost()}};
+      if (recorder_.failed()) summary_["recording"]["error"] = recorder_.error();
     }
     nlohmann::json extra = nlohmann::json::object();
     controller_->summarize(extra);

@@ -77,7 +77,10 @@ pid_t childOf(pid_t pid) {
 // Before the limits stage a Modbus write went around the patient's limit: 1935 cycles at 6 N under a 1 N profile.
 TEST(CommandPath, AModbusWriteIsHeldToTheActivePatientsLimit) {
   if (access("/usr/bin/mbpoll", X_OK) != 0) GTEST_SKIP() << "mbpoll is not installed (tools/setup.sh installs it)";
-  const std::string profile = tmpPath("limit-1n.yaml"), cfg = tmpPath("cfg.yaml"), csv = tmpPath("rec.csv");
+  // A profile is named after its patient: <dir>/limit-1n.yaml.
+  char dir[] = "/tmp/phalanx_cmdpath_XXXXXX";
+  ASSERT_NE(mkdtemp(dir), nullptr);
+  const std::string profile = std::string(dir) + "/limit-1n.yaml", cfg = tmpPath("cfg.yaml"), csv = tmpPath("rec.csv");
   {
     std::ofstream p(profile);
     p << "version: 1\npatient: limit-1n\ndevice: glove5\nsize: M\nhandedness: left\n"
@@ -109,6 +112,7 @@ TEST(CommandPath, AModbusWriteIsHeldToTheActivePatientsLimit) {
   EXPECT_LE(peak, 1.0 + 1e-5) << "a setpoint beyond the patient's 1 N limit reached the device";
   EXPECT_GT(peak, 0.99) << "the Modbus write never commanded (the test would pass vacuously)";
   unlink(profile.c_str());
+  rmdir(dir);
   unlink(cfg.c_str());
   unlink(csv.c_str());
 }

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <climits>
 #include <cstdio>
@@ -15,7 +16,9 @@
 
 #include "phalanx/host/api/client.h"
 #include "phalanx/host/record/record_reader.h"
+#include "phalanx/host/record/record_writer.h"
 #include "phalanx/linux/realtime.h"
+#include "../support/small_tmpfs.h"
 #include "process.h"
 
 using phalanx::test::binPath;
@@ -67,18 +70,27 @@ TEST(SessionRecordCrash, KillNineLosesAtMostTheLast100Milliseconds) {
 
 namespace {
 
-/// phalanxd --api in a temporary directory with one valid and one invalid profile.
+/// A minimal valid glove profile of this patient.
+std::string profileOf(const std::string& patient) {
+  return "version: 1\npatient: " + patient + "\ndevice: glove5\nlimits:\n  effort_max: 3.0\n";
+}
+
+/// phalanxd --api in a temporary directory with one valid and one invalid profile (and `profiles`: more, file
+/// name → text); records in the same directory unless records_dir is given.
 class ApiDaemon {
  public:
-  ApiDaemon() : dir_(tempDir()), socket_(dir_ + "/api.sock") {
+  explicit ApiDaemon(const std::string& records_dir = "",
+                     const std::vector<std::pair<std::string, std::string>>& profiles = {})
+      : dir_(tempDir()), socket_(dir_ + "/api.sock"), records_dir_(records_dir.empty() ? dir_ : records_dir) {
     std::ofstream(dir_ + "/p-ok.yaml") << "version: 1\npatient: p-ok\ndevice: glove5\n"
                                           "rom_deg: {index_mcp: [0, 70]}\n"
                                           "limits:\n  effort_max: {default: 3.0, thumb: 2.0}\n"
                                           "  range_deg: {index_pip: [0, 90]}\n";
     std::ofstream(dir_ + "/p-bad.yaml") << "version: 1\npatient: p-bad\ndevice: glove5\n"
                                            "limits:\n  effort_max: {default: 30.0}\n";
+    for (const auto& [file, text] : profiles) std::ofstream(dir_ + "/" + file) << text;
     proc_ = std::make_unique<Process>(std::vector<std::string>{
-        binPath("phalanxd"), "--api", socket_, "--records-dir", dir_, "--profiles-dir", dir_, "--no-realtime",
+        binPath("phalanxd"), "--api", socket_, "--records-dir", records_dir_, "--profiles-dir", dir_, "--no-realtime",
         "--scenario", "close-open"});
     const std::string line = proc_->readStdoutLine(5000);
     EXPECT_EQ(line, "API " + socket_) << proc_->stderrText();
@@ -111,14 +123,32 @@ class ApiDaemon {
     return r.value("result", nlohmann::json());
   }
   const std::string& dir() const { return dir_; }
+  const std::string& recordsDir() const { return records_dir_; }
   const std::string& socket() const { return socket_; }
   Process& process() { return *proc_; }
+  /// Stops the daemon (SIGTERM) and returns its exit status.
+  int stop() {
+    proc_->signal(SIGTERM);
+    return proc_->wait(10000);
+  }
 
  private:
   std::string dir_;
   std::string socket_;
+  std::string records_dir_;
   std::unique_ptr<Process> proc_;
 };
+
+/// Waits until no session runs any more (bounded: 60 s) and returns that status.
+nlohmann::json waitEnded(ApiDaemon& d) {
+  nlohmann::json s;
+  for (int i = 0; i < 3000; ++i) {
+    s = d.ok({{"cmd", "status"}});
+    if (!s.value("session_running", true) && s.contains("last_session")) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return s;
+}
 
 /// Waits until the running session reports telemetry (bounded).
 nlohmann::json waitRunning(ApiDaemon& d) {
@@ -348,4 +378,229 @@ TEST(SessionReport, WrittenAtSessionEndFromASimulatedSessionAndComparedWithThePr
   EXPECT_GT(m["duration_s"].get<double>(), 2.5);
   EXPECT_TRUE(m["complete"].get<bool>());
   std::system(("rm -rf " + dir).c_str());
+}
+
+// ---- A failing records disk (issue items 10, 13): a real small tmpfs in a private mount namespace ----------------
+
+namespace {
+/// 256 KiB: about one second of a glove5 session record (≈ 250 B per cycle at 1 kHz).
+constexpr std::size_t kSmallDisk = 256 * 1024;
+
+nlohmann::json jsonOut(Process& p) { return nlohmann::json::parse(p.stdoutText(), nullptr, false); }
+}  // namespace
+
+// Issue: on a 2 MB tmpfs `phalanxd --session-record` exited 0 with 12,326 of 15,000 cycles and no error.
+TEST(RecordDiskFull, ATherapySessionStopsSafeAndReportsItsRecordError) {
+  phalanx::test::SmallTmpfs fs(kSmallDisk);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  const std::string path = fs.dir() + "/s.phrec";
+  Process d({binPath("phalanxd"), "--device", "sim:glove5", "--scenario", "close-open", "--no-realtime",
+             "--seconds", "30", "--session-record", path, "--exercise", "assessment", "--json"});
+  const int rc = d.wait(60000);
+  EXPECT_EQ(rc, 7) << "exit code of a session whose record failed\n" << d.stderrText();
+  EXPECT_NE(d.stderrText().find("phalanxd: error: session record " + path + ": writing failed: No space left on device"),
+            std::string::npos)
+      << d.stderrText();
+  const nlohmann::json s = jsonOut(d);
+  ASSERT_TRUE(s.is_object()) << d.stdoutText();
+  EXPECT_NE(s.value("error", std::string()).find("No space left on device"), std::string::npos) << s.dump(2);
+  EXPECT_EQ(s["final_mode"], "safe") << "the device is left safe";
+  EXPECT_LT(s["seconds"].get<double>(), 30.0) << "the session stopped at the failure, not at its end";
+  record::SessionRecord rec;
+  ASSERT_EQ(record::readRecord(path, rec), "");
+  EXPECT_EQ(s["session_record"]["cycles_written"].get<uint64_t>(), rec.cycles.size()) << "written = what is in the file";
+  EXPECT_GE(s["session_record"]["cycles_lost"].get<uint64_t>(), 1u);
+  EXPECT_EQ(s["session_record"]["cycles_written"].get<uint64_t>() + s["session_record"]["cycles_lost"].get<uint64_t>(),
+            s["cycles"].get<uint64_t>())
+      << "every cycle is accounted for";
+  EXPECT_EQ(rec.bad_records, 0u);
+  EXPECT_FALSE(rec.torn_tail);
+}
+
+// Issue: on a 2 MB tmpfs `phalanx run --record s.csv` reported "rows 15000, dropped 0" with 8,779 rows in the file.
+TEST(RecordDiskFull, ACsvRecordingCountsOnlyTheRowsInTheFileAndFailsTheRun) {
+  phalanx::test::SmallTmpfs fs(kSmallDisk);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  const std::string path = fs.dir() + "/s.csv";
+  Process p({binPath("phalanx"), "run", "--device", "sim:glove5", "--no-realtime", "--seconds", "5", "--record", path,
+             "--json"});
+  const int rc = p.wait(60000);
+  EXPECT_NE(p.stderrText().find("phalanx: error: recording " + path + ": writing failed: No space left on device"),
+            std::string::npos)
+      << p.stderrText();
+  const nlohmann::json s = jsonOut(p);
+  ASSERT_TRUE(s.is_object()) << p.stdoutText();
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto lines = static_cast<uint64_t>(std::count(text.begin(), text.end(), '\n'));
+  ASSERT_GT(lines, 1u);
+  EXPECT_EQ(text.back(), '\n') << "the file ends with a whole row";
+  EXPECT_EQ(s["recording"]["rows"].get<uint64_t>(), lines - 1) << "rows = the rows in the file";
+  EXPECT_EQ(s["recording"]["rows"].get<uint64_t>() + s["recording"]["dropped_rows"].get<uint64_t>(),
+            s["cycles"].get<uint64_t>())
+      << "every cycle is accounted for";
+  // The session runner's part (host/src/daemon.cpp): the error in the summary and a non-zero exit code.
+  EXPECT_NE(s["recording"].value("error", std::string()).find("No space left on device"), std::string::npos)
+      << s["recording"].dump();
+  EXPECT_EQ(rc, 7) << p.stderrText();
+}
+
+// Issue: an API session on a full records disk ran on for 20 s, lost 59 % of its cycles, and only the HTML
+// report's failure was reported.
+TEST(RecordDiskFull, AnApiSessionStopsAndTheTherapistIsTold) {
+  phalanx::test::SmallTmpfs fs(kSmallDisk);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  {
+    ApiDaemon d(fs.dir());
+    const auto started = d.ok({{"cmd", "start"}, {"patient", "p-ok"}, {"exercise", "assessment"}, {"seconds", 0}});
+    const std::string record = started.value("record", std::string());
+    const nlohmann::json st = waitEnded(d);
+    ASSERT_EQ(st["session_running"], false) << "the session must stop by itself when its record fails";
+    const nlohmann::json& last = st["last_session"];
+    EXPECT_NE(last.value("error", std::string()).find("No space left on device"), std::string::npos) << last.dump(2);
+    EXPECT_EQ(last["exit_code"], 7);
+    EXPECT_EQ(last["final_mode"], "safe");
+    EXPECT_NE(last["session_record"].value("error", std::string()).find(record), std::string::npos);
+    record::SessionRecord rec;
+    ASSERT_EQ(record::readRecord(record, rec), "");
+    EXPECT_EQ(last["session_record"]["cycles_written"].get<uint64_t>(), rec.cycles.size());
+    EXPECT_GE(last["session_record"]["cycles_lost"].get<uint64_t>(), 1u);
+    // The therapist's client says so.
+    Process status({binPath("phalanx"), "status", "--socket", d.socket()});
+    EXPECT_EQ(status.wait(10000), 0);
+    EXPECT_NE(status.stdoutText().find("the last session ended with an error"), std::string::npos)
+        << status.stdoutText();
+    EXPECT_EQ(d.stop(), 0);
+    EXPECT_NE(d.process().stderrText().find("writing failed: No space left on device"), std::string::npos);
+  }
+}
+
+// Issue: with a read-only records directory `start` answered ok, the session exited 3, and the error appeared
+// only in last_session.
+TEST(ControlApi, ARecordsDirectoryThatCannotTakeARecordRefusesTheStart) {
+  // Root writes through directory permissions: a read-only filesystem then, else a read-only directory.
+  phalanx::test::SmallTmpfs fs(kSmallDisk, /*read_only=*/true);
+  const bool mounted = fs.skipReason().empty();
+  const std::string plain = tempDir();
+  if (!mounted) {
+    ASSERT_EQ(chmod(plain.c_str(), 0555), 0);
+  }
+  const std::string records = mounted ? fs.dir() : plain;
+  if (!mounted && access(plain.c_str(), W_OK) == 0) GTEST_SKIP() << "cannot make a directory read-only here";
+  {
+    ApiDaemon d(records);
+    const std::string err = d.refused({{"cmd", "start"}, {"patient", "p-ok"}, {"exercise", "assessment"}});
+    EXPECT_NE(err.find("the records directory " + records), std::string::npos) << err;
+    EXPECT_NE(err.find(mounted ? "Read-only file system" : "Permission denied"), std::string::npos) << err;
+    const auto st = d.ok({{"cmd", "status"}});
+    EXPECT_EQ(st["session_running"], false);
+    EXPECT_FALSE(st.contains("session")) << "a refused start changes nothing";
+    EXPECT_FALSE(st.contains("last_session"));
+  }
+  chmod(plain.c_str(), 0755);
+  rmdir(plain.c_str());
+}
+
+// ---- Patient data (issue item 11) --------------------------------------------------------------------------------
+
+TEST(ControlApi, APatientsRecordsAreNeverAnotherPatientsAndTheNewestComesFirst) {
+  ApiDaemon d("", {{"demo.yaml", profileOf("demo")},
+                   {"demo-001.yaml", profileOf("demo-001")},
+                   {"pid-mismatch.yaml", profileOf("someone-else")}});
+  // A profile holding another patient's id is refused, naming both.
+  const std::string err = d.refused({{"cmd", "start"}, {"patient", "pid-mismatch"}});
+  EXPECT_NE(err.find("'someone-else'"), std::string::npos) << err;
+  EXPECT_NE(err.find("'pid-mismatch.yaml'"), std::string::npos) << err;
+  for (const auto& p : d.ok({{"cmd", "profiles"}})) {
+    if (p["file"] == "pid-mismatch.yaml") {
+      EXPECT_EQ(p["valid"], false) << p.dump();
+    }
+  }
+  // demo-001 has a record; demo (a prefix of it) must not get it.
+  const auto first = d.ok({{"cmd", "start"}, {"patient", "demo-001"}, {"seconds", 0.3}});
+  waitEnded(d);
+  const auto demo = d.ok({{"cmd", "start"}, {"patient", "demo"}, {"seconds", 0.3}});
+  EXPECT_EQ(demo["previous_record"], "") << "demo-001's record is not demo's";
+  waitEnded(d);
+  const auto demo_recs = d.ok({{"cmd", "recordings"}, {"patient", "demo"}});
+  ASSERT_EQ(demo_recs.size(), 1u) << demo_recs.dump();
+  EXPECT_EQ(d.dir() + "/" + demo_recs[0]["file"].get<std::string>(), demo["record"]);
+  EXPECT_EQ(d.ok({{"cmd", "recordings"}, {"patient", "demo-001"}}).size(), 1u);
+  // Several records of one second (here a far-future one, so they are the newest): the newest is the highest
+  // sequence number, not the first in string order.
+  for (const char* f : {"demo-29991231T235959Z.phrec", "demo-29991231T235959Z-1.phrec",
+                        "demo-29991231T235959Z-2.phrec", "demo-29991231T235959Z-10.phrec"}) {
+    std::ofstream(d.dir() + "/" + f) << "";
+  }
+  const auto again = d.ok({{"cmd", "start"}, {"patient", "demo"}, {"seconds", 0.3}});
+  EXPECT_EQ(again["previous_record"], d.dir() + "/demo-29991231T235959Z-10.phrec");
+  waitEnded(d);
+  const auto all = d.ok({{"cmd", "recordings"}, {"patient", "demo"}});
+  ASSERT_EQ(all.size(), 6u) << all.dump();
+  EXPECT_EQ(all[5]["file"], "demo-29991231T235959Z-10.phrec") << "oldest first, the newest last";
+  EXPECT_EQ(all[2]["file"], "demo-29991231T235959Z.phrec");
+  record::SessionRecord rec;
+  ASSERT_EQ(record::readRecord(first["record"], rec), "");
+  EXPECT_EQ(rec.header["patient"], "demo-001");
+}
+
+// ---- The record tools (issue items 12, 16) -----------------------------------------------------------------------
+
+namespace {
+/// A small valid record made in-process.
+std::string makeRecord(const std::string& path, int cycles) {
+  record::RecordWriter w;
+  EXPECT_EQ(w.open(path, {{"device", "glove5"}, {"patient", "p-1"}}), "");
+  record::CycleRecord c;
+  c.sample_count = 25;
+  c.setpoint_count = 5;
+  for (int i = 0; i < cycles; ++i) {
+    c.t_s = 0.001 * i;
+    c.tel_seq = static_cast<uint16_t>(i);
+    w.pushCycle(c);
+  }
+  w.close(nlohmann::json{{"ok", true}});
+  return path;
+}
+std::string bytesOf(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+// Issue: `phalanx record export x.phrec --csv --out x.phrec` destroyed the record (rc 0; then "bad magic").
+TEST(RecordTools, AnExportOrReportNeverWritesOverItsInput) {
+  const std::string dir = tempDir();
+  const std::string rec = makeRecord(dir + "/x.phrec", 200);
+  const std::string before = bytesOf(rec);
+  ASSERT_EQ(symlink(rec.c_str(), (dir + "/sym.phrec").c_str()), 0);
+  ASSERT_EQ(link(rec.c_str(), (dir + "/hard.phrec").c_str()), 0);
+  for (const std::string& out : {rec, dir + "/sym.phrec", dir + "/hard.phrec"}) {
+    Process e({binPath("phalanx"), "record", "export", rec, "--csv", "--out", out});
+    EXPECT_EQ(e.wait(20000), 1) << out;
+    EXPECT_NE(e.stderrText().find("refusing to write " + out), std::string::npos) << e.stderrText();
+    Process r({binPath("phalanx"), "record", "report", rec, "--out", out});
+    EXPECT_EQ(r.wait(20000), 1) << out;
+    EXPECT_NE(r.stderrText().find("refusing to write " + out), std::string::npos) << r.stderrText();
+  }
+  EXPECT_TRUE(bytesOf(rec) == before) << "the record is untouched";
+  Process info({binPath("phalanx"), "record", "info", rec});
+  EXPECT_EQ(info.wait(20000), 0) << info.stderrText();
+  EXPECT_EQ(nlohmann::json::parse(info.stdoutText(), nullptr, false).value("cycles", 0), 200);
+  // The ordinary export still works (default name: the record's with .csv).
+  Process ok({binPath("phalanx"), "record", "export", rec, "--csv"});
+  EXPECT_EQ(ok.wait(20000), 0) << ok.stderrText();
+  EXPECT_NE(bytesOf(dir + "/x.csv").find("t_s,host_ns"), std::string::npos);
+  std::system(("rm -rf " + dir).c_str());
+}
+
+// Issue: `phalanx record info /dev/zero` aborted with std::bad_alloc.
+TEST(RecordTools, AFileThatIsNotARecordIsRefusedClearly) {
+  for (const std::string& path : {std::string("/dev/zero"), std::string("/dev/urandom")}) {
+    Process p({binPath("phalanx"), "record", "info", path});
+    EXPECT_EQ(p.wait(20000), 1) << path << ": " << p.stderrText();
+    EXPECT_NE(p.stderrText().find("not a record: " + path + " is a character device"), std::string::npos)
+        << p.stderrText();
+    EXPECT_EQ(p.stderrText().find("bad_alloc"), std::string::npos);
+  }
 }

@@ -1,7 +1,11 @@
-// Session records: framing, checksums, torn tails, damaged records, the writer thread, CSV export.
+// Session records: framing, checksums, torn tails, damaged records, the writer thread, CSV export; a failing
+// records disk (a real small tmpfs), files that are not records, exports that must not destroy their input.
 #include <gtest/gtest.h>
+#include <dirent.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -9,6 +13,7 @@
 
 #include "phalanx/host/record/record_reader.h"
 #include "phalanx/host/record/record_writer.h"
+#include "../support/small_tmpfs.h"
 
 using namespace phalanx::host::record;
 
@@ -197,4 +202,136 @@ TEST(SessionRecordExport, CsvHasAHeaderAndOneRowPerCycleWithNamedColumns) {
   EXPECT_EQ(rows, 50);
   unlink(path.c_str());
   unlink(csv.c_str());
+}
+
+namespace {
+std::size_t fileSize(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 ? static_cast<std::size_t>(st.st_size) : 0;
+}
+}  // namespace
+
+// Issue: on a 2 MB tmpfs a session record silently stopped growing. The first write error must be latched and
+// reported, the file must end at its last whole record, and every cycle must be counted as written or lost.
+TEST(SessionRecordWriter, AFullDiskIsReportedAndEveryCycleIsAccountedFor) {
+  phalanx::test::SmallTmpfs fs(64 * 1024);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  const std::string path = fs.dir() + "/full.phrec";
+  WriterConfig cfg;
+  cfg.queue_cycles = 4096;  // holds every cycle below: none is dropped, all reach the writer
+  RecordWriter w(cfg);
+  ASSERT_EQ(w.open(path, {{"device", "test"}}), "");
+  constexpr int kCycles = 2000;  // ≈ 340 kB of cycle records for a 64 kB filesystem
+  for (int i = 0; i < kCycles; ++i) ASSERT_TRUE(w.pushCycle(cycle(i)));
+  for (int tries = 0; tries < 1000 && !w.failed(); ++tries) usleep(10000);  // bound only
+  ASSERT_TRUE(w.failed()) << "the writer never noticed the full disk";
+  const std::size_t size_at_failure = fileSize(path);
+  for (int i = kCycles; i < kCycles + 100; ++i) w.pushCycle(cycle(i));  // after the failure: lost, not written
+  w.close(nlohmann::json{{"ok", true}});
+  EXPECT_NE(w.error().find("No space left on device"), std::string::npos) << w.error();
+  EXPECT_NE(w.error().find(path), std::string::npos) << "the error names the file: " << w.error();
+  EXPECT_EQ(w.cyclesWritten() + w.cyclesLost(), static_cast<uint64_t>(kCycles + 100));
+  EXPECT_GE(w.cyclesLost(), 100u);
+  EXPECT_EQ(w.cyclesDropped(), 0u);
+  EXPECT_EQ(fileSize(path), size_at_failure) << "nothing is written after the failure";
+  SessionRecord rec;
+  ASSERT_EQ(readRecord(path, rec), "");
+  EXPECT_EQ(rec.cycles.size(), w.cyclesWritten()) << "cycles counted as written are exactly those in the file";
+  EXPECT_GT(rec.cycles.size(), 0u);
+  EXPECT_FALSE(rec.torn_tail) << "the file was cut back to its last whole record";
+  EXPECT_EQ(rec.bad_records, 0u);
+  EXPECT_FALSE(rec.complete()) << "no footer on a disk that failed";
+  for (size_t i = 0; i < rec.cycles.size(); ++i) ASSERT_EQ(rec.cycles[i].tel_seq, i) << "a contiguous prefix";
+}
+
+TEST(SessionRecordWriter, AHeaderThatCannotBeWrittenFailsTheStartAndLeavesNoFile) {
+  phalanx::test::SmallTmpfs fs(16 * 1024);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  {
+    std::ofstream fill(fs.dir() + "/fill", std::ios::binary);  // fill the filesystem: files still get created
+    const std::string block(4096, 'x');
+    for (int i = 0; i < 64 && fill; ++i) fill.write(block.data(), static_cast<std::streamsize>(block.size()));
+  }
+  const std::string path = fs.dir() + "/s.phrec";
+  RecordWriter w;
+  ASSERT_EQ(w.create(path), "") << "creating the (empty) file works on a full tmpfs";
+  const std::string err = w.start({{"device", "test"}, {"pad", std::string(8192, 'p')}});
+  EXPECT_NE(err.find("No space left on device"), std::string::npos) << err;
+  EXPECT_TRUE(w.failed());
+  w.close();
+  EXPECT_NE(::access(path.c_str(), F_OK), 0) << "a record without its header is removed";
+}
+
+TEST(SessionRecordWriter, ACreatedRecordThatNeverStartedIsRemoved) {
+  const std::string path = tempPath(".phrec");
+  {
+    RecordWriter w;
+    ASSERT_EQ(w.create(path), "");
+    ASSERT_EQ(::access(path.c_str(), F_OK), 0);
+    int err_no = 0;
+    RecordWriter other;
+    EXPECT_NE(other.create(path, &err_no), "");
+    EXPECT_EQ(err_no, EEXIST);
+  }
+  EXPECT_NE(::access(path.c_str(), F_OK), 0) << "the session ended before its first cycle: no empty record is left";
+}
+
+// Issue: `phalanx record info /dev/zero` aborted with std::bad_alloc.
+TEST(SessionRecord, AFileThatIsNotARegularFileIsRefusedWithoutReadingIt) {
+  SessionRecord rec;
+  const std::string zero = readRecord("/dev/zero", rec);
+  EXPECT_NE(zero.find("not a record: /dev/zero is a character device"), std::string::npos) << zero;
+  const std::string dir = readRecord("/tmp", rec);
+  EXPECT_NE(dir.find("not a record: /tmp is a directory"), std::string::npos) << dir;
+  const std::string fifo = tempPath(".fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string f = readRecord(fifo, rec);  // must neither block on the open nor read forever
+  EXPECT_NE(f.find("is a FIFO"), std::string::npos) << f;
+  ::unlink(fifo.c_str());
+  EXPECT_NE(readRecord("/nonexistent/x.phrec", rec).find("cannot read /nonexistent/x.phrec"), std::string::npos);
+}
+
+// Issue: `phalanx record export x.phrec --csv --out x.phrec` destroyed the record.
+TEST(SessionRecordExport, NeverWritesOverTheRecordItExports) {
+  const std::string path = writeSession(30, true);
+  const std::vector<char> before = readAll(path);
+  const std::string link = path + ".link", hard = path + ".hard";
+  ASSERT_EQ(::symlink(path.c_str(), link.c_str()), 0);
+  ASSERT_EQ(::link(path.c_str(), hard.c_str()), 0);
+  SessionRecord rec;
+  ASSERT_EQ(readRecord(path, rec), "");
+  for (const std::string& out : {path, link, hard}) {
+    const std::string err = exportCsv(rec, out);
+    EXPECT_NE(err.find("refusing to write " + out), std::string::npos) << out << ": " << err;
+  }
+  SessionRecord through_link;  // read through the symlink, exported onto the real path
+  ASSERT_EQ(readRecord(link, through_link), "");
+  EXPECT_NE(exportCsv(through_link, path).find("refusing"), std::string::npos);
+  EXPECT_EQ(readAll(path), before) << "the record is untouched";
+  ASSERT_EQ(readRecord(path, rec), "");
+  EXPECT_EQ(rec.cycles.size(), 30u);
+  for (const std::string& f : {path, link, hard}) ::unlink(f.c_str());
+}
+
+TEST(SessionRecordExport, AFailedExportLeavesTheExistingFileAsItWas) {
+  phalanx::test::SmallTmpfs fs(64 * 1024);
+  if (!fs.skipReason().empty()) GTEST_SKIP() << fs.skipReason();
+  const std::string path = writeSession(3000, true);  // a ≈ 1 MB CSV: does not fit
+  SessionRecord rec;
+  ASSERT_EQ(readRecord(path, rec), "");
+  const std::string out = fs.dir() + "/old.csv";
+  std::ofstream(out) << "an earlier export\n";
+  const std::string err = exportCsv(rec, out);
+  EXPECT_NE(err.find("No space left on device"), std::string::npos) << err;
+  std::ifstream in(out);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "an earlier export") << "the existing file is untouched";
+  int files = 0;
+  if (DIR* d = ::opendir(fs.dir().c_str())) {
+    while (const dirent* e = ::readdir(d)) files += e->d_name[0] == '.' && (e->d_name[1] == 0 || e->d_name[1] == '.') ? 0 : 1;
+    ::closedir(d);
+  }
+  EXPECT_EQ(files, 1) << "no temporary file is left behind";
+  ::unlink(path.c_str());
 }

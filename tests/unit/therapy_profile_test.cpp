@@ -2,6 +2,8 @@
 // law itself.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -157,4 +159,42 @@ TEST(GloveTherapyDevice, ReadsTheTareBackAndWarnsOfRefusedFingers) {
   EXPECT_NE(w.find("index, middle"), std::string::npos) << w;
   EXPECT_NE(w.find("refused"), std::string::npos) << w;
   EXPECT_EQ(glove->startupWarning(phalanx::apps::glove5_param::kForceKp, -6.0f), "") << "another parameter";
+}
+
+namespace {
+std::string writeProfile(const std::string& dir, const std::string& file, const std::string& text) {
+  const std::string path = dir + "/" + file;
+  std::ofstream(path) << text;
+  return path;
+}
+}  // namespace
+
+// Issue: pid-mismatch.yaml holding `patient: someone-else` was accepted; the record was named after the file but
+// held the other patient.
+TEST(Profile, AFileWhosePatientIsNotItsNameIsRefusedNamingBoth) {
+  char tmpl[] = "/tmp/phalanx-profiles-XXXXXX";
+  ASSERT_NE(mkdtemp(tmpl), nullptr);
+  const std::string dir = tmpl;
+  Profile p;
+  const std::string mismatch = writeProfile(dir, "pid-mismatch.yaml", with("patient: p-17", "patient: someone-else"));
+  const std::string err = loadProfileFile(mismatch, p);
+  EXPECT_NE(err.find("'someone-else'"), std::string::npos) << err;
+  EXPECT_NE(err.find("'pid-mismatch.yaml'"), std::string::npos) << err;
+  EXPECT_EQ(p.patient, "") << "a refused profile changes nothing";
+  EXPECT_EQ(loadProfileFile(writeProfile(dir, "p-17.yaml", kValid), p), "");
+  EXPECT_EQ(p.patient, "p-17");
+  EXPECT_EQ(loadProfileFile(writeProfile(dir, "p-17.yml", kValid), p), "") << "any extension";
+  std::system(("rm -rf " + dir).c_str());
+}
+
+TEST(Profile, AnythingButASmallRegularFileIsRefusedWithoutReadingIt) {
+  Profile p;
+  EXPECT_NE(loadProfileFile("/dev/zero", p).find("not a regular file"), std::string::npos);
+  EXPECT_NE(loadProfileFile("/tmp", p).find("not a regular file"), std::string::npos);
+  EXPECT_NE(loadProfileFile("/nonexistent/p.yaml", p).find("cannot read profile"), std::string::npos);
+}
+
+TEST(Profile, TheAnonymousIdIsReserved) {
+  Profile p;
+  EXPECT_NE(load(with("patient: p-17", "patient: anonymous"), p).find("reserved"), std::string::npos);
 }

@@ -27,6 +27,7 @@
 #include "phalanx/host/api/socket_access.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/therapy/profile.h"
+#include "phalanx/host/therapy/records_dir.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
 namespace phalanx::host::api {
@@ -231,8 +232,9 @@ class Daemon {
       allowFields(req, {"patient"});
       const std::string patient = strField(req, "patient", "");
       nlohmann::json out = nlohmann::json::array();
-      for (const auto& f : listDir(cfg_.records_dir, ".phrec")) {
-        if (!patient.empty() && f.rfind(patient + "-", 0) != 0) continue;
+      // A patient's records by their parsed name (never a prefix: demo-001's are not demo's), oldest first.
+      const auto files = patient.empty() ? listDir(cfg_.records_dir, ".phrec") : therapy::patientRecords(cfg_.records_dir, patient);
+      for (const auto& f : files) {
         struct stat st {};
         if (!isRegularFile(cfg_.records_dir + "/" + f, st)) continue;
         const std::string html = f.substr(0, f.size() - 6) + ".html";
@@ -317,27 +319,23 @@ class Daemon {
         throw RequestError{err};
       }
     }
-    char stamp[32];
-    const std::time_t now = std::time(nullptr);
-    std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", std::gmtime(&now));
-    const std::string stem = cfg_.records_dir + "/" + (patient.empty() ? "anonymous" : patient) + "-" + stamp;
-    std::string record = stem + ".phrec";
-    for (int i = 1; ::access(record.c_str(), F_OK) == 0; ++i) record = stem + "-" + std::to_string(i) + ".phrec";
-    tcfg.record_path = record;
-    tcfg.report_path = record.substr(0, record.size() - 6) + ".html";
-    // The previous session of this patient, for the report's range-of-motion comparison.
-    const std::string prefix = (patient.empty() ? "anonymous" : patient) + "-";
-    for (const auto& f : listDir(cfg_.records_dir, ".phrec")) {
-      struct stat st {};
-      if (f.rfind(prefix, 0) == 0 && isRegularFile(cfg_.records_dir + "/" + f, st)) {
-        tcfg.previous_record = cfg_.records_dir + "/" + f;
-      }
+    // The previous session of this patient (its newest record), for the report's range-of-motion comparison;
+    // sessions without a profile are nobody's, so they have none.
+    if (!patient.empty()) tcfg.previous_record = therapy::newestRecord(cfg_.records_dir, patient);
+    auto session = std::make_unique<therapy::TherapySession>(tcfg);
+    // The record file is created now: a records directory that cannot take it refuses the start.
+    if (const std::string err = session->createRecordIn(
+            cfg_.records_dir, patient.empty() ? therapy::kAnonymousPatient : patient, std::time(nullptr));
+        !err.empty()) {
+      throw RequestError{err};
     }
     {
       std::lock_guard<std::mutex> stop_lock(stop_mutex_);
       stoppable_ = nullptr;
     }
-    session_ = std::make_unique<therapy::TherapySession>(tcfg);
+    const std::string record = session->config().record_path;
+    tcfg.report_path = session->config().report_path;
+    session_ = std::move(session);
     session_done_ = false;
     {
       std::lock_guard<std::mutex> stop_lock(stop_mutex_);
@@ -349,8 +347,7 @@ class Daemon {
       opt.hooks = &hooks;
       nlohmann::json summary;
       const int rc = runSession(opt, summary);
-      summary["exit_code"] = rc;
-      s->finish(summary);
+      s->finish(summary, rc);
       session_done_ = true;
     });
     return {{"record", record}, {"report", tcfg.report_path}, {"exercise", tcfg.exercise},

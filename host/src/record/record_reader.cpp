@@ -1,11 +1,15 @@
 #include "phalanx/host/record/record_reader.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
-#include <iterator>
+#include <new>
 
 namespace phalanx::host::record {
 namespace {
@@ -29,15 +33,63 @@ int SessionRecord::auxIndex(const std::string& name) const {
   return -1;
 }
 
+namespace {
+
+const char* fileKind(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISFIFO(mode)) return "a FIFO";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "not a regular file";
+}
+
+/// The whole regular file, at most the size fstat gave (a file growing meanwhile is read up to that size).
+std::string readRegularFile(const std::string& path, std::vector<uint8_t>& data, FileId& id) {
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; it is refused below anyway.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) return "cannot read " + path + ": " + std::strerror(errno);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    const std::string kind = fileKind(st.st_mode);
+    ::close(fd);
+    return "not a record: " + path + " is " + kind + (kind == "not a regular file" ? "" : ", not a regular file");
+  }
+  id = {st.st_dev, st.st_ino, true};
+  try {
+    data.resize(static_cast<std::size_t>(st.st_size));
+  } catch (const std::bad_alloc&) {
+    ::close(fd);
+    return "cannot read " + path + ": " + std::to_string(st.st_size) + " bytes do not fit in memory";
+  }
+  std::size_t got = 0;
+  while (got < data.size()) {
+    const ssize_t n = ::read(fd, data.data() + got, data.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int e = errno;
+      ::close(fd);
+      return "cannot read " + path + ": " + std::strerror(e);
+    }
+    if (n == 0) break;  // shrank meanwhile
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  data.resize(got);
+  return {};
+}
+
+}  // namespace
+
 std::string readRecord(const std::string& path, SessionRecord& out,
                        const std::function<void(uint64_t, uint64_t)>& progress) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    out = SessionRecord{};
-    return "cannot read " + path;
-  }
-  const std::vector<uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  out = SessionRecord{};
+  std::vector<uint8_t> data;
+  FileId id;
+  if (std::string err = readRegularFile(path, data, id); !err.empty()) return err;
   const std::string err = parseRecord(data, out, progress);
+  out.source = path;
+  out.source_id = id;
   return err.empty() ? err : path + ": " + err;
 }
 
@@ -123,9 +175,11 @@ std::string parseRecord(const std::vector<uint8_t>& data, SessionRecord& out,
 
 std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
                       const std::function<void(uint64_t, uint64_t)>& progress) {
-  std::FILE* f = std::fopen(csv_path.c_str(), "w");
-  if (f == nullptr) return "cannot write " + csv_path + ": " + std::strerror(errno);
-  std::setvbuf(f, nullptr, _IOFBF, 1 << 20);
+  if (rec.source_id == fileId(csv_path)) {
+    return "refusing to write " + csv_path + ": it is the record being exported (" + rec.source + ", the same file)";
+  }
+  AtomicOutputFile f;
+  if (std::string err = f.open(csv_path); !err.empty()) return err;
   auto names = [&](const char* key, const char* prefix, std::size_t n) {
     std::vector<std::string> v;
     for (std::size_t i = 0; i < n; ++i) {
@@ -141,28 +195,33 @@ std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
   const std::size_t ns = rec.cycles.empty() ? 0 : rec.cycles.front().sample_count;
   const std::size_t nc = rec.cycles.empty() ? 0 : rec.cycles.front().setpoint_count;
   const std::size_t na = rec.cycles.empty() ? 0 : rec.cycles.front().aux_count;
-  std::fprintf(f, "t_s,host_ns,device_time_us,tel_seq,cmd_seq_echo,cmd_seq,tel_mode,cmd_mode,fault_bits,state_flags");
-  for (const auto& n : names("samples", "sample", ns)) std::fprintf(f, ",%s", n.c_str());
-  for (const auto& n : names("setpoints", "setpoint", nc)) std::fprintf(f, ",%s", n.c_str());
-  for (const auto& n : names("aux", "aux", na)) std::fprintf(f, ",%s", n.c_str());
-  std::fputc('\n', f);
+  std::string line = "t_s,host_ns,device_time_us,tel_seq,cmd_seq_echo,cmd_seq,tel_mode,cmd_mode,fault_bits,state_flags";
+  for (const auto& n : names("samples", "sample", ns)) line += "," + n;
+  for (const auto& n : names("setpoints", "setpoint", nc)) line += "," + n;
+  for (const auto& n : names("aux", "aux", na)) line += "," + n;
+  line += "\n";
+  f.write(line);
+  char buf[160];
+  auto put = [&](int n) { f.write(buf, static_cast<std::size_t>(std::min<int>(n, sizeof buf - 1))); };
+  auto value = [&](uint8_t count, std::size_t k, float v) {
+    put(std::snprintf(buf, sizeof buf, ",%.7g", k < count ? static_cast<double>(v) : 0.0));
+  };
   uint64_t i = 0;
   for (const CycleRecord& c : rec.cycles) {
     if (progress && (i % 100000) == 0) progress(i, rec.cycles.size());
     ++i;
-    std::fprintf(f, "%.6f,%llu,%llu,%u,%u,%u,%u,%u,%u,%u", c.t_s, static_cast<unsigned long long>(c.host_ns),
-                 static_cast<unsigned long long>(c.device_time_us), c.tel_seq, c.cmd_seq_echo, c.cmd_seq, c.tel_mode,
-                 c.cmd_mode, c.fault_bits, c.state_flags);
+    put(std::snprintf(buf, sizeof buf, "%.6f,%llu,%llu,%u,%u,%u,%u,%u,%u,%u", c.t_s,
+                      static_cast<unsigned long long>(c.host_ns), static_cast<unsigned long long>(c.device_time_us),
+                      c.tel_seq, c.cmd_seq_echo, c.cmd_seq, c.tel_mode, c.cmd_mode, c.fault_bits, c.state_flags));
     // Rows keep the first cycle's column count (a session's layout never changes).
-    for (std::size_t k = 0; k < ns; ++k) std::fprintf(f, ",%.7g", k < c.sample_count ? static_cast<double>(c.sample[k]) : 0.0);
-    for (std::size_t k = 0; k < nc; ++k) std::fprintf(f, ",%.7g", k < c.setpoint_count ? static_cast<double>(c.setpoint[k]) : 0.0);
-    for (std::size_t k = 0; k < na; ++k) std::fprintf(f, ",%.7g", k < c.aux_count ? static_cast<double>(c.aux[k]) : 0.0);
-    std::fputc('\n', f);
+    // (decodeCycle keeps every count within its array.)
+    for (std::size_t k = 0; k < ns; ++k) value(c.sample_count, k, c.sample[k]);
+    for (std::size_t k = 0; k < nc; ++k) value(c.setpoint_count, k, c.setpoint[k]);
+    for (std::size_t k = 0; k < na; ++k) value(c.aux_count, k, c.aux[k]);
+    if (!f.write("\n", 1)) break;
   }
   if (progress) progress(rec.cycles.size(), rec.cycles.size());
-  const bool ok = std::ferror(f) == 0;
-  if (std::fclose(f) != 0 || !ok) return "writing " + csv_path + " failed";
-  return {};
+  return f.commit();
 }
 
 }  // namespace phalanx::host::record

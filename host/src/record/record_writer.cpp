@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -11,23 +12,57 @@ namespace phalanx::host::record {
 
 RecordWriter::RecordWriter(const WriterConfig& config) : config_(config), queue_(config.queue_cycles) {
   buffer_.reserve(1 << 20);
+  record_ends_.reserve(config.queue_cycles + 512);
+  cycle_ends_.reserve(config.queue_cycles);
 }
 
-RecordWriter::~RecordWriter() { close(); }
+RecordWriter::~RecordWriter() {
+  if (started_) close();
+  else discard();
+}
 
-std::string RecordWriter::open(const std::string& path, const nlohmann::json& header) {
+std::string RecordWriter::create(const std::string& path, int* err_no) {
+  if (err_no != nullptr) *err_no = 0;
   if (fd_ >= 0) return "recorder already open on " + path_;
   fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0640);
-  if (fd_ < 0) return "cannot create session record " + path + ": " + std::strerror(errno);
+  if (fd_ < 0) {
+    if (err_no != nullptr) *err_no = errno;
+    return "cannot create session record " + path + ": " + std::strerror(errno);
+  }
   path_ = path;
-  std::vector<uint8_t> bytes(kFileMagic, kFileMagic + sizeof kFileMagic);
+  return {};
+}
+
+std::string RecordWriter::start(const nlohmann::json& header) {
+  if (fd_ < 0) return "session record: start without create";
+  if (started_) return "session record " + path_ + ": already started";
+  buffer_.assign(kFileMagic, kFileMagic + sizeof kFileMagic);
+  record_ends_.assign(1, buffer_.size());
+  cycle_ends_.clear();
   const std::string text = header.dump();
-  appendRecord(bytes, RecordType::kHeader, reinterpret_cast<const uint8_t*>(text.data()), text.size());
-  writeBytes(bytes);
-  if (::fdatasync(fd_) != 0 && error_.empty()) error_ = std::string("fdatasync: ") + std::strerror(errno);
+  add(RecordType::kHeader, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+  writeBuffer();
+  if (failed()) return error();
+  if (const int e = syncData(fd_); e != 0) {
+    fail("session record " + path_ + ": fdatasync failed: " + std::strerror(e));
+    return error();
+  }
+  started_ = true;
   stop_ = false;
   thread_ = std::thread([this] { run(); });
   return {};
+}
+
+std::string RecordWriter::open(const std::string& path, const nlohmann::json& header) {
+  if (std::string err = create(path); !err.empty()) return err;
+  return start(header);
+}
+
+void RecordWriter::discard() {
+  if (fd_ < 0 || started_) return;
+  ::close(fd_);
+  fd_ = -1;
+  ::unlink(path_.c_str());
 }
 
 bool RecordWriter::pushCycle(const CycleRecord& cycle) {
@@ -38,7 +73,7 @@ bool RecordWriter::pushCycle(const CycleRecord& cycle) {
 
 bool RecordWriter::pushLoopEvent(const LoopEvent& event) {
   if (loop_events_.push(event)) return true;
-  dropped_.fetch_add(1, std::memory_order_relaxed);
+  loop_events_dropped_.fetch_add(1, std::memory_order_relaxed);
   return false;
 }
 
@@ -57,55 +92,69 @@ void RecordWriter::pushEvent(double t_s, const std::string& kind, nlohmann::json
   events_.push_back(std::move(rec));
 }
 
-std::string RecordWriter::error() const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return error_;
+void RecordWriter::add(RecordType type, const uint8_t* payload, std::size_t length, bool cycle) {
+  appendRecord(buffer_, type, payload, length);
+  record_ends_.push_back(buffer_.size());
+  if (cycle) cycle_ends_.push_back(buffer_.size());
 }
 
-void RecordWriter::writeBytes(const std::vector<uint8_t>& bytes) {
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (error_.empty()) error_ = "writing " + path_ + ": " + std::strerror(errno);
-      return;
-    }
-    done += static_cast<std::size_t>(n);
+void RecordWriter::fail(const std::string& what) { failure_.set(what); }
+
+void RecordWriter::writeBuffer() {
+  const uint64_t cycles = cycle_ends_.size();
+  if (failed()) {
+    cycles_unwritten_.fetch_add(cycles);
+    return;
   }
+  int err_no = 0;
+  const std::size_t done = writeFully(fd_, buffer_.data(), buffer_.size(), err_no);
+  // A cycle counts as written only when all of its bytes reached the file.
+  const auto whole = static_cast<uint64_t>(std::upper_bound(cycle_ends_.begin(), cycle_ends_.end(), done) -
+                                           cycle_ends_.begin());
+  cycles_written_.fetch_add(whole);
+  cycles_unwritten_.fetch_add(cycles - whole);
+  if (err_no == 0) {
+    file_bytes_ += done;
+    return;
+  }
+  // Cut the file back to its last whole record, so it ends cleanly where the recording stopped.
+  const auto last = std::upper_bound(record_ends_.begin(), record_ends_.end(), done);
+  const std::size_t keep = last == record_ends_.begin() ? 0 : *(last - 1);
+  if (::ftruncate(fd_, static_cast<off_t>(file_bytes_ + keep)) == 0) file_bytes_ += keep;
+  fail("session record " + path_ + ": writing failed: " + std::strerror(err_no) + " (" +
+       std::to_string(cycles_written_.load()) + " cycles written; nothing after them is recorded)");
 }
 
 bool RecordWriter::drainOnce() {
   buffer_.clear();
+  record_ends_.clear();
+  cycle_ends_.clear();
   CycleRecord c;
   uint8_t payload[kMaxCyclePayload];
-  uint64_t n = 0;
-  while (queue_.pop(c)) {
-    appendRecord(buffer_, RecordType::kCycle, payload, encodeCycle(c, payload));
-    ++n;
-  }
+  while (queue_.pop(c)) add(RecordType::kCycle, payload, encodeCycle(c, payload), true);
   LoopEvent le;
   while (loop_events_.pop(le)) {
     const std::string text = loopEventJson(le).dump();
-    appendRecord(buffer_, RecordType::kEvent, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+    add(RecordType::kEvent, reinterpret_cast<const uint8_t*>(text.data()), text.size());
   }
   std::vector<std::vector<uint8_t>> events;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     events.swap(events_);
   }
-  for (const auto& e : events) buffer_.insert(buffer_.end(), e.begin(), e.end());
+  for (const auto& e : events) {
+    buffer_.insert(buffer_.end(), e.begin(), e.end());
+    record_ends_.push_back(buffer_.size());
+  }
   const uint64_t dropped = dropped_.load(std::memory_order_relaxed);
   if (dropped != dropped_reported_) {
     const std::string text =
         nlohmann::json{{"t_s", c.t_s}, {"kind", "record-gap"}, {"cycles_dropped_total", dropped}}.dump();
-    appendRecord(buffer_, RecordType::kEvent, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+    add(RecordType::kEvent, reinterpret_cast<const uint8_t*>(text.data()), text.size());
     dropped_reported_ = dropped;
   }
   if (buffer_.empty()) return false;
-  writeBytes(buffer_);
-  cycles_written_.fetch_add(n, std::memory_order_relaxed);
+  writeBuffer();
   return true;
 }
 
@@ -118,8 +167,8 @@ void RecordWriter::run() {
       cv_.wait_for(lock, std::chrono::milliseconds(config_.flush_period_ms), [this] { return stop_.load(); });
     }
     drainOnce();
-    if (clock::now() >= next_sync) {
-      ::fdatasync(fd_);
+    if (clock::now() >= next_sync && !failed()) {
+      if (const int e = syncData(fd_); e != 0) fail("session record " + path_ + ": fdatasync failed: " + std::strerror(e));
       next_sync = clock::now() + std::chrono::milliseconds(config_.sync_period_ms);
     }
   }
@@ -127,6 +176,10 @@ void RecordWriter::run() {
 
 void RecordWriter::close(const nlohmann::json& footer) {
   if (fd_ < 0) return;
+  if (!started_) {
+    discard();
+    return;
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
@@ -134,18 +187,25 @@ void RecordWriter::close(const nlohmann::json& footer) {
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
   drainOnce();
-  if (!footer.is_null()) {
-    std::vector<uint8_t> rec;
+  if (!footer.is_null() && !failed()) {
     nlohmann::json f = footer;
     f["cycles_written"] = cycles_written_.load();
     f["cycles_dropped"] = dropped_.load();
+    f["cycles_lost"] = cyclesLost();
+    f["loop_events_dropped"] = loop_events_dropped_.load();
     const std::string text = f.dump();
-    appendRecord(rec, RecordType::kFooter, reinterpret_cast<const uint8_t*>(text.data()), text.size());
-    writeBytes(rec);
+    buffer_.clear();
+    record_ends_.clear();
+    cycle_ends_.clear();
+    add(RecordType::kFooter, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+    writeBuffer();
   }
-  ::fdatasync(fd_);
-  ::close(fd_);
+  if (!failed()) {
+    if (const int e = syncData(fd_); e != 0) fail("session record " + path_ + ": fdatasync failed: " + std::strerror(e));
+  }
+  if (::close(fd_) != 0 && !failed()) fail("session record " + path_ + ": close failed: " + std::strerror(errno));
   fd_ = -1;
+  started_ = false;
 }
 
 namespace {

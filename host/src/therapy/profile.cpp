@@ -8,16 +8,19 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <regex>
 #include <set>
 #include <sstream>
 
 #include "phalanx/host/yaml_keys.h"
+#include "phalanx/host/therapy/records_dir.h"
 
 namespace phalanx::host::therapy {
 namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
+/// Far above any real profile (a few hundred bytes); bounds what a wrong path (a log, a device file) can cost.
 
 struct ProfileError {
   std::string message;
@@ -74,6 +77,9 @@ void parse(const YAML::Node& root, Profile& p) {
   p.patient = text(root["patient"], "patient");
   if (!std::regex_match(p.patient, std::regex("[A-Za-z0-9_-]{1,64}"))) {
     throw ProfileError{"patient: '" + p.patient + "' must be 1-64 letters, digits, '-' or '_' (an id, not a name)"};
+  }
+  if (p.patient == kAnonymousPatient) {
+    throw ProfileError{"patient: '" + p.patient + "' is reserved (the records of sessions without a profile)"};
   }
   if (!root["device"]) throw ProfileError{"device: missing"};
   p.device = text(root["device"], "device");
@@ -274,7 +280,19 @@ std::string readProfileFile(const std::string& path, std::string& text) {
 std::string loadProfileFile(const std::string& path, Profile& out) {
   std::string text;
   if (std::string err = readProfileFile(path, text); !err.empty()) return err;
-  return loadProfileText(text, path, out);
+  Profile p;
+  if (std::string err = loadProfileText(text, path, p); !err.empty()) return err;
+  // The file name is the patient id (<patient>.yaml): a profile holding another patient's id is refused, so no
+  // session can record one patient under another's name.
+  const std::string file = path.substr(path.rfind('/') + 1);
+  const auto dot = file.rfind('.');
+  const std::string stem = dot == std::string::npos ? file : file.substr(0, dot);
+  if (stem != p.patient) {
+    return path + ": patient: '" + p.patient + "' does not match the file name '" + file + "' (the profile of patient '" +
+           p.patient + "' must be " + p.patient + ".yaml)";
+  }
+  out = std::move(p);
+  return {};
 }
 
 }  // namespace phalanx::host::therapy

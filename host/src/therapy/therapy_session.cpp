@@ -1,9 +1,13 @@
 #include "phalanx/host/therapy/therapy_session.h"
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 
+#include "phalanx/host/record/write_failure.h"
+#include "phalanx/host/therapy/records_dir.h"
 #include "phalanx/host/therapy/report.h"
 
 namespace phalanx::host::therapy {
@@ -73,6 +77,28 @@ std::unique_ptr<Controller> TherapySession::makeController(const protocol::Devic
   return std::make_unique<SharedController>(ctl);
 }
 
+std::string TherapySession::createRecord() {
+  if (config_.record_path.empty() || writer_.isOpen()) return {};
+  return writer_.create(config_.record_path);
+}
+
+std::string TherapySession::createRecordIn(const std::string& dir, const std::string& patient, std::time_t when) {
+  RecordName name = nextRecordName(dir, patient, when);
+  for (int attempt = 0; attempt < 1000; ++attempt, ++name.seq) {
+    const std::string path = dir + "/" + recordFileName(name);
+    int err_no = 0;
+    const std::string err = writer_.create(path, &err_no);
+    if (err_no == EEXIST) continue;  // made meanwhile (by another process): the next sequence number
+    if (!err.empty()) {
+      return "the records directory " + dir + " cannot take a new record: " + err;
+    }
+    config_.record_path = path;
+    config_.report_path = path.substr(0, path.size() - 6) + ".html";
+    return {};
+  }
+  return "the records directory " + dir + ": no free record name for " + patient + " at " + name.stamp;
+}
+
 std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const nlohmann::json& info) {
   phase_.store(1);
   if (config_.record_path.empty()) return {};
@@ -115,7 +141,10 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
   }
   h["exercise"] = config_.exercise.empty() ? "none (device default controller)" : config_.exercise;
   h["exercise_params"] = config_.exercise_params;
-  return writer_.open(config_.record_path, h);
+  if (!writer_.isOpen()) {
+    if (std::string create_err = writer_.create(config_.record_path); !create_err.empty()) return create_err;
+  }
+  return writer_.start(h);
 }
 
 void TherapySession::onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
@@ -234,6 +263,7 @@ nlohmann::json TherapySession::statusJson() const {
   j["phase"] = phase();
   if (config_.have_profile) j["patient"] = config_.profile.patient;
   if (!config_.record_path.empty()) j["record"] = config_.record_path;
+  if (writer_.failed()) j["record_error"] = writer_.error();
   const auto c = controller();
   if (c == nullptr) return j;
   const StatusSnapshot s = c->status();
@@ -280,19 +310,45 @@ void TherapySession::onEnd(const nlohmann::json& summary) {
   (void)summary;
 }
 
-void TherapySession::finish(const nlohmann::json& summary) {
+int TherapySession::finish(const nlohmann::json& summary, int runner_rc) {
   phase_.store(2);
-  nlohmann::json report_info;
-  if (writer_.isOpen()) writer_.close(summary);
-  if (!config_.report_path.empty() && !config_.record_path.empty()) {
-    const std::string err = writeReport(config_.record_path, config_.previous_record, config_.report_path, nullptr,
-                                        config_.transparency_reference);
-    report_info = err.empty() ? nlohmann::json{{"path", config_.report_path}} : nlohmann::json{{"error", err}};
+  const bool recorded = writer_.started();  // a record with its header (not removed by close())
+  writer_.close(summary);
+  nlohmann::json end = summary;
+  int rc = runner_rc;
+  if (!config_.record_path.empty()) {
+    nlohmann::json r{{"path", config_.record_path},
+                     {"cycles_written", writer_.cyclesWritten()},
+                     {"cycles_lost", writer_.cyclesLost()},
+                     {"cycles_dropped", writer_.cyclesDropped()}};
+    if (!recorded) r["removed"] = true;  // ended before its first cycle (or its header failed): no file is left
+    if (writer_.failed()) {
+      r["error"] = writer_.error();
+      if (!end.contains("error")) {
+        end["error"] = "the session record could not be written, so the session was stopped (device left safe): " +
+                       writer_.error();
+      }
+      if (rc == 0) rc = record::kExitRecordFailed;
+      std::fprintf(stderr, "%s: therapy session stopped: its record %s cannot be written; the device was left safe\n",
+                   program_invocation_short_name, config_.record_path.c_str());
+    }
+    end["session_record"] = r;
   }
+  if (!config_.report_path.empty() && !config_.record_path.empty()) {
+    if (!recorded || writer_.failed()) {
+      end["report"] = {{"error", writer_.failed() ? "not written: the session record failed"
+                                                  : "not written: the session ended before its first cycle"}};
+    } else {
+      const std::string err = writeReport(config_.record_path, config_.previous_record, config_.report_path, nullptr,
+                                          config_.transparency_reference);
+      end["report"] = err.empty() ? nlohmann::json{{"path", config_.report_path}} : nlohmann::json{{"error", err}};
+    }
+  }
+  end["exit_code"] = rc;
   std::lock_guard<std::mutex> lock(mutex_);
-  end_summary_ = summary;
-  if (!report_info.is_null()) end_summary_["report"] = report_info;
+  end_summary_ = std::move(end);
   finished_ = true;
+  return rc;
 }
 
 nlohmann::json TherapySession::endSummary() const {

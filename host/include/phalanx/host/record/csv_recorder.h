@@ -5,15 +5,20 @@
 /// made the 1 MiB write(2) itself: on a machine with busy disks that write blocked the loop for up to 28 ms
 /// (docs/modbus.md, "Measured"). A full queue (the writer starved for kQueueRows cycles) drops the row; drops are
 /// counted in the summary.
+///
+/// A failing disk (full, read-only, I/O error): the writer latches the first write/fsync/close error, logs it on
+/// stderr at once, cuts the file back to its last whole row and writes nothing more. failed() (real time: one
+/// atomic load) tells the loop; rowsWritten() + rowsLost() account for every row the loop gave (docs/records.md,
+/// "When the records disk fails").
 #include <array>
 #include <atomic>
 #include <cstdint>
-#include <cstdio>
 #include <memory>
 #include <string>
 #include <thread>
 
 #include "phalanx/host/record/spsc_queue.h"
+#include "phalanx/host/record/write_failure.h"
 #include "phalanx/host/session.h"
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
@@ -25,15 +30,31 @@ class CsvRecorder {
   ~CsvRecorder() { close(); }
   /// Create the file and write its header; starts the writer thread. "" or the problem.
   std::string open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column);
-  /// Loop side: one copy into the queue.
+  /// Loop side: one copy into the queue (after a failure: only counted as lost).
   void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses);
+  /// Writes what is queued, fsyncs and closes (a failure there is latched too). Idempotent.
   void close();
-  uint64_t rows() const { return rows_; }
-  uint64_t dropped() const { return dropped_; }
+
+  /// Real time: writing the file failed; nothing is written after it.
+  bool failed() const { return failure_.failed(); }
+  /// "" or the first error, naming the file ("recording X: writing failed: No space left on device (…)").
+  std::string error() const { return failure_.error(); }
+  /// Rows (after the header) whose every byte reached the file. Exact after close().
+  uint64_t rowsWritten() const { return written_.load(); }
+  /// Rows given to row() that are not in the file: dropped by a full queue, or not written after a failure.
+  /// Exact after close(); rowsWritten() + rowsLost() = every row() call.
+  uint64_t rowsLost() const { return dropped_.load() + unwritten_.load(); }
+  /// Rows refused by a full queue (part of rowsLost()).
+  uint64_t rowsDropped() const { return dropped_.load(); }
+  /// The summary's names: rows = rowsWritten(), dropped = rowsLost().
+  uint64_t rows() const { return rowsWritten(); }
+  uint64_t dropped() const { return rowsLost(); }
 
  private:
   /// 8 s at 1 kHz of writer starvation before a row is dropped; ≈ 1.4 MB.
   static constexpr size_t kQueueRows = 8192;
+  /// Rows formatted before each write(2): ~100 ms of recording at 1 kHz (a crash loses at most that much).
+  static constexpr size_t kRowsPerWrite = 100;
   struct Row {
     double t_s = 0.0;
     uint64_t device_time_us = 0, sync_pulses = 0;
@@ -44,12 +65,23 @@ class CsvRecorder {
   };
   void writerMain();
   void format(const Row& r);
+  /// Writes the formatted rows (none after a failure) and counts them.
+  void writePending();
+  void countLost(uint64_t n) { dropped_.store(dropped_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed); }
 
-  std::FILE* f_ = nullptr;
+  int fd_ = -1;
+  std::string path_;
   uint8_t samples_ = 0;
   uint8_t setpoints_ = 0;
   bool sync_column_ = false;
-  uint64_t rows_ = 0, dropped_ = 0;
+  // Loop thread only writes dropped_ (queue full, or after a failure); the writer thread written_/unwritten_.
+  std::atomic<uint64_t> dropped_{0};
+  std::atomic<uint64_t> written_{0};
+  std::atomic<uint64_t> unwritten_{0};
+  WriteFailure failure_;
+  std::string pending_;        // formatted rows not yet written (writer thread)
+  uint64_t pending_rows_ = 0;
+  uint64_t file_bytes_ = 0;    // whole rows (and the header) in the file
   std::unique_ptr<SpscQueue<Row>> queue_;
   std::atomic<bool> running_{false};
   std::thread writer_;

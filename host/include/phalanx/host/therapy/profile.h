@@ -30,7 +30,7 @@ struct PatientLimits {
 
 struct Profile {
   int version = 1;
-  std::string patient;      ///< id: letters, digits, '-', '_' (1–64); no names on disk
+  std::string patient;      ///< id: letters, digits, '-', '_' (1–64), not "anonymous"; no names on disk
   std::string device;       ///< glove5 (sea_finger once its adapter exists)
   std::string size;         ///< S | M | L (glove shell / exoskeleton link setting)
   std::string handedness;   ///< left | right
@@ -45,6 +45,8 @@ struct Profile {
 /// "<source>: <key>: <problem>".
 std::string loadProfileText(const std::string& yaml_text, const std::string& source, Profile& out);
 /// Reads `path` with readProfileFile, then loadProfileText.
+/// From a file: a regular file of at most 1 MiB, named after its patient (`<patient>.yaml`, any extension): a
+/// `patient` field that differs from the file name is refused naming both.
 std::string loadProfileFile(const std::string& path, Profile& out);
 
 /// The largest profile file read (a real one is < 4 KiB).

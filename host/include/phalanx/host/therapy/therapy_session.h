@@ -1,7 +1,13 @@
 #pragma once
 /// One therapy session as the daemon runs it: patient profile, exercises, crash-safe record, report. Plugs
 /// into runSession() through SessionHooks; the control API drives it from its own thread.
+///
+/// A therapy session never continues unrecorded: when its record cannot be written (records disk full, read-only,
+/// failing), stopRequested() turns true at the writer's first error, runSession ends the session the normal way
+/// (device commanded safe), and finish() reports the error (summary "error" and "session_record.error", exit code
+/// record::kExitRecordFailed). docs/therapy.md, "When the records disk fails".
 #include <atomic>
+#include <ctime>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -40,9 +46,19 @@ class TherapySession : public SessionHooks {
   void onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) override;
   void onDeviceEvent(const protocol::Event& event) override;
   PatientLimitStage* patientLimits() override { return loop_guard_; }
-  bool stopRequested() override { return stop_.load(std::memory_order_relaxed); }
+  /// The API's stop, or the record's writer failed (real time: two atomic loads).
+  bool stopRequested() override { return stop_.load(std::memory_order_relaxed) || writer_.failed(); }
   bool takeClearFaultsRequest() override { return clear_faults_.exchange(false, std::memory_order_relaxed); }
   void onEnd(const nlohmann::json& summary) override;
+
+  /// Before runSession: create config().record_path now, so a records directory that cannot take it refuses the
+  /// session before it starts (the header follows at onStart). "" or the error.
+  std::string createRecord();
+  /// The control API's record: a new <dir>/<patient>-<UTC second>[-n].phrec (records_dir.h), created now, with
+  /// the report beside it (.html); sets config().record_path / report_path. "" or an error naming the directory.
+  std::string createRecordIn(const std::string& dir, const std::string& patient, std::time_t when);
+  /// The record's writer failed: the session stops (or has stopped) because of it.
+  bool recordFailed() const { return writer_.failed(); }
 
   // API thread
   void requestStop() { stop_.store(true); }
@@ -56,8 +72,10 @@ class TherapySession : public SessionHooks {
   nlohmann::json statusJson() const;
   /// Free retired exercises (call periodically off the loop).
   void housekeeping();
-  /// Called by the owner after runSession returned (any outcome): closes the record and writes the report.
-  void finish(const nlohmann::json& summary);
+  /// Called by the owner after runSession returned (any outcome) with runSession's exit code: closes the record,
+  /// writes the report and the end summary ("session_record": path, cycles_written, cycles_lost[, error]; "exit_code").
+  /// Returns the session's exit code: runner_rc, or record::kExitRecordFailed when only the record failed.
+  int finish(const nlohmann::json& summary, int runner_rc = 0);
   const TherapySessionConfig& config() const { return config_; }
   /// "starting" | "running" | "ended"
   std::string phase() const;
