@@ -554,6 +554,9 @@ class SessionRunner {
       return {};
     }
     ++cycles_without_telemetry_;
+    // A CAN bus off or down is the bus's own outage (the device goes safe by its command timeout, traffic resumes
+    // after the restart): the telemetry timeout counts from its end.
+    if (link_->inOutage()) last_new_telemetry_ns_ = wake_ns;
     if (wake_ns - last_new_telemetry_ns_ <= telemetry_timeout_ns_) return {};
     char why[96];
     std::snprintf(why, sizeof why, "no telemetry from the device for %.0f ms (telemetry_timeout_ms %u)",

@@ -199,6 +199,9 @@ class CanDeviceLink : public DeviceLink {
   bool push() override { return can_.flush(); }
   std::string linkError() const override { return can_.error(); }
   bool carriesGainScales() const override { return opt_.flavor != protocol::can::Flavor::kClassic; }
+  bool inOutage() const override {
+    return can_.state() == linux_hal::CanBusState::kBusOff || can_.state() == linux_hal::CanBusState::kDown;
+  }
   void afterCycle(double t_s) override {
     if (can_.state() == state_) return;
     std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(state_),

@@ -35,6 +35,9 @@ class DeviceLink : public RecoveryLink {
   virtual bool carriesGainScales() const { return true; }
   /// A device that can no longer answer (the simulated firmware's process exited): checked every cycle.
   virtual std::string deviceGone() { return {}; }
+  /// True while the transport itself reports an outage it recovers from by itself (a CAN bus off or its
+  /// interface down): silence then is that outage, not a lost device, and the telemetry timeout waits for it.
+  virtual bool inOutage() const { return false; }
   /// Once per cycle after the command went out: transport state changes worth a log line (CAN bus state).
   virtual void afterCycle(double t_s) { (void)t_s; }
   /// Where it is, for messages (a path, an interface, a USB bus/port).
