@@ -21,20 +21,6 @@ namespace {
 
 constexpr uint16_t kNominalGainPermille = 1000;
 
-const char* causeName(ForceOffCause c) {
-  switch (c) {
-    case ForceOffCause::kNone: return "none";
-    case ForceOffCause::kClientTimeout: return "client-timeout";
-    case ForceOffCause::kInvalidCommand: return "invalid-command";
-    case ForceOffCause::kLimit: return "limit";
-    case ForceOffCause::kDeviceFault: return "device-fault";
-    case ForceOffCause::kEstop: return "e-stop";
-    case ForceOffCause::kLinkLoss: return "link-loss";
-    case ForceOffCause::kDaemonStop: return "daemon-stop";
-  }
-  return "unknown";
-}
-
 }  // namespace
 
 ClientPort::ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus)
@@ -251,7 +237,7 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
   nlohmann::json list = nlohmann::json::array();
   for (size_t i = 0; i < record_count_; ++i) {
     const ForceOffRecord& r = records_[i];
-    list.push_back({{"cause", causeName(r.cause)}, {"client", r.generation}, {"at_s", at_s(r.at_ns)},
+    list.push_back({{"cause", client_wire::forceOffCauseName(r.cause)}, {"client", r.generation}, {"at_s", at_s(r.at_ns)},
                     {"last_command_at_s", at_s(r.last_command_ns)}});
   }
   return {{"socket", server_.path()},
@@ -269,7 +255,5 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
           {"force_offs", force_offs_},
           {"force_off_records", list}};
 }
-
-const char* forceOffCauseName(ForceOffCause cause) { return causeName(cause); }
 
 }  // namespace phalanx::host::client

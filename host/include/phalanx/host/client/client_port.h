@@ -152,7 +152,4 @@ class ClientPort {
   uint64_t clients_seen_ = 0;
 };
 
-/// "client-timeout", "e-stop", ... (the summary's and docs/sdk.md's names).
-const char* forceOffCauseName(client_wire::ForceOffCause cause);
-
 }  // namespace phalanx::host::client

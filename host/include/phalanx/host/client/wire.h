@@ -48,6 +48,21 @@ enum class ForceOffCause : uint8_t {
   kDaemonStop = 7,      ///< the session ended (SIGINT/SIGTERM, --seconds, API stop)
 };
 
+/// The cause's name in summaries, logs and docs/sdk.md.
+inline const char* forceOffCauseName(ForceOffCause c) {
+  switch (c) {
+    case ForceOffCause::kNone: return "none";
+    case ForceOffCause::kClientTimeout: return "client-timeout";
+    case ForceOffCause::kInvalidCommand: return "invalid-command";
+    case ForceOffCause::kLimit: return "limit";
+    case ForceOffCause::kDeviceFault: return "device-fault";
+    case ForceOffCause::kEstop: return "e-stop";
+    case ForceOffCause::kLinkLoss: return "link-loss";
+    case ForceOffCause::kDaemonStop: return "daemon-stop";
+  }
+  return "unknown";
+}
+
 /// Who commands the device this cycle, from the client's point of view (state.control).
 enum class Control : uint8_t {
   kNotYet = 0,      ///< connected, no command yet (the built-in controller commands)
