@@ -1,5 +1,5 @@
 /* The C ABI: press one glove finger with a constant pad force for a number of cycles (docs/sdk.md).
- *   glove_press SOCKET FINGER FORCE_N CYCLES */
+ *   glove_press SOCKET FINGER FORCE_N CYCLES [DEADLINE_MS] */
 #include <phalanx/phalanx.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,15 +25,17 @@ int main(int argc, char** argv) {
   phalanx_state last;
   struct press p;
   int rc;
-  if (argc != 5) {
-    fprintf(stderr, "usage: glove_press SOCKET FINGER FORCE_N CYCLES\n");
+  unsigned deadline_ms = 20;
+  if (argc != 5 && argc != 6) {
+    fprintf(stderr, "usage: glove_press SOCKET FINGER FORCE_N CYCLES [DEADLINE_MS]\n");
     return 2;
   }
   p.finger = atoi(argv[2]);
   p.force_N = (float)atof(argv[3]);
   p.cycles_left = atol(argv[4]);
+  if (argc == 6) deadline_ms = (unsigned)atoi(argv[5]);
   if (p.finger < 0 || p.finger >= PHALANX_GLOVE_FINGERS) return 2;
-  c = phalanx_connect(argv[1], 20, PHALANX_FALLBACK_SAFE);
+  c = phalanx_connect(argv[1], deadline_ms, PHALANX_FALLBACK_SAFE);
   if (c == NULL) {
     fprintf(stderr, "glove_press: %s\n", phalanx_last_error());
     return 3;

@@ -25,6 +25,7 @@ struct Args {
   double x0_m = 0.0, y0_m = 0.0;
   double dx_m = 0.0, dy_m = 0.0;
   double seconds = 0.0;
+  unsigned deadline_ms = 20;
   std::string log;
 };
 
@@ -51,6 +52,8 @@ bool parse(int argc, char** argv, Args& a) {
       a.dy_m = y * 1e-3;
     } else if (key == "--seconds") {
       a.seconds = std::atof(v);
+    } else if (key == "--deadline-ms") {
+      a.deadline_ms = static_cast<unsigned>(std::atoi(v));
     } else if (key == "--log") {
       a.log = v;
     } else {
@@ -72,11 +75,11 @@ int main(int argc, char** argv) {
   Args a;
   if (!parse(argc, argv, a)) {
     std::fprintf(stderr, "usage: glove_spring --socket PATH [--finger 0..4] [--k N_PER_M] [--point X_MM,Y_MM] "
-                         "[--offset DX_MM,DY_MM] [--seconds S] [--log FILE]\n");
+                         "[--offset DX_MM,DY_MM] [--seconds S] [--deadline-ms 20] [--log FILE]\n");
     return 2;
   }
   try {
-    phalanx::Client client({a.socket, 20, phalanx::Fallback::kSafe});
+    phalanx::Client client({a.socket, a.deadline_ms, phalanx::Fallback::kSafe});
     if (std::strcmp(client.device().device_name, "glove5") != 0) {
       std::fprintf(stderr, "glove_spring: the device is %s, not glove5\n", client.device().device_name);
       return 2;

@@ -97,26 +97,42 @@ std::multimap<int, double> readSpringLog(const std::string& path) {
 }
 
 constexpr double kGloveLimitN = 10.0;  // kGlove5Layout.setpoint_limit
-constexpr double kDeadlineS = 0.020;   // the examples connect with 20 ms
-constexpr int kDeadlineCycles = 20;    // at 1 kHz
+// The tests' clients connect with a 250 ms deadline: they run without real-time priority beside other builds,
+// and a stall of tens of ms is then ordinary (a shorter deadline would force them off before the test's point).
+constexpr double kDeadlineS = 0.250;
+constexpr int kDeadlineCycles = 250;  // at 1 kHz
+const std::string kDeadlineMs = "250";
 
-}  // namespace
+/// A starved firmware-sim (this machine runs builds beside the tests, without real-time priority) can latch a
+/// current-limit fault; the daemon then forces the client off with cause device-fault - correct, but not the point
+/// of the tests below, which then run again (at most kAttempts times).
+bool deviceFaulted(const nlohmann::json& j) {
+  for (const auto& r : j["client"]["force_off_records"]) {
+    if (r["cause"] == "device-fault") return true;
+  }
+  return false;
+}
+constexpr int kAttempts = 3;
 
 // The spring example renders f = k (p0 - p).n on the index finger; every cycle the client commanded, the pad force
 // the daemon sent (setpoint1) is what the example computed from a state the daemon published in the cycles before
-// - within 1e-3 N: the daemon passes the client's float unchanged below the 10 N limit, the CSV prints 5
-// significant digits (≤ 5e-4 N below 10 N) and the example's log 9 (exact); beyond 10 N the limit is what is sent.
-TEST(ClientSdk, TheGloveSpringsForcesAreWhatTheDaemonSent) {
-  const std::string sock = tmpPath("spring.sock"), csv = tmpPath("spring.csv"), log = tmpPath("spring.log");
+// (at most the deadline: until then a late client's last command is repeated) - within 1e-3 N: the daemon passes
+// the client's float unchanged below the 10 N limit, the CSV prints 5 significant digits (≤ 5e-4 N below 10 N)
+// and the example's log 9 (exact); beyond 10 N the limit is what is sent.
+bool springForcesMatch(int attempt) {
+  const std::string n = std::to_string(attempt);
+  const std::string sock = tmpPath("spring" + n + ".sock"), csv = tmpPath("spring" + n + ".csv"),
+                    log = tmpPath("spring" + n + ".log");
   auto daemon = startDaemon(sock, csv, "4");
-  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "300", "--offset", "0,-5",
-                  "--seconds", "2", "--log", log});
+  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "100", "--offset", "0,-3",
+                  "--seconds", "2", "--deadline-ms", kDeadlineMs, "--log", log});
   const int spring_rc = spring.wait(20000);
   const nlohmann::json j = finish(*daemon);
-  ASSERT_EQ(spring_rc, 0) << spring.stdoutText() << spring.stderrText() << daemon->stderrText();
+  if (deviceFaulted(j)) return false;
+  EXPECT_EQ(spring_rc, 0) << spring.stdoutText() << spring.stderrText() << daemon->stderrText();
   const Csv rec = readCsv(csv);
   const std::multimap<int, double> computed = readSpringLog(log);
-  ASSERT_GT(computed.size(), 1000u);
+  EXPECT_GT(computed.size(), 1000u);
   size_t commanded = 0, matched = 0;
   double peak = 0.0;
   for (size_t i = kDeadlineCycles; i + 1 < rec.rows(); ++i) {
@@ -145,26 +161,32 @@ TEST(ClientSdk, TheGloveSpringsForcesAreWhatTheDaemonSent) {
   EXPECT_GT(peak, 0.5) << "the spring never pulled (the comparison would be vacuous)";
   EXPECT_EQ(j["client"]["cycles_commanded"].get<uint64_t>(), j["command_sources"]["client"].get<uint64_t>());
   EXPECT_EQ(j["client"]["releases"], 1) << j.dump(2);
+  return true;
 }
 
-// kill -9 mid-render: the daemon sends the safe state in the first cycle past the client's 20 ms deadline and the
+// kill -9 mid-render: the daemon sends the safe state in the first cycle past the client's deadline and the
 // firmware reports safe within two further cycles of new telemetry; the cause is in the summary.
-TEST(ClientSdk, AKilledClientIsForcedSafeWithinTwoCyclesOfItsDeadline) {
-  const std::string sock = tmpPath("kill.sock"), csv = tmpPath("kill.csv");
+bool killedClientGoesSafe(int attempt) {
+  const std::string n = std::to_string(attempt);
+  const std::string sock = tmpPath("kill" + n + ".sock"), csv = tmpPath("kill" + n + ".csv");
   auto daemon = startDaemon(sock, csv, "4");
-  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "300", "--offset", "0,-5"});
+  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "100", "--offset", "0,-3",
+                  "--deadline-ms", kDeadlineMs});
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   spring.signal(SIGKILL);
   spring.wait(5000);
   const nlohmann::json j = finish(*daemon);
+  if (deviceFaulted(j)) return false;
   const nlohmann::json& offs = j["client"]["force_off_records"];
-  ASSERT_EQ(offs.size(), 1u) << j.dump(2);
+  EXPECT_EQ(offs.size(), 1u) << j.dump(2);
+  if (offs.size() != 1u) return true;
   EXPECT_EQ(offs[0]["cause"], "client-timeout");
   EXPECT_EQ(j["client"]["disconnects_without_release"], 1);
   const Csv rec = readCsv(csv);
   const size_t last = rec.rowAt(offs[0]["last_command_at_s"].get<double>());
   const size_t forced = rec.rowAt(offs[0]["at_s"].get<double>());
-  ASSERT_LT(forced + 3, rec.rows());
+  EXPECT_LT(forced + 3, rec.rows());
+  if (forced + 3 >= rec.rows()) return true;
   EXPECT_EQ(rec.at("mode", last), 2) << "the client was not rendering when it was killed";
   // The daemon: the first cycle whose wake time is past the deadline, not later.
   EXPECT_GT(rec.at("t_s", forced) - rec.at("t_s", last), kDeadlineS);
@@ -175,17 +197,57 @@ TEST(ClientSdk, AKilledClientIsForcedSafeWithinTwoCyclesOfItsDeadline) {
     if (rec.at("seq", i) != rec.at("seq", i - 1)) ++fresh;
     if (rec.at("mode", i) == 0) safe_row = i;
   }
-  ASSERT_NE(safe_row, 0u) << "the device never reported safe";
+  EXPECT_NE(safe_row, 0u) << "the device never reported safe";
   EXPECT_LE(fresh, 2u) << "device reported safe " << fresh << " telemetry frames after the forced cycle";
-  for (size_t i = safe_row; i < rec.rows(); ++i) ASSERT_EQ(rec.at("mode", i), 0) << "row " << i;
-  for (size_t i = forced; i < rec.rows(); ++i) ASSERT_EQ(rec.at("setpoint1", i), 0.0) << "row " << i;
+  for (size_t i = safe_row; i < rec.rows(); ++i) EXPECT_EQ(rec.at("mode", i), 0) << "row " << i;
+  for (size_t i = forced; i < rec.rows(); ++i) EXPECT_EQ(rec.at("setpoint1", i), 0.0) << "row " << i;
+  return true;
 }
+
+// One client commands a device: a second one is refused while the first holds it (counted, with the reason).
+bool secondClientRefused(int attempt) {
+  const std::string n = std::to_string(attempt);
+  const std::string sock = tmpPath("busy" + n + ".sock"), csv = tmpPath("busy" + n + ".csv");
+  auto daemon = startDaemon(sock, csv, "3", "still");
+  Process first({binPath("glove_press"), sock, "1", "1", "2000", kDeadlineMs});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  Process second({binPath("glove_press"), sock, "1", "5", "100", kDeadlineMs});
+  const int second_rc = second.wait(10000);
+  const int first_rc = first.wait(20000);
+  const nlohmann::json j = finish(*daemon);
+  if (deviceFaulted(j)) return false;
+  EXPECT_EQ(second_rc, 3);
+  EXPECT_NE(second.stderrText().find("another client"), std::string::npos) << second.stderrText();
+  EXPECT_EQ(first_rc, 0) << first.stdoutText() << first.stderrText();
+  EXPECT_EQ(j["client"]["refused_busy"], 1) << j.dump(2);
+  EXPECT_EQ(j["client"]["connections"], 1) << j.dump(2);
+  const Csv rec = readCsv(csv);
+  for (size_t i = 0; i < rec.rows(); ++i) EXPECT_LE(rec.at("setpoint1", i), 1.0) << "the second client commanded";
+  return true;
+}
+
+template <class Run>
+void withoutDeviceFault(Run run) {
+  for (int attempt = 0; attempt < kAttempts; ++attempt) {
+    if (run(attempt)) return;
+    std::fprintf(stderr, "attempt %d: the simulated device faulted (current limit); once more\n", attempt);
+  }
+  FAIL() << "the simulated device faulted in all " << kAttempts << " attempts";
+}
+
+}  // namespace
+
+TEST(ClientSdk, TheGloveSpringsForcesAreWhatTheDaemonSent) { withoutDeviceFault(springForcesMatch); }
+
+TEST(ClientSdk, AKilledClientIsForcedSafeWithinTwoCyclesOfItsDeadline) { withoutDeviceFault(killedClientGoesSafe); }
+
+TEST(ClientSdk, ASecondClientIsRefusedWhileTheFirstHoldsTheDevice) { withoutDeviceFault(secondClientRefused); }
 
 // NaN from a client: refused and counted, never sent; the device is held safe those cycles (the client's fallback).
 TEST(ClientSdk, ANonFiniteCommandIsRefusedAndCounted) {
   const std::string sock = tmpPath("nan.sock"), csv = tmpPath("nan.csv");
   auto daemon = startDaemon(sock, csv, "2.5", "still");
-  Process press({binPath("glove_press"), sock, "1", "nan", "500"});
+  Process press({binPath("glove_press"), sock, "1", "nan", "500", kDeadlineMs});
   EXPECT_EQ(press.wait(20000), 0) << press.stdoutText() << press.stderrText();
   const nlohmann::json j = finish(*daemon);
   EXPECT_GE(j["client"]["refused_invalid"].get<int>(), 400) << j.dump(2);
@@ -203,7 +265,7 @@ TEST(ClientSdk, ANonFiniteCommandIsRefusedAndCounted) {
 TEST(ClientSdk, AnOutOfLimitCommandIsSaturatedToTheDeviceLimit) {
   const std::string sock = tmpPath("lim.sock"), csv = tmpPath("lim.csv");
   auto daemon = startDaemon(sock, csv, "2.5", "still");
-  Process press({binPath("glove_press"), sock, "1", "25", "500"});
+  Process press({binPath("glove_press"), sock, "1", "25", "500", kDeadlineMs});
   const int rc = press.wait(20000);
   EXPECT_NE(press.stdoutText().find("sent 10.000 N"), std::string::npos) << press.stdoutText();
   if (rc != 0) {
@@ -216,23 +278,6 @@ TEST(ClientSdk, AnOutOfLimitCommandIsSaturatedToTheDeviceLimit) {
   double peak = 0.0;
   for (size_t i = 0; i < rec.rows(); ++i) peak = std::fmax(peak, rec.at("setpoint1", i));
   EXPECT_DOUBLE_EQ(peak, kGloveLimitN);
-}
-
-// One client commands a device: a second one is refused while the first holds it (counted, with the reason).
-TEST(ClientSdk, ASecondClientIsRefusedWhileTheFirstHoldsTheDevice) {
-  const std::string sock = tmpPath("busy.sock"), csv = tmpPath("busy.csv");
-  auto daemon = startDaemon(sock, csv, "3", "still");
-  Process first({binPath("glove_press"), sock, "1", "1", "2000"});
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  Process second({binPath("glove_press"), sock, "1", "5", "100"});
-  EXPECT_EQ(second.wait(10000), 3);
-  EXPECT_NE(second.stderrText().find("another client"), std::string::npos) << second.stderrText();
-  EXPECT_EQ(first.wait(20000), 0) << first.stdoutText() << first.stderrText();
-  const nlohmann::json j = finish(*daemon);
-  EXPECT_EQ(j["client"]["refused_busy"], 1) << j.dump(2);
-  EXPECT_EQ(j["client"]["connections"], 1) << j.dump(2);
-  const Csv rec = readCsv(csv);
-  for (size_t i = 0; i < rec.rows(); ++i) ASSERT_LE(rec.at("setpoint1", i), 1.0) << "the second client commanded";
 }
 
 // libphalanx from an installed tree: cmake --install into a temporary prefix, then the examples built against it
