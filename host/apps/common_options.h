@@ -53,6 +53,9 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--estop-release-ms", opt.gpio.estop_release_ms,
                  "the e-stop must stay released this long before a reset is accepted")
       ->check(cli::inRange(1.0, 1000.0));
+  app.add_option("--client-socket", opt.client.socket_path,
+                 "serve libphalanx clients on this UNIX socket (its directory is private; docs/sdk.md)");
+  app.add_option("--client-group", opt.client.group, "members of this group may connect as clients too");
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");
   app.add_flag("--live", opt.live_view, "live per-finger view on the terminal");
   app.add_flag("--json", json, "print the end-of-session summary as JSON on stdout");

@@ -16,6 +16,7 @@
 #include <random>
 #include <vector>
 
+#include "phalanx/host/client/client_port.h"
 #include "phalanx/host/command_limits.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/controller.h"
@@ -348,6 +349,7 @@ class SessionRunner {
     if (int rc = setStartupParams(); rc != 0) return rc;
     readBackStartupParams();
     if (int rc = startModbus(); rc != 0) return rc;
+    if (int rc = startClientChannel(); rc != 0) return rc;
     if (opt_.hooks != nullptr) {
       if (std::string err = opt_.hooks->onStart(*layout_, summary_); !err.empty()) return fail(err, 3);
     }
@@ -474,6 +476,18 @@ class SessionRunner {
                  opt_.modbus.writes_enabled ? "writes enabled" : "read-only");
     mb_port_ = std::make_unique<modbus::LoopPort>(*mb_server_, opt_.modbus, static_cast<uint16_t>(layout_->type),
                                                   layout_->sample_count, layout_->setpoint_count);
+    return 0;
+  }
+
+  /// Optional local client channel (docs/sdk.md): its socket thread; the loop only copies through shared memory.
+  int startClientChannel() {
+    if (opt_.client.socket_path.empty()) return 0;
+    if (std::string err = client::validateClientOptions(opt_.client); !err.empty()) return fail(err, 2);
+    const client::DeviceIdentity id{layout_, opt_.rate_hz, session_->deviceInfo().firmware_build_id};
+    client_server_ = std::make_unique<client::Server>(opt_.client, id);
+    if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
+    std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
+    client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get());
     return 0;
   }
 
@@ -663,6 +677,10 @@ class SessionRunner {
       ++source_cycles_[kSourceModbus];
       return;
     }
+    if (client_port_ && client_port_->overrideCommand(tel, cmd_, wake_ns)) {
+      ++source_cycles_[kSourceClient];
+      return;
+    }
     ++source_cycles_[kSourceController];
   }
 
@@ -696,6 +714,7 @@ class SessionRunner {
       mb_port_->publish(tel, cmd_, cycles_, overruns_, last_jitter_us_, cycle_us, wake_ns - start_ns_,
                         session_->stats().telemetry_lost, modbus::LoopState::kRunning);
     }
+    if (client_port_) client_port_->publish(tel, cmd_, wake_ns, cycles_);
     if (opt_.live_view && wake_ns >= next_live_ns_) {
       next_live_ns_ = wake_ns + 100000000ull;
       std::fprintf(stderr, "\r\033[K%7.2fs %-11s faults=%s %s", t_s, modeName(tel.mode),
@@ -723,6 +742,12 @@ class SessionRunner {
       summary_["modbus"] = mb_server_->statsJson();
       summary_["modbus"]["cycles_under_modbus_control"] = mb_port_->remoteCycles();
       summary_["modbus"]["command_timeouts"] = mb_port_->remoteTimeouts();
+    }
+    if (client_server_) {
+      client_port_->finish(summary_.contains("link_error") ? client_wire::ForceOffCause::kLinkLoss
+                                                            : client_wire::ForceOffCause::kDaemonStop);
+      client_server_->stop();
+      summary_["client"] = client_port_->summaryJson(start_ns_);
     }
     summarize();
     if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
@@ -758,6 +783,7 @@ class SessionRunner {
                             {"rejected_by_device", s.device_rx_errors}};
     summary_["command_sources"] = {{"controller", source_cycles_[kSourceController]},
                                    {"modbus", source_cycles_[kSourceModbus]},
+                                   {"client", source_cycles_[kSourceClient]},
                                    {"stop", source_cycles_[kSourceStop]}};
     summary_["host_rx_errors"] = {{"crc", s.host_rx.crc_errors},
                                   {"framing", s.host_rx.framing_errors},
@@ -823,7 +849,7 @@ class SessionRunner {
   }
 
   static constexpr size_t kMaxStopRecords = 256;  // fixed: no allocation in the loop; later stops are counted only
-  enum Source : uint8_t { kSourceController = 0, kSourceModbus, kSourceStop, kSourceCount };
+  enum Source : uint8_t { kSourceController = 0, kSourceModbus, kSourceClient, kSourceStop, kSourceCount };
 
   const RunOptions& opt_;
   nlohmann::json& summary_;
@@ -837,6 +863,8 @@ class SessionRunner {
   record::CsvRecorder recorder_;
   std::unique_ptr<modbus::Server> mb_server_;
   std::unique_ptr<modbus::LoopPort> mb_port_;
+  std::unique_ptr<client::Server> client_server_;
+  std::unique_ptr<client::ClientPort> client_port_;
   std::unique_ptr<SafetyIo> safety_;
   std::unique_ptr<LinkRecovery> recovery_;
   bool have_safety_io_ = false;

@@ -248,6 +248,11 @@ LoopPort::LoopPort(Server& server, const ServerOptions& options, uint16_t device
 }
 
 bool LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
+  commanding_ = selectCommand(cmd, now_ns);
+  return commanding_;
+}
+
+bool LoopPort::selectCommand(protocol::Command& cmd, uint64_t now_ns) {
   RemoteCommand latest;
   if (server_.latestCommand(latest)) {
     remote_ = latest;
@@ -256,6 +261,11 @@ bool LoopPort::overrideCommand(protocol::Command& cmd, uint64_t now_ns) {
   timed_out_ = false;
   if (!have_remote_ || remote_.source != ControlSource::kModbus) {
     snap_.source = ControlSource::kController;
+    return false;
+  }
+  if (locked_out_) {
+    ++refused_cycles_;
+    snap_.source = ControlSource::kController;  // not Modbus: another source holds the device
     return false;
   }
   snap_.source = ControlSource::kModbus;

@@ -11,6 +11,7 @@
 #include "phalanx/linux/can_link.h"
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
+#include "phalanx/host/client/client_options.h"
 #include "phalanx/host/modbus/server_options.h"
 #include "phalanx/host/api/dashboard_options.h"
 
@@ -83,6 +84,7 @@ struct RunOptions {
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default
+  client::ClientOptions client;       ///< local client channel for libphalanx (docs/sdk.md); off by default
   GpioOptions gpio;                   ///< e-stop, drive enable, sync pulse (docs/gpio.md); none by default
   api::DashboardOptions dashboard;    ///< live web dashboard (docs/dashboard.md; API mode only); off by default
 };

@@ -80,14 +80,23 @@ class LoopPort {
                double jitter_us, double cycle_us, uint64_t uptime_ns, uint64_t telemetry_lost, LoopState state);
   uint64_t remoteCycles() const { return remote_cycles_; }
   uint64_t remoteTimeouts() const { return remote_timeouts_; }
+  /// While another command source (a local client) holds the device, a write selecting Modbus control is
+  /// refused: overrideCommand returns false and the cycle is counted (refusedCycles).
+  void lockOut(bool locked) { locked_out_ = locked; }
+  /// The last overrideCommand commanded the device (Modbus holds control).
+  bool commanding() const { return commanding_; }
+  uint64_t refusedCycles() const { return refused_cycles_; }
 
  private:
+  bool selectCommand(protocol::Command& cmd, uint64_t now_ns);
   Server& server_;
   uint64_t timeout_ns_;
   LoopSnapshot snap_;
   RemoteCommand remote_;
   bool have_remote_ = false;
   bool timed_out_ = false;
+  bool locked_out_ = false, commanding_ = false;
+  uint64_t refused_cycles_ = 0;
   float window_max_ = 0.0f, prev_window_max_ = 0.0f;
   uint32_t window_n_ = 0;
   uint64_t remote_cycles_ = 0, remote_timeouts_ = 0;
