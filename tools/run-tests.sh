@@ -6,10 +6,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-tools/setup.sh
+tools/setup.sh --test
 
 echo "== host build =="
-cmake --preset host >/dev/null
+cmake --preset host -DPHALANX_BUILD_TESTS=ON >/dev/null
 cmake --build --preset host
 ctest --preset host -j2
 

@@ -1,11 +1,26 @@
 #!/usr/bin/env bash
 # Install exactly what is missing for building and testing Phalanx on Debian 12. Idempotent: a second run
-# installs nothing. Usage: tools/setup.sh [extra Debian packages…]   (with arguments: only those packages)
+# installs nothing.
+# Usage: tools/setup.sh          the main-job set: what building and running phalanxd/phalanx/firmware-sim needs
+#        tools/setup.sh --test   everything: the main-job set plus what the tests, CI lanes and packaging need
+#        tools/setup.sh PKG…     only those packages
 set -euo pipefail
 
-if [ $# -gt 0 ]; then
+# The main-job set (tools/run-glove.sh): build tools and the libraries the host build links. Keep it small.
+MAIN_PACKAGES=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev libcli11-dev libyaml-cpp-dev zlib1g-dev nlohmann-json3-dev libceres-dev libusb-1.0-0-dev
+  libgpiod-dev libmodbus-dev libnlopt-dev libcpp-httplib-dev
+)
+
+set_name=main
+if [ "${1:-}" = "--test" ]; then set_name=test; shift; fi
+if [ $# -gt 0 ]; then set_name=requested
   PACKAGES=("$@")
+elif [ "$set_name" = main ]; then
+  PACKAGES=("${MAIN_PACKAGES[@]}")
 else
+# The test set (tools/run-tests.sh, CI): a superset of the main-job set. Append new test/CI packages here.
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
@@ -18,6 +33,9 @@ PACKAGES=(
 )
 fi
 
+if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi
+PACKAGES=($(printf '%s\n' "${PACKAGES[@]}" | sort -u))
+
 missing=()
 for p in "${PACKAGES[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
@@ -26,7 +44,7 @@ for p in "${PACKAGES[@]}"; do
 done
 
 if [ ${#missing[@]} -eq 0 ]; then
-  echo "setup: all ${#PACKAGES[@]} packages present"
+  echo "setup: all ${#PACKAGES[@]} packages present ($set_name set)"
   exit 0
 fi
 
