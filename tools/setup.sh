@@ -10,7 +10,7 @@ set -euo pipefail
 MAIN_PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libcli11-dev libyaml-cpp-dev zlib1g-dev nlohmann-json3-dev libceres-dev libusb-1.0-0-dev
-  libgpiod-dev libmodbus-dev libnlopt-dev libcpp-httplib-dev
+  libgpiod-dev libmodbus-dev libnlopt-dev libcpp-httplib-dev libaio-dev
 )
 
 set_name=main
@@ -30,6 +30,7 @@ PACKAGES=(
   qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils rt-tests
   linux-source-6.1 linux-headers-amd64
   libcpp-httplib-dev chromium
+  debootstrap lintian help2man libcap2-bin
 )
 fi
 
