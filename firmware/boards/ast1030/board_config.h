@@ -1,7 +1,8 @@
 #pragma once
-/// What hal/mcu/qemu/board_main.cpp needs from the ast1030-evb board (QEMU 7.2 hw/arm/aspeed_ast10x0.c: an ASPEED
-/// AST1030 with a Cortex-M4F): its link UART (UART5, the board's first `-serial`, a 16550 with 16-byte FIFOs;
-/// uart16550.h), the debug console (UART1, the second `-serial`), the SysTick clock and the link's interrupt.
+/// What firmware/boards/qemu (board_main.cpp, startup.cpp) needs from the ast1030-evb board (QEMU 7.2
+/// hw/arm/aspeed_ast10x0.c: an ASPEED AST1030 with a Cortex-M4F): its link UART (UART5, the board's first
+/// `-serial`, a 16550 with 16-byte FIFOs; hal/mcu/ast1030/uart16550.h), the debug console (UART1, the second
+/// `-serial`), the SysTick clock and the link's interrupt.
 #include <cstdint>
 
 #include "uart16550.h"

@@ -1,5 +1,5 @@
 // Phalanx firmware on an emulated Cortex-M4F board (QEMU mps2-an386 or ast1030-evb, chosen by the board directory's
-// board_config.h): the firmware core and the device app built for the MCU, with the device's simulated plant
+// board_config.h, firmware/boards/<board>/): the firmware core and the device app built for the MCU, with the device's simulated plant
 // linked in as the source of sensor values, ticking at 1 kHz from SysTick and talking to the host over the board's
 // link UART (mps2-an386: CMSDK UART0; ast1030-evb: 16550 UART5 with its FIFO).
 //
@@ -22,11 +22,11 @@
 #include <cstdint>
 
 #include "board_config.h"
-#include "semihosting.h"
 #include "phalanx/fw/core.h"
 #include "phalanx/fw_mcu/app_registry.h"
 #include "phalanx/fw_mcu/board_diag.h"
 #include "phalanx/mcu/cortex_m.h"
+#include "phalanx/mcu/semihosting.h"
 #include "phalanx/mcu/tick_stats.h"
 #include "phalanx/sim/board.h"
 #include "sim_devices.h"
@@ -39,7 +39,7 @@ namespace {
 
 using namespace phalanx;
 using namespace phalanx::mcu;
-using namespace phalanx::mcu::mps2;   // the simulated plant (sim_devices.h) and semihosting (semihosting.h)
+using namespace phalanx::mcu::qemu;   // the simulated plant (sim_devices.h)
 using namespace phalanx::mcu::board;  // this board's link UART, console and clock (board_config.h)
 
 constexpr uint32_t kTickHz = 1000;
@@ -313,18 +313,10 @@ extern "C" void SysTick_Handler() {
   static_cast<void>(csr);
   if (g_running) controlTick();
 }
-#if PHALANX_QEMU_LINK_CMSDK
-extern "C" void Uart0Rx_Handler() {
-  if (g_uart_obj.constructed()) uartLink().onRxInterrupt();
-}
-extern "C" void Uart0Tx_Handler() {
-  if (g_uart_obj.constructed()) uartLink().onTxInterrupt();
-}
-#else
+/// Every interrupt of the link UART (startup.cpp: board_config.h kLinkIrqs).
 extern "C" void LinkUart_Handler() {
   if (g_uart_obj.constructed()) uartLink().onInterrupt();
 }
-#endif
 
 /// Faults: power stage off first, then say why, then stop the emulator with a failure status.
 extern "C" [[noreturn]] void phalanx_fatal(const char* why) {

@@ -19,7 +19,7 @@
 // Two int → double conversions become int → float: substep counts and indices (≤ 10^4), exact in float.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wconversion"
-#include "../../sim/src/glove_plant.cpp"
+#include "../../../hal/sim/src/glove_plant.cpp"
 #pragma GCC diagnostic pop
 #undef double
 #undef phalanx

@@ -5,7 +5,7 @@
 
 #include "phalanx/fw_mcu/app_registry.h"
 
-namespace phalanx::mcu::mps2 {
+namespace phalanx::mcu::qemu {
 /// True if the len characters at s spell name exactly.
 inline bool spells(const char* s, int len, const char* name) {
   int i = 0;
@@ -14,14 +14,14 @@ inline bool spells(const char* s, int len, const char* name) {
   }
   return i == len && name[i] == 0;
 }
-}  // namespace phalanx::mcu::mps2
+}  // namespace phalanx::mcu::qemu
 
 #if defined(PHALANX_MCU_APP_GLOVE5)
 #include "phalanx/sim/glove_plant.h"
 #if PHALANX_GLOVE_PLANT_F32
 #include "glove_plant_f32.h"
 #endif
-namespace phalanx::mcu::mps2 {
+namespace phalanx::mcu::qemu {
 struct PlantOptions {
   uint32_t seed = 1;
   uint8_t scenario = 2;  ///< sim::HandScenario (kGrasp, as firmware-sim's default)
@@ -78,12 +78,12 @@ inline int scenarioNumber(const char* s, int len) {
   if (is("random")) return static_cast<int>(sim::HandScenario::kRandom);
   return -1;
 }
-}  // namespace phalanx::mcu::mps2
+}  // namespace phalanx::mcu::qemu
 
 #elif defined(PHALANX_MCU_APP_SEA_FINGER)
 // The SEA rig (§7.1 of seeds/001: both exoskeleton joints clamped to load cells), firmware-sim's `sea_rig`.
 #include "phalanx/sim/sea_plant.h"
-namespace phalanx::mcu::mps2 {
+namespace phalanx::mcu::qemu {
 using PlantType = sim::SeaPlant;
 struct PlantOptions {
   uint32_t seed = 1;
@@ -104,12 +104,12 @@ inline int scenarioNumber(const char* s, int len) {
   if (spells(s, len, "rig")) return static_cast<int>(sim::SeaVariant::kRig);
   return -1;
 }
-}  // namespace phalanx::mcu::mps2
+}  // namespace phalanx::mcu::qemu
 #elif defined(PHALANX_MCU_APP_PANTOGRAPH)
 // The pen and the hand holding it, as firmware-sim's `pantograph` (same scenario names: the hand holds the pen
 // for still/grasp, moves it for random/close-open; "released" takes the hand off).
 #include "phalanx/sim/pen_plant.h"
-namespace phalanx::mcu::mps2 {
+namespace phalanx::mcu::qemu {
 using PlantType = sim::PenPlant;
 struct PlantOptions {
   uint32_t seed = 1;
@@ -132,7 +132,7 @@ inline int scenarioNumber(const char* s, int len) {
   if (spells(s, len, "released")) return static_cast<int>(sim::PenHandScenario::kReleased);
   return -1;
 }
-}  // namespace phalanx::mcu::mps2
+}  // namespace phalanx::mcu::qemu
 #else
-#error "no simulated plant for this device app on the emulated board (hal/mcu/mps2_an386/sim_devices.h)"
+#error "no simulated plant for this device app on the emulated board (firmware/boards/qemu/sim_devices.h)"
 #endif

@@ -48,40 +48,16 @@ void Uart16550Link::onInterrupt() {
   reg(base_, kIer) = (rx_.space() > 0 ? kIerRxData : 0u) | (tx_.empty() ? 0u : kIerTxEmpty);
 }
 
-void Uart16550Console::init(uint32_t base) {
+void Uart16550ConsolePort::init(uint32_t base) {
   base_ = base;
   reg(base_, kLcr) = kLcr8N1;
   reg(base_, kIirFcr) = kFcrEnable;
 }
 
-void Uart16550Console::put(char c) {
+void Uart16550ConsolePort::put(char c) {
   for (int spin = 0; spin < 100000 && (reg(base_, kLsr) & kLsrThrEmpty) == 0; ++spin) {
   }
   reg(base_, kRbrThr) = static_cast<uint8_t>(c);
-}
-
-Uart16550Console& Uart16550Console::str(const char* s) {
-  for (int i = 0; i < 256 && s[i] != 0; ++i) put(s[i]);
-  return *this;
-}
-
-Uart16550Console& Uart16550Console::u64(uint64_t v) {
-  char buf[21];
-  int i = 20;
-  buf[i] = 0;
-  do {
-    buf[--i] = static_cast<char>('0' + v % 10u);
-    v /= 10u;
-  } while (v != 0 && i > 0);
-  return str(buf + i);
-}
-
-Uart16550Console& Uart16550Console::u32(uint32_t v) { return u64(v); }
-
-Uart16550Console& Uart16550Console::hex16(uint16_t v) {
-  constexpr char kDigits[] = "0123456789abcdef";
-  char buf[7] = {'0', 'x', kDigits[(v >> 12) & 0xF], kDigits[(v >> 8) & 0xF], kDigits[(v >> 4) & 0xF], kDigits[v & 0xF], 0};
-  return str(buf);
 }
 
 }  // namespace phalanx::mcu::ast1030

@@ -8,15 +8,15 @@
 /// model fills its receive FIFO up to the trigger level without a guest round trip (measured rates in
 /// docs/firmware-mcu.md "The emulated UART's throughput").
 ///
-/// Uart16550Link: hal::ByteLink, interrupt driven like the CMSDK link: the interrupt (RX data/timeout, TX holding
-/// register empty) moves received bytes from the FIFO into a ring the control tick reads and drains the TX ring
-/// into the UART; the tick only pends that interrupt after its frame (kick), so each ring has one producer and
-/// one consumer. The interrupt sits below SysTick, so it never preempts or inflates a control tick.
+/// Uart16550Link: the interrupt-driven link (phalanx/mcu/irq_uart_link.h), like the CMSDK link: the interrupt (RX
+/// data/timeout, TX holding register empty) moves received bytes from the FIFO into the receive ring and drains
+/// the transmit ring into the UART; the tick only pends that interrupt after its frame (kick). The interrupt sits
+/// below SysTick, so it never preempts or inflates a control tick.
 #include <cstddef>
 #include <cstdint>
 
-#include "phalanx/hal/hal.h"
-#include "phalanx/mcu/ring_buffer.h"
+#include "phalanx/mcu/irq_uart_link.h"
+#include "phalanx/mcu/text_console.h"
 
 namespace phalanx::mcu::ast1030 {
 
@@ -46,44 +46,27 @@ constexpr uint32_t kLsrOverrun = 1u << 1;
 constexpr uint32_t kLsrThrEmpty = 1u << 5;
 constexpr size_t kFifoDepth = 16;
 
-class Uart16550Link final : public hal::ByteLink {
+class Uart16550Link final : public IrqUartLink {
  public:
   void init(uint32_t base, uint32_t baud);
-  size_t read(uint8_t* dst, size_t max_len) override {
-    const size_t n = rx_.read(dst, max_len);
-    bytes_read_ += static_cast<uint32_t>(n);
-    return n;
-  }
-  size_t write(const uint8_t* src, size_t len) override { return tx_.space() >= len ? tx_.write(src, len) : 0; }
-  size_t writeSpace() const override { return tx_.space(); }
-  uint32_t bytesRead() const { return bytes_read_; }
   /// After the tick: pend the UART interrupt, which sends the new frame and collects a receive-FIFO tail below
   /// the trigger level (so no byte waits for the UART's character timeout longer than one tick).
   void kick();
   void onInterrupt();
-  uint32_t rxOverflows() const { return rx_.overflows() + uart_overruns_; }
 
  private:
   uint32_t base_ = 0;
-  ByteRing<512> rx_;
-  ByteRing<1024> tx_;
-  uint32_t uart_overruns_ = 0;
-  uint32_t bytes_read_ = 0;
 };
 
-/// Polled output on UART1 for boot, safe-state and statistics lines (never on the protocol link).
-class Uart16550Console {
+/// Polled character output on a 16550 (the debug console, UART1).
+class Uart16550ConsolePort {
  public:
   void init(uint32_t base);
-  Uart16550Console& str(const char* s);
-  Uart16550Console& u32(uint32_t v);
-  Uart16550Console& u64(uint64_t v);
-  Uart16550Console& hex16(uint16_t v);
-  Uart16550Console& end() { return str("\n"); }
+  void put(char c);
 
  private:
-  void put(char c);
   uint32_t base_ = 0;
 };
+using Uart16550Console = TextConsole<Uart16550ConsolePort>;
 
 }  // namespace phalanx::mcu::ast1030

@@ -3,7 +3,7 @@
 /// status. Shared by both emulated boards (mps2-an386, ast1030-evb); never linked into the STM32 image.
 #include <cstdint>
 
-namespace phalanx::mcu::mps2 {
+namespace phalanx::mcu {
 
 // ARM semihosting (ARM DUI 0471 "Semihosting operations"), trapped by QEMU with -semihosting-config.
 constexpr uint32_t kSysWriteC = 0x03;
@@ -20,4 +20,4 @@ inline int32_t semihost(uint32_t op, const void* arg) {
   return static_cast<int32_t>(r0);
 }
 
-}  // namespace phalanx::mcu::mps2
+}  // namespace phalanx::mcu
