@@ -32,7 +32,7 @@ std::string selfDir() {
   return slash == std::string::npos ? "." : p.substr(0, slash);
 }
 
-/// Tick rate of every board image (hal/mcu/qemu/board_main.cpp, hal/mcu/stm32g474/main.cpp).
+/// Tick rate of every board image (firmware/boards/qemu/board_main.cpp, firmware/boards/stm32g474/main.cpp).
 constexpr unsigned kSimDeviceTickHz = 1000;
 
 /// The simulated firmware as a child process; it prints "PTY <path>" once its link is up.
@@ -48,7 +48,7 @@ class SimChild {
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
     const std::string seed = std::to_string(opt.seed);
-    // The simulated firmware ticks at the boards' rate (1 kHz, hal/mcu/*/main: kTickHz), or faster with a faster
+    // The simulated firmware ticks at the boards' rate (1 kHz, firmware/boards/*/main: kTickHz), or faster with a faster
     // host loop, never at a slower host's rate: the glove's force loop is designed for >= 1 kHz (000 §4.3; issue
     // #3) and at a 100 Hz tick it limit-cycled into current-limit in 5 of 6 sessions with a still hand.
     const std::string hz = std::to_string(std::max(opt.rate_hz, kSimDeviceTickHz));

@@ -1,4 +1,4 @@
-// The emulated boards' single-precision glove plant (hal/mcu/qemu/glove_plant_f32.cpp: hal/sim's GlovePlant
+// The emulated boards' single-precision glove plant (firmware/boards/qemu/glove_plant_f32.cpp: hal/sim's GlovePlant
 // compiled with float) against the double-precision GlovePlant every other test uses: same configuration, same
 // actuator inputs (duty steps and reversals that drive the motor current through its transients, a grasp, a
 // proportional force loop on the strain gauge), noise and calibration errors off so that the sensor counts are

@@ -13,7 +13,7 @@ tools/mcu/build.sh
 # All gating. QEMU runs under SCHED_FIFO (qemu_board.py; docs/firmware-mcu.md "Real-time scheduling of the
 # emulator"): without it, on this shared 2-core machine, the emulated board lost ticks and queued received bytes
 # (the flaky glove5/pantograph sessions). The plant steps at most every --plant-period-ms, as in the cycle benches.
-# The glove plant is the single-precision build of the same model (hal/mcu/qemu/glove_plant_f32.h, 0.17 M
+# The glove plant is the single-precision build of the same model (firmware/boards/qemu/glove_plant_f32.h, 0.17 M
 # instructions per simulated ms instead of 3.7 M in double) and steps every ms: it keeps real time without a host
 # session and computes 0.65-0.70 of real time during one (presumably the UART traffic takes the rest of the
 # emulator's time; not verified); in double it ran at 1/16 and the glove's current limit latched once in CI

@@ -29,7 +29,7 @@ struct PlantOptions {
   uint32_t substep_us = 0;  ///< plant integration step (0: the plant's default, 100 µs)
 };
 #if PHALANX_GLOVE_PLANT_F32
-/// The glove plant in single precision (hal/mcu/qemu/glove_plant_f32.h: the same source as sim::GlovePlant,
+/// The glove plant in single precision (glove_plant_f32.h: the same source as sim::GlovePlant,
 /// compiled with float, so that it keeps real time on the emulated core). Same interface as the double plant.
 class GlovePlantF32 {
  public:
