@@ -26,5 +26,8 @@ fi
 echo "== MCU firmware: Cortex-M4F cross builds within budget + QEMU mps2-an386 session with phalanxd =="
 tools/mcu/ci.sh
 
+echo "== packages: cpack, lintian, installed into a clean Debian 12 root, phalanxd real-time as a group member =="
+tools/pkg/ci.sh
+
 echo "== VM lane: Debian kernel under QEMU (TCG), real SocketCAN =="
 tools/vm/ci.sh
