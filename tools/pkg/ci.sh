@@ -27,9 +27,9 @@ umount_root() {
     if mountpoint -q "$root/$m" 2>/dev/null; then umount -l "$root/$m" || true; fi
   done
 }
-cleanup() { pkill_pids; umount_root; rm -rf "$root"; }
+cleanup() { kill_ours; umount_root; rm -rf "$root"; }
 pids=()
-pkill_pids() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; }
+kill_ours() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; }
 trap cleanup EXIT
 umount_root
 rm -rf "$root" "$out"
@@ -81,7 +81,10 @@ pids+=($!)
 # session runs (its summary says the same at the end).
 policy=""
 for _ in $(seq 1 100); do
-  pid=$(pgrep -u "$(in_root id -u tester)" -x phalanxd | head -1 || true)
+  pid=""
+  for p in $(pgrep -x phalanxd || true); do  # the one inside this root (other phalanxd may run on the machine)
+    [ "$(readlink "/proc/$p/root" 2>/dev/null)" = "$root" ] && pid=$p
+  done
   if [ -n "$pid" ]; then
     policy=$(awk '{print $41}' "/proc/$pid/stat" 2>/dev/null || true)
     [ "$policy" = 1 ] && break
