@@ -15,7 +15,15 @@ PACKAGES=(
   qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils rt-tests
   linux-source-6.1 linux-headers-amd64
   libcpp-httplib-dev chromium
+  cyclonedds-dev cyclonedds-tools iproute2
 )
+fi
+
+# The Cyclone DDS Python binding, pinned: the independent peer of the DDS bridge's test (tests/dds, docs/dds.md).
+if [ $# -eq 0 ] && command -v python3 >/dev/null &&
+   ! python3 -c "import importlib.metadata as m; assert m.version('cyclonedds') == '11.0.1'" 2>/dev/null; then
+  echo "setup: pip installing cyclonedds==11.0.1"
+  python3 -m pip install --break-system-packages -q cyclonedds==11.0.1
 fi
 
 missing=()

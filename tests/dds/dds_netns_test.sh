@@ -40,8 +40,7 @@ ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" ddsperf -i $DOMAIN -D 7 po
 PIDS+=($!)
 sleep 1
 ip netns exec "$NA" env CYCLONEDDS_URI="$(uri "$VA")" ddsperf -i $DOMAIN -D 5 ping 1000Hz >"$WORK/ping.txt" 2>&1 || true
-grep -E "mean|%" "$WORK/ping.txt" | tail -3 || true
-tail -1 "$WORK/ping.txt"
+grep " size " "$WORK/ping.txt" | sed 's/^\[[0-9]*\] */ddsperf round trip: /' || { cat "$WORK/ping.txt"; echo "FAIL: ddsperf measured nothing"; exit 1; }
 wait "${PIDS[-1]}" 2>/dev/null || true
 
 # One session: the peer listens in B, phalanxd publishes in A for SECONDS; then the peer checks.
@@ -62,15 +61,17 @@ run_session() {  # name device ns dds_args...
   python3 "$HERE/ros2_peer.py" check --peer "$WORK/$name.pkl" --csv "$WORK/$name.csv" --summary "$WORK/$name.json"
 }
 
-echo "== sim:glove5, bridge publishing at 1 kHz =="
-run_session glove glove5 phalanx/glove5 --dds-state-rate 1000
+# The Python peer keeps up with the glove's 11 topics at 100 Hz (its receipt times are then the latency, not its
+# backlog); the pantograph's 3 topics go at 1 kHz, and that session is compared with one without the bridge.
+echo "== sim:glove5, bridge at 100 Hz =="
+run_session glove glove5 phalanx/glove5 --dds-state-rate 100
 echo "== sim:pantograph, bridge at 1 kHz, namespace lab/pen1 =="
 run_session pen pantograph lab/pen1 --dds-state-rate 1000 --dds-namespace lab/pen1
 
-echo "== the same glove session without the bridge (loop figures only) =="
-ip netns exec "$NA" "$BIN/phalanxd" --device sim:glove5 --seconds 5 --json >"$WORK/nodds.json" 2>"$WORK/nodds.err" ||
+echo "== the same pantograph session without the bridge (loop figures only) =="
+ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --seconds 5 --json >"$WORK/nodds.json" 2>"$WORK/nodds.err" ||
   { cat "$WORK/nodds.err"; echo "FAIL: phalanxd without the bridge"; exit 1; }
-python3 - "$WORK/glove.json" "$WORK/nodds.json" <<'PY'
+python3 - "$WORK/pen.json" "$WORK/nodds.json" <<'PY'
 import json, sys
 w, n = (json.load(open(p)) for p in sys.argv[1:3])
 for label, s in (("with the bridge at 1 kHz", w), ("without the bridge     ", n)):

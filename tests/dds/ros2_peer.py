@@ -76,7 +76,8 @@ def listen(a):
                     break
                 now = time.time_ns()
                 for m in batch:
-                    got[key].append((now, m))
+                    if isinstance(m, typ):  # not the invalid sample of a writer that went away
+                        got[key].append((now, m))
             if key not in matched:
                 for h in r.get_matched_publications():
                     ep = r.get_matched_publication_data(h)
@@ -200,16 +201,23 @@ def check(a):
                     if abs(ax[0] * t.x + ax[1] * t.y + ax[2] * t.z) > 1e-9 + 1e-6 * math.sqrt(t.x**2 + t.y**2 + t.z**2):
                         fail("pen wrench torque has a component along the pen axis")
         checked += 1
-    # The home offset: joint position - recorded relative angle is one constant per joint (pantograph).
+    # The home offset: joint position - recorded relative angle is one constant per joint (pantograph). A message is
+    # matched to the rows with its efforts; the offset is the median over messages with one such row, and every
+    # message must have a matching row at that offset.
     if device == "pantograph":
-        offs = []
-        for recv, js in got["joint_states"][::step]:
-            r, s = find_row(range(6, 12), js.effort)
-            offs.append([js.position[i] - s[i] for i in range(6)])
-        for i in range(6):
-            col = [o[i] for o in offs]
-            if max(col) - min(col) > 1e-3:
-                fail("joint %d: position - recorded angle is not constant (%g..%g)" % (i, min(col), max(col)))
+        def rows_for(js):
+            return [s for _, s in table if all(rel_close(v, s[6 + i]) for i, v in enumerate(js.effort))]
+        sampled = [js for _, js in got["joint_states"][::step]]
+        unique = [rows_for(js) for js in sampled]
+        offs = [[js.position[i] - c[0][i] for i in range(6)] for js, c in zip(sampled, unique) if len(c) == 1]
+        if not offs:
+            fail("no pantograph joint_states matched exactly one recorded row")
+        home = [sorted(o[i] for o in offs)[len(offs) // 2] for i in range(6)]
+        for js, cands in zip(sampled, unique):
+            if not any(all(abs(js.position[i] - c[i] - home[i]) < 2e-4 for i in range(6)) for c in cands):
+                fail("joint_states %s: no recorded row at the home offset %s" % (js.position, home))
+        print("ros2_peer: pantograph joint angles = recorded angles + one home offset per joint (%s rad)" %
+              ", ".join("%.4f" % h for h in home))
     # 3. diagnostics: their telemetry seq and device time name a recorded row; mode and faults match it.
     rec = {(r["seq"], r["device_time_us"]): r for r in rows}
     diag_ok = 0
