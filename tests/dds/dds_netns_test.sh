@@ -49,14 +49,16 @@ run_session() {  # name device ns dds_args...
   shift 3
   local ready="$WORK/$name.ready"
   ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" python3 "$HERE/ros2_peer.py" listen --domain $DOMAIN \
-    --device "$device" --ns "$ns" --seconds 9 --ready "$ready" --out "$WORK/$name.pkl" &
+    --device "$device" --ns "$ns" --seconds 60 --until "$WORK/$name.done" --ready "$ready" --out "$WORK/$name.pkl" &
   local peer=$!
   PIDS+=($peer)
-  for _ in $(seq 100); do [ -f "$ready" ] && break; sleep 0.1; done
+  for _ in $(seq 300); do [ -f "$ready" ] && break; sleep 0.1; done
   [ -f "$ready" ] || { echo "FAIL: the peer did not start"; exit 1; }
+  local rc=0
   ip netns exec "$NA" "$BIN/phalanxd" --device "sim:$device" --seconds 5 --record "$WORK/$name.csv" --json \
-    --dds --dds-domain $DOMAIN --dds-interface "$VA" "$@" >"$WORK/$name.json" 2>"$WORK/$name.err" ||
-    { cat "$WORK/$name.err"; echo "FAIL: phalanxd exited $?"; exit 1; }
+    --dds --dds-domain $DOMAIN --dds-interface "$VA" "$@" >"$WORK/$name.json" 2>"$WORK/$name.err" || rc=$?
+  if [ $rc -ne 0 ]; then cat "$WORK/$name.err"; echo "FAIL: phalanxd exited $rc"; exit 1; fi
+  touch "$WORK/$name.done"
   wait $peer
   python3 "$HERE/ros2_peer.py" check --peer "$WORK/$name.pkl" --csv "$WORK/$name.csv" --summary "$WORK/$name.json"
 }

@@ -67,7 +67,10 @@ def listen(a):
     open(a.ready, "w").write("ready\n")
     matched = {}
     end = time.monotonic() + a.seconds
-    while time.monotonic() < end:
+    stop_at = None  # the daemon has ended (a.until exists): drain for another second, then stop
+    while time.monotonic() < end and (stop_at is None or time.monotonic() < stop_at):
+        if stop_at is None and __import__("os").path.exists(a.until):
+            stop_at = time.monotonic() + 1.0
         ws.wait(duration(milliseconds=20))
         for key, (r, name, typ, kind, _) in readers.items():
             while True:
@@ -87,7 +90,7 @@ def listen(a):
             matched["strict"] = strict.get_subscription_matched_status().current_count
     with open(a.out, "wb") as f:
         pickle.dump({"got": got, "matched": matched, "device": a.device, "ns": a.ns}, f)
-    print("ros2_peer: listened %.1f s: %s" % (a.seconds, ", ".join("%s %d" % (k, len(v)) for k, v in got.items())))
+    print("ros2_peer: received %s" % (", ".join("%s %d" % (k, len(v)) for k, v in got.items())))
 
 
 def near(x, y, tol):
@@ -254,7 +257,8 @@ def main():
     li.add_argument("--domain", type=int, required=True)
     li.add_argument("--device", choices=["glove5", "pantograph"], required=True)
     li.add_argument("--ns", required=True)
-    li.add_argument("--seconds", type=float, required=True)
+    li.add_argument("--seconds", type=float, required=True, help="at most this long")
+    li.add_argument("--until", required=True, help="stop one second after this file appears")
     li.add_argument("--ready", required=True)
     li.add_argument("--out", required=True)
     ch = sub.add_parser("check")
