@@ -31,8 +31,13 @@ PACKAGES=(
   linux-source-6.1 linux-headers-amd64
   libcpp-httplib-dev chromium
   debootstrap lintian help2man libcap2-bin
+  cyclonedds-dev cyclonedds-tools iproute2
 )
 fi
+# Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.
+PIP_PACKAGES=(
+  cyclonedds==11.0.1
+)
 
 if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi
 PACKAGES=($(printf '%s\n' "${PACKAGES[@]}" | sort -u))
@@ -44,14 +49,26 @@ for p in "${PACKAGES[@]}"; do
   fi
 done
 
-if [ ${#missing[@]} -eq 0 ]; then
-  echo "setup: all ${#PACKAGES[@]} packages present ($set_name set)"
-  exit 0
-fi
-
-echo "setup: installing ${missing[*]}"
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup: all ${#PACKAGES[@]} packages present ($set_name set)"
+else
+  echo "setup: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# The test set's Python tools: pip installs only those whose pinned version is not present.
+if [ "$set_name" = test ]; then
+  pip_missing=()
+  for spec in "${PIP_PACKAGES[@]}"; do
+    python3 -c "import importlib.metadata as m, sys; n, v = sys.argv[1].split('=='); sys.exit(m.version(n) != v)" \
+      "$spec" 2>/dev/null || pip_missing+=("$spec")
+  done
+  if [ ${#pip_missing[@]} -gt 0 ]; then
+    echo "setup: pip installing ${pip_missing[*]}"
+    python3 -m pip install --break-system-packages -q "${pip_missing[@]}"
+  fi
+fi

@@ -56,6 +56,11 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--client-socket", opt.client.socket_path,
                  "serve libphalanx clients on this UNIX socket (its directory is private; docs/sdk.md)");
   app.add_option("--client-group", opt.client.group, "members of this group may connect as clients too");
+  app.add_flag("--dds", opt.dds.enabled, "publish ROS 2-compatible topics over Cyclone DDS (docs/dds.md)");
+  app.add_option("--dds-domain", opt.dds.domain_id, "DDS domain id (ROS_DOMAIN_ID) for --dds")->check(cli::inRange<uint32_t>(0, 232));
+  app.add_option("--dds-interface", opt.dds.interface, "network interface (name or IPv4 address) for --dds");
+  app.add_option("--dds-namespace", opt.dds.ns, "topic namespace for --dds (default phalanx/<device type>)");
+  app.add_option("--dds-state-rate", opt.dds.state_rate_hz, "joint_states/pose/wrench rate in Hz for --dds (1..rate)");
   app.add_flag("--no-realtime", no_rt, "do not try SCHED_FIFO / mlockall");
   app.add_flag("--live", opt.live_view, "live per-finger view on the terminal");
   app.add_flag("--json", json, "print the end-of-session summary as JSON on stdout");

@@ -40,7 +40,7 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "telemetry_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard", "client"});
+                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard", "client", "dds"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -71,6 +71,9 @@ void apply(const YAML::Node& root, RunOptions& opt) {
   }
   if (const YAML::Node cl = root["client"]) {
     if (std::string err = client::loadClientOptions(cl, opt.client); !err.empty()) throw ConfigError{err};
+  }
+  if (const YAML::Node dd = root["dds"]) {
+    if (std::string err = dds::loadDdsOptions(dd, opt.dds); !err.empty()) throw ConfigError{err};
   }
   if (const YAML::Node io = root["gpio"]) {
     requireKeys(io, "gpio", {"estop", "enable", "sync", "estop_release_ms"});

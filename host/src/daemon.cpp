@@ -20,6 +20,7 @@
 #include "phalanx/host/command_limits.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/controller.h"
+#include "phalanx/host/dds/dds_bridge.h"
 #include "phalanx/host/device_link.h"
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
@@ -229,6 +230,7 @@ std::string validate(const RunOptions& opt) {
     if (std::string err = design::loadPenGeometryYaml(opt.pen_geometry, g); !err.empty()) return "pen.geometry: " + err;
   }
   if (std::string err = validateGpio(opt.gpio); !err.empty()) return err;
+  if (std::string err = dds::validateDdsOptions(opt.dds, opt.rate_hz); !err.empty()) return err;
   return modbus::validateServerOptions(opt.modbus);
 }
 
@@ -350,6 +352,7 @@ class SessionRunner {
     readBackStartupParams();
     if (int rc = startModbus(); rc != 0) return rc;
     if (int rc = startClientChannel(); rc != 0) return rc;
+    if (int rc = startDds(); rc != 0) return rc;
     if (opt_.hooks != nullptr) {
       if (std::string err = opt_.hooks->onStart(*layout_, summary_); !err.empty()) return fail(err, 3);
     }
@@ -488,6 +491,33 @@ class SessionRunner {
     if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
     std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
     client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get());
+    return 0;
+  }
+
+  /// Optional DDS bridge (docs/dds.md): its own thread; the loop only copies into a preallocated ring.
+  int startDds() {
+    if (!opt_.dds.enabled) return 0;
+    dds::BridgeDevice dev;
+    dev.layout = layout_;
+    dev.rate_hz = opt_.rate_hz;
+    dev.firmware_build_id = session_->deviceInfo().firmware_build_id;
+    dev.device_spec = opt_.device;
+    for (std::size_t f = 0; f < glove::kNumFingers; ++f) dev.glove[f] = glove::defaultModel<double>(static_cast<glove::FingerId>(f));
+    static const char* const kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};
+    for (std::size_t f = 0; f < glove::kNumFingers; ++f) {
+      if (const auto it = opt_.glove_geometry.find(kFingerNames[f]); it != opt_.glove_geometry.end()) {
+        design::loadGloveGeometryYaml(it->second, dev.glove[f]);  // validated with the options
+      }
+    }
+    pen::Geometry<double> pg = pen::defaultGeometry<double>();
+    if (!opt_.pen_geometry.empty()) design::loadPenGeometryYaml(opt_.pen_geometry, pg);
+    if (pen::makeModel(pg, dev.pen) != pen::Status::kOk) dev.pen = pen::defaultModel<double>();
+    dds_port_ = std::make_unique<dds::LoopPort>(opt_.dds, opt_.rate_hz);
+    std::string err;
+    dds_bridge_ = dds::startBridge(opt_.dds, dev, *dds_port_, err);
+    if (!dds_bridge_) return fail(err, 3);
+    std::fprintf(stderr, "phalanxd: dds: publishing rt/%s/* on domain %u\n",
+                 dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id);
     return 0;
   }
 
@@ -715,6 +745,7 @@ class SessionRunner {
                         session_->stats().telemetry_lost, modbus::LoopState::kRunning);
     }
     if (client_port_) client_port_->publish(tel, cmd_, wake_ns, cycles_);
+    if (dds_port_) dds_port_->offer(tel, wake_ns, cycles_, overruns_, last_jitter_us_, cycle_us);
     if (opt_.live_view && wake_ns >= next_live_ns_) {
       next_live_ns_ = wake_ns + 100000000ull;
       std::fprintf(stderr, "\r\033[K%7.2fs %-11s faults=%s %s", t_s, modeName(tel.mode),
@@ -748,6 +779,10 @@ class SessionRunner {
                                                             : client_wire::ForceOffCause::kDaemonStop);
       client_server_->stop();
       summary_["client"] = client_port_->summaryJson(start_ns_);
+    }
+    if (dds_bridge_) {
+      dds_bridge_->stop();
+      summary_["dds"] = dds_bridge_->summaryJson();
     }
     summarize();
     if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
@@ -865,6 +900,8 @@ class SessionRunner {
   std::unique_ptr<modbus::LoopPort> mb_port_;
   std::unique_ptr<client::Server> client_server_;
   std::unique_ptr<client::ClientPort> client_port_;
+  std::unique_ptr<dds::LoopPort> dds_port_;
+  std::unique_ptr<dds::Bridge> dds_bridge_;
   std::unique_ptr<SafetyIo> safety_;
   std::unique_ptr<LinkRecovery> recovery_;
   bool have_safety_io_ = false;

@@ -12,6 +12,7 @@
 #include "phalanx/protocol/devices.h"
 #include "phalanx/protocol/messages.h"
 #include "phalanx/host/client/client_options.h"
+#include "phalanx/host/dds/dds_options.h"
 #include "phalanx/host/modbus/server_options.h"
 #include "phalanx/host/api/dashboard_options.h"
 
@@ -87,6 +88,7 @@ struct RunOptions {
   client::ClientOptions client;       ///< local client channel for libphalanx (docs/sdk.md); off by default
   GpioOptions gpio;                   ///< e-stop, drive enable, sync pulse (docs/gpio.md); none by default
   api::DashboardOptions dashboard;    ///< live web dashboard (docs/dashboard.md; API mode only); off by default
+  dds::DdsOptions dds;                ///< ROS 2-compatible topics over Cyclone DDS (docs/dds.md); off by default
 };
 
 /// Validate the GPIO options (line specs, distinct lines, ranges); empty string or the problem, naming the option.

@@ -1,0 +1,261 @@
+// The DDS bridge over Cyclone DDS's C API (Debian cyclonedds-dev 0.10.2). The message types are compiled from
+// host/dds/idl/ros2_msgs.idl by idlc (CMake). Everything here runs on the bridge's own thread, never the loop's.
+#include <arpa/inet.h>
+#include <dds/dds.h>
+
+#include <atomic>
+#include <cmath>
+#include <ctime>
+#include <thread>
+#include <vector>
+
+#include "phalanx/host/dds/dds_bridge.h"
+#include "phalanx/host/model_state.h"
+#include "phalanx/host/stats.h"
+#include "ros2_msgs.h"
+
+namespace phalanx::host::dds {
+namespace {
+
+uint64_t clockNs(clockid_t id) {
+  timespec ts{};
+  clock_gettime(id, &ts);
+  return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
+}
+
+char* text(const std::string& s) { return const_cast<char*>(s.c_str()); }  // Cyclone only reads samples we write
+
+nlohmann::json histogram(const Histogram& h) {
+  return {{"count", h.count()}, {"p50_us", h.percentile(0.5)}, {"p99_us", h.percentile(0.99)}, {"max_us", h.max()}};
+}
+
+class CycloneBridge final : public Bridge {
+ public:
+  CycloneBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port)
+      : opt_(o), dev_(dev), port_(port), model_(*dev.layout, dev.glove, dev.pen),
+        names_(ModelStateComputer::names(dev.layout->type)), ns_(topicNamespace(o, *dev.layout)) {
+    for (const char c : ns_) frame_prefix_ += c == '/' ? '_' : c;
+    frame_prefix_ += '_';
+  }
+  ~CycloneBridge() override { stop(); }
+
+  std::string start() {
+    if (!opt_.interface.empty()) {
+      in_addr a{};
+      const bool address = inet_pton(AF_INET, opt_.interface.c_str(), &a) == 1;
+      const std::string xml = "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface " +
+                              std::string(address ? "address" : "name") + "=\"" + opt_.interface +
+                              "\"/></Interfaces></General></Domain></CycloneDDS>";
+      domain_ = dds_create_domain(opt_.domain_id, xml.c_str());
+      if (domain_ < 0) return "dds: cannot create domain " + std::to_string(opt_.domain_id) + " on interface '" +
+                              opt_.interface + "': " + dds_strretcode(domain_);
+    }
+    participant_ = dds_create_participant(opt_.domain_id, nullptr, nullptr);
+    if (participant_ < 0) return std::string("dds: cannot create the participant: ") + dds_strretcode(participant_);
+    if (std::string err = createWriters(); !err.empty()) return err;
+    offset_ns_ = static_cast<int64_t>(clockNs(CLOCK_REALTIME)) - static_cast<int64_t>(clockNs(CLOCK_MONOTONIC));
+    running_ = true;
+    thread_ = std::thread([this] { serve(); });
+    return {};
+  }
+
+  void stop() override {
+    if (running_.exchange(false)) thread_.join();
+    if (domain_ > 0) {
+      dds_delete(domain_);
+    } else if (participant_ > 0) {
+      dds_delete(participant_);
+    }
+    domain_ = participant_ = 0;
+  }
+
+  nlohmann::json summaryJson() const override {
+    return {{"namespace", ns_},
+            {"domain_id", opt_.domain_id},
+            {"state_every_cycles", port_.stateDecimation()},
+            {"offered", port_.offered()},
+            {"dropped_full", port_.droppedFull()},
+            {"state_samples", state_samples_},
+            {"diagnostics_samples", diag_samples_},
+            {"write_errors", write_errors_},
+            {"telemetry_to_written", histogram(to_written_us_)}};
+  }
+
+ private:
+  dds_qos_t* makeQos(bool reliable, uint32_t depth) {
+    dds_qos_t* q = dds_create_qos();
+    dds_qset_reliability(q, reliable ? DDS_RELIABILITY_RELIABLE : DDS_RELIABILITY_BEST_EFFORT, DDS_MSECS(100));
+    dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, static_cast<int32_t>(depth));
+    // XCDR1, as ROS 2 uses (docs/dds.md): the types are @final, so this is also Cyclone's own choice.
+    const dds_data_representation_id_t rep[] = {DDS_DATA_REPRESENTATION_XCDR1};
+    dds_qset_data_representation(q, 1, rep);
+    return q;
+  }
+
+  std::string writer(const dds_topic_descriptor_t* desc, const std::string& name, const dds_qos_t* q, dds_entity_t& w) {
+    const dds_entity_t t = dds_create_topic(participant_, desc, name.c_str(), q, nullptr);
+    if (t < 0) return "dds: cannot create topic " + name + ": " + dds_strretcode(t);
+    w = dds_create_writer(participant_, t, q, nullptr);
+    if (w < 0) return "dds: cannot create the writer of " + name + ": " + dds_strretcode(w);
+    return {};
+  }
+
+  std::string createWriters() {
+    dds_qos_t* state = makeQos(opt_.state_reliability == "reliable", opt_.state_depth);
+    dds_qos_t* diag = makeQos(true, opt_.diagnostics_depth);
+    std::string err;
+    const std::string base = "rt/" + ns_ + "/";
+    if (opt_.joint_states) err = writer(&sensor_msgs_msg_dds__JointState__desc, base + "joint_states", state, joints_w_);
+    for (uint8_t b = 0; err.empty() && b < names_.body_count; ++b) {
+      const std::string body = base + names_.bodies[b] + "/";
+      if (opt_.poses) err = writer(&geometry_msgs_msg_dds__PoseStamped__desc, body + "pose", state, pose_w_[b]);
+      if (err.empty() && opt_.wrenches) {
+        err = writer(&geometry_msgs_msg_dds__WrenchStamped__desc, body + "wrench", state, wrench_w_[b]);
+      }
+      pose_frame_[b] = frame_prefix_ + names_.pose_frames[b];
+      wrench_frame_[b] = frame_prefix_ + names_.wrench_frames[b];
+    }
+    if (err.empty() && opt_.diagnostics) {
+      err = writer(&diagnostic_msgs_msg_dds__DiagnosticArray__desc, base + "diagnostics", diag, diag_w_);
+    }
+    dds_delete_qos(state);
+    dds_delete_qos(diag);
+    joint_frame_ = frame_prefix_ + "base";
+    for (uint8_t j = 0; j < names_.joint_count; ++j) joint_names_[j] = const_cast<char*>(names_.joints[j]);
+    return err;
+  }
+
+  void serve() {
+    LoopSample s;
+    while (running_.load(std::memory_order_relaxed)) {
+      if (port_.take(s, 100)) handle(s);
+    }
+    while (port_.take(s, 0)) handle(s);  // after stop(): what is still queued is published
+  }
+
+  void handle(const LoopSample& s) {
+    if ((s.what & kState) != 0) publishState(s);
+    if ((s.what & kDiagnostics) != 0) publishDiagnostics(s);
+  }
+
+  builtin_interfaces_msg_dds__Time_ stamp(uint64_t mono_ns) const {
+    const int64_t t = static_cast<int64_t>(mono_ns) + offset_ns_;
+    return {static_cast<int32_t>(t / 1000000000LL), static_cast<uint32_t>(t % 1000000000LL)};
+  }
+
+  void check(dds_return_t rc) {
+    if (rc != DDS_RETCODE_OK) ++write_errors_;
+  }
+
+  /// Header stamp: the telemetry's arrival at the host (CLOCK_MONOTONIC mapped onto CLOCK_REALTIME at start).
+  void publishState(const LoopSample& s) {
+    model_.compute(s.tel, ms_);
+    const builtin_interfaces_msg_dds__Time_ st = stamp(s.tel.host_rx_ns);
+    if (joints_w_ > 0) {
+      sensor_msgs_msg_dds__JointState_ m{};
+      m.header = {st, text(joint_frame_)};
+      m.name = {ms_.joint_count, ms_.joint_count, joint_names_.data(), false};
+      m.position = {ms_.joint_count, ms_.joint_count, ms_.position.data(), false};
+      if (ms_.has_effort) m.effort = {ms_.joint_count, ms_.joint_count, ms_.effort.data(), false};
+      check(dds_write(joints_w_, &m));
+    }
+    for (uint8_t b = 0; b < ms_.body_count; ++b) {
+      if (pose_w_[b] > 0) {
+        const ModelPose& p = ms_.pose[b];
+        geometry_msgs_msg_dds__PoseStamped_ m{};
+        m.header = {st, text(pose_frame_[b])};
+        m.pose.position = {p.position[0], p.position[1], p.position[2]};
+        m.pose.orientation = {p.orientation[0], p.orientation[1], p.orientation[2], p.orientation[3]};
+        check(dds_write(pose_w_[b], &m));
+      }
+      if (wrench_w_[b] > 0) {
+        const ModelWrench& w = ms_.wrench[b];
+        geometry_msgs_msg_dds__WrenchStamped_ m{};
+        m.header = {st, text(wrench_frame_[b])};
+        m.wrench.force = {w.force[0], w.force[1], w.force[2]};
+        m.wrench.torque = {w.torque[0], w.torque[1], w.torque[2]};
+        check(dds_write(wrench_w_[b], &m));
+      }
+    }
+    ++state_samples_;
+    to_written_us_.add(static_cast<double>(clockNs(CLOCK_MONOTONIC) - s.tel.host_rx_ns) / 1000.0);
+  }
+
+  /// One status: the loop's figures and the device's faults. Level ERROR while a fault is latched, WARN when
+  /// periods were missed or samples dropped since the last one, else OK.
+  void publishDiagnostics(const LoopSample& s) {
+    const uint64_t dropped = port_.droppedFull();
+    uint8_t level = 0;
+    std::string message = "running";
+    if (s.tel.fault_bits != 0) {
+      level = 2;
+      message = "fault latched: " + faultList(s.tel.fault_bits);
+    } else if (s.overruns > last_overruns_ || dropped > last_dropped_) {
+      level = 1;
+      message = "missed periods or dropped DDS samples since the last status";
+    }
+    last_overruns_ = s.overruns;
+    last_dropped_ = dropped;
+    const std::vector<std::pair<std::string, std::string>> kv = {
+        {"cycle", std::to_string(s.cycle)},
+        {"rate_hz", std::to_string(dev_.rate_hz)},
+        {"missed_periods", std::to_string(s.overruns)},
+        {"period_jitter_us", std::to_string(s.jitter_us)},
+        {"cycle_time_us", std::to_string(s.cycle_us)},
+        {"telemetry_seq", std::to_string(s.tel.seq)},
+        {"device_time_us", std::to_string(s.tel.device_time_us)},
+        {"mode", modeName(s.tel.mode)},
+        {"fault_bits", std::to_string(s.tel.fault_bits)},
+        {"faults", faultList(s.tel.fault_bits)},
+        {"dds_dropped", std::to_string(dropped)},
+        {"dds_state_samples", std::to_string(state_samples_)}};
+    std::vector<diagnostic_msgs_msg_dds__KeyValue_> values;
+    values.reserve(kv.size());
+    for (const auto& [k, v] : kv) values.push_back({text(k), text(v)});
+    const std::string name = ns_ + "/loop";
+    const std::string hw = std::string(dev_.layout->name) + " " + dev_.device_spec + " firmware " +
+                           std::to_string(dev_.firmware_build_id);
+    diagnostic_msgs_msg_dds__DiagnosticStatus_ st{};
+    st.level = level;
+    st.name = text(name);
+    st.message = text(message);
+    st.hardware_id = text(hw);
+    st.values = {static_cast<uint32_t>(values.size()), static_cast<uint32_t>(values.size()), values.data(), false};
+    diagnostic_msgs_msg_dds__DiagnosticArray_ m{};
+    m.header = {stamp(s.tel.host_rx_ns), text(joint_frame_)};
+    m.status = {1, 1, &st, false};
+    check(dds_write(diag_w_, &m));
+    ++diag_samples_;
+  }
+
+  DdsOptions opt_;
+  BridgeDevice dev_;
+  LoopPort& port_;
+  ModelStateComputer model_;
+  ModelNames names_;
+  std::string ns_, frame_prefix_, joint_frame_;
+  dds_entity_t domain_ = 0, participant_ = 0, joints_w_ = 0, diag_w_ = 0;
+  std::array<dds_entity_t, ModelState::kMaxBodies> pose_w_{}, wrench_w_{};
+  std::array<std::string, ModelState::kMaxBodies> pose_frame_, wrench_frame_;
+  std::array<char*, ModelState::kMaxJoints> joint_names_{};
+  ModelState ms_{};
+  int64_t offset_ns_ = 0;
+  std::atomic<bool> running_{false};
+  std::thread thread_;
+  uint64_t state_samples_ = 0, diag_samples_ = 0, write_errors_ = 0, last_overruns_ = 0, last_dropped_ = 0;
+  Histogram to_written_us_{20000};
+};
+
+}  // namespace
+
+bool bridgeAvailable() { return true; }
+
+std::unique_ptr<Bridge> startBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port, std::string& error) {
+  auto b = std::make_unique<CycloneBridge>(o, dev, port);
+  error = b->start();
+  if (!error.empty()) return nullptr;
+  return b;
+}
+
+}  // namespace phalanx::host::dds

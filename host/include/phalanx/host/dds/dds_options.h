@@ -1,0 +1,31 @@
+#pragma once
+/// phalanxd's DDS bridge settings (YAML section `dds`, options --dds-*; docs/dds.md). Off by default.
+#include <cstdint>
+#include <string>
+
+namespace YAML {
+class Node;
+}
+
+namespace phalanx::host::dds {
+
+struct DdsOptions {
+  bool enabled = false;
+  uint32_t domain_id = 0;        ///< DDS domain (ROS_DOMAIN_ID), 0..232
+  std::string interface;         ///< network interface name or address for Cyclone (empty: Cyclone's choice)
+  std::string ns;                ///< topic namespace (empty: phalanx/<device type>); topics rt/<ns>/...
+  double state_rate_hz = 100.0;  ///< joint_states, poses, wrenches: 1..device rate (a divisor is kept exactly)
+  double diagnostics_rate_hz = 1.0;  ///< diagnostics: 0.1..10 (and at once on a fault change)
+  bool joint_states = true, poses = true, wrenches = true, diagnostics = true;  ///< topic enable flags
+  std::string state_reliability = "best_effort";  ///< best_effort | reliable
+  uint32_t state_depth = 1;                       ///< keep-last depth of the state topics, 1..100
+  uint32_t diagnostics_depth = 10;                ///< keep-last depth of diagnostics (reliable), 1..100
+  uint32_t queue_slots = 256;                     ///< loop → bridge ring, 16..65536 (full: the sample is dropped, counted)
+};
+
+/// Read the `dds` mapping into o (unknown keys, wrong types are errors naming the key). "" or "dds.<key>: …".
+std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o);
+/// Ranges (rate against the session's rate_hz). "" or the first problem, naming the key.
+std::string validateDdsOptions(const DdsOptions& o, unsigned rate_hz);
+
+}  // namespace phalanx::host::dds

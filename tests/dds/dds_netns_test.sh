@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# phalanxd's DDS bridge between two "machines": two network namespaces joined by a veth pair (made here, with
+# addresses of their own, removed on exit). phalanxd (sim:glove5, then sim:pantograph) publishes in one; an
+# independent peer on the Cyclone DDS Python binding (tests/dds/ros2_peer.py, its own ROS 2 type definitions)
+# subscribes in the other and checks topics, QoS and values against phalanxd's own --record CSV. Printed, not
+# gated: ddsperf's round trip between the namespaces (the baseline), the publish latency telemetry → peer, and
+# the loop's missed periods / jitter with the bridge publishing at 1 kHz vs without it (docs/dds.md).
+# Usage: dds_netns_test.sh BIN_DIR     (root; exit 77 = skipped)
+set -euo pipefail
+BIN=$1
+HERE=$(cd "$(dirname "$0")" && pwd)
+if [ "$(id -u)" != 0 ]; then echo "SKIP: network namespaces need root"; exit 77; fi
+command -v ddsperf >/dev/null || { echo "FAIL: ddsperf missing (cyclonedds-tools; tools/setup.sh)"; exit 1; }
+python3 -c "import cyclonedds" || { echo "FAIL: the cyclonedds Python binding is missing (tools/setup.sh)"; exit 1; }
+
+TAG=$$
+NA=phxddsA$TAG NB=phxddsB$TAG VA=vdA$TAG VB=vdB$TAG
+WORK=$(mktemp -d /tmp/phx-dds.XXXXXX)
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]:-}"; do [ -n "$p" ] && kill "$p" 2>/dev/null || true; done
+  ip netns del "$NA" 2>/dev/null || true
+  ip netns del "$NB" 2>/dev/null || true
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+ip netns add "$NA"
+ip netns add "$NB"
+ip link add "$VA" netns "$NA" type veth peer name "$VB" netns "$NB"
+ip -n "$NA" addr add 192.168.233.1/24 dev "$VA"
+ip -n "$NB" addr add 192.168.233.2/24 dev "$VB"
+for n in "$NA" "$NB"; do ip -n "$n" link set lo up; done
+ip -n "$NA" link set "$VA" up
+ip -n "$NB" link set "$VB" up
+uri() { echo "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface name=\"$1\"/></Interfaces></General></Domain></CycloneDDS>"; }
+DOMAIN=17
+
+echo "== ddsperf baseline: round trip between the namespaces (1 kHz pings, 5 s) =="
+ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" ddsperf -i $DOMAIN -D 7 pong >"$WORK/pong.txt" 2>&1 &
+PIDS+=($!)
+sleep 1
+ip netns exec "$NA" env CYCLONEDDS_URI="$(uri "$VA")" ddsperf -i $DOMAIN -D 5 ping 1000Hz >"$WORK/ping.txt" 2>&1 || true
+grep " size " "$WORK/ping.txt" | sed 's/^\[[0-9]*\] */ddsperf round trip: /' || { cat "$WORK/ping.txt"; echo "FAIL: ddsperf measured nothing"; exit 1; }
+wait "${PIDS[-1]}" 2>/dev/null || true
+
+# One session: the peer listens in B, phalanxd publishes in A for SECONDS; then the peer checks.
+run_session() {  # name device ns dds_args...
+  local name=$1 device=$2 ns=$3
+  shift 3
+  local ready="$WORK/$name.ready"
+  ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" python3 "$HERE/ros2_peer.py" listen --domain $DOMAIN \
+    --device "$device" --ns "$ns" --seconds 60 --until "$WORK/$name.done" --ready "$ready" --out "$WORK/$name.pkl" &
+  local peer=$!
+  PIDS+=($peer)
+  for _ in $(seq 300); do [ -f "$ready" ] && break; sleep 0.1; done
+  [ -f "$ready" ] || { echo "FAIL: the peer did not start"; exit 1; }
+  local rc=0
+  ip netns exec "$NA" "$BIN/phalanxd" --device "sim:$device" --seconds 5 --record "$WORK/$name.csv" --json \
+    --dds --dds-domain $DOMAIN --dds-interface "$VA" "$@" >"$WORK/$name.json" 2>"$WORK/$name.err" || rc=$?
+  if [ $rc -ne 0 ]; then cat "$WORK/$name.err"; echo "FAIL: phalanxd exited $rc"; exit 1; fi
+  touch "$WORK/$name.done"
+  wait $peer
+  python3 "$HERE/ros2_peer.py" check --peer "$WORK/$name.pkl" --csv "$WORK/$name.csv" --summary "$WORK/$name.json"
+}
+
+# The Python peer keeps up with the glove's 11 topics at 100 Hz (its receipt times are then the latency, not its
+# backlog); the pantograph's 3 topics go at 1 kHz, and that session is compared with one without the bridge.
+echo "== sim:glove5, bridge at 100 Hz =="
+run_session glove glove5 phalanx/glove5 --dds-state-rate 100
+echo "== sim:pantograph, bridge at 1 kHz, namespace lab/pen1 =="
+run_session pen pantograph lab/pen1 --dds-state-rate 1000 --dds-namespace lab/pen1
+
+echo "== the same pantograph session without the bridge (loop figures only) =="
+ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --seconds 5 --json >"$WORK/nodds.json" 2>"$WORK/nodds.err" ||
+  { cat "$WORK/nodds.err"; echo "FAIL: phalanxd without the bridge"; exit 1; }
+python3 - "$WORK/pen.json" "$WORK/nodds.json" <<'PY'
+import json, sys
+w, n = (json.load(open(p)) for p in sys.argv[1:3])
+for label, s in (("with the bridge at 1 kHz", w), ("without the bridge     ", n)):
+    j = s["period_jitter"]
+    print("loop %s: %d cycles, %d missed periods, period jitter p50 %.0f us, p99 %.0f us, max %.0f us"
+          % (label, s["cycles"], s["overruns"], j["p50_us"], j["p99_us"], j["max_us"]))
+d = w["dds"]["telemetry_to_written"]
+print("bridge: telemetry arrival -> dds_write returned: p50 %.0f us, p99 %.0f us (n=%d)" % (d["p50_us"], d["p99_us"], d["count"]))
+PY
+echo "PASS"
