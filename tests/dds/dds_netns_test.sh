@@ -35,11 +35,11 @@ ip -n "$NB" link set "$VB" up
 uri() { echo "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface name=\"$1\"/></Interfaces></General></Domain></CycloneDDS>"; }
 DOMAIN=17
 
-echo "== ddsperf baseline: round trip between the namespaces (1 kHz pings, 5 s) =="
-ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" ddsperf -i $DOMAIN -D 7 pong >"$WORK/pong.txt" 2>&1 &
+echo "== ddsperf baseline: round trip between the namespaces (1 kHz pings, 3 s) =="
+ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" ddsperf -i $DOMAIN -D 5 pong >"$WORK/pong.txt" 2>&1 &
 PIDS+=($!)
 sleep 1
-ip netns exec "$NA" env CYCLONEDDS_URI="$(uri "$VA")" ddsperf -i $DOMAIN -D 5 ping 1000Hz >"$WORK/ping.txt" 2>&1 || true
+ip netns exec "$NA" env CYCLONEDDS_URI="$(uri "$VA")" ddsperf -i $DOMAIN -D 3 ping 1000Hz >"$WORK/ping.txt" 2>&1 || true
 grep " size " "$WORK/ping.txt" | sed 's/^\[[0-9]*\] */ddsperf round trip: /' || { cat "$WORK/ping.txt"; echo "FAIL: ddsperf measured nothing"; exit 1; }
 wait "${PIDS[-1]}" 2>/dev/null || true
 

@@ -133,9 +133,14 @@ def check(a):
     def rel_close(x, y):
         return abs(x - y) <= 1e-4 * max(abs(y), 1e-3) + 1e-9
 
+    hint = [0]  # messages and rows are both in time order: search on from the last match first
+
     def find_row(raw_idx, raw_vals):
-        for r, s in table:
+        n = len(table)
+        for k in list(range(hint[0], n)) + list(range(0, hint[0])):
+            r, s = table[k]
             if all(rel_close(v, s[i]) for i, v in zip(raw_idx, raw_vals)):
+                hint[0] = k
                 return r, s
         return None, None
 
@@ -208,8 +213,10 @@ def check(a):
     # matched to the rows with its efforts; the offset is the median over messages with one such row, and every
     # message must have a matching row at that offset.
     if device == "pantograph":
-        def rows_for(js):
-            return [s for _, s in table if all(rel_close(v, s[6 + i]) for i, v in enumerate(js.effort))]
+        def rows_for(js):  # the rows with these efforts, near the message's time (its first match on)
+            find_row(range(6, 12), js.effort)
+            near_rows = table[max(0, hint[0] - 50):hint[0] + 200]
+            return [s for _, s in near_rows if all(rel_close(v, s[6 + i]) for i, v in enumerate(js.effort))]
         sampled = [js for _, js in got["joint_states"][::step]]
         unique = [rows_for(js) for js in sampled]
         offs = [[js.position[i] - c[0][i] for i in range(6)] for js, c in zip(sampled, unique) if len(c) == 1]
