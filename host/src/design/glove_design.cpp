@@ -421,9 +421,16 @@ std::string gloveGeometryYaml(const GloveModel& m, const GloveAnalysis& a, const
 }
 
 std::string loadGloveGeometryYaml(const std::string& path, GloveModel& out) {
+  std::ifstream in(path);
+  std::stringstream text;
+  if (!in || !(text << in.rdbuf())) return "cannot read '" + path + "': bad file: " + path;
+  return loadGloveGeometryText(text.str(), path, out);
+}
+
+std::string loadGloveGeometryText(const std::string& yaml_text, const std::string& path, GloveModel& out) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
+    root = YAML::Load(yaml_text);
   } catch (const std::exception& ex) {
     return "cannot read '" + path + "': " + ex.what();
   }
