@@ -13,21 +13,6 @@ using namespace phalanx::protocol;
 
 namespace {
 
-size_t wireSize(uint8_t id) {
-  switch (static_cast<MsgId>(id)) {
-    case MsgId::kHello: return Hello::kWireSize;
-    case MsgId::kHelloAck: return HelloAck::kWireSize;
-    case MsgId::kCommand: return Command::kWireSize;
-    case MsgId::kTelemetry: return Telemetry::kWireSize;
-    case MsgId::kEvent: return Event::kWireSize;
-    case MsgId::kClearFaults: return ClearFaults::kWireSize;
-    case MsgId::kParamGet: return ParamGet::kWireSize;
-    case MsgId::kParamSet: return ParamSet::kWireSize;
-    case MsgId::kParamValue: return ParamValue::kWireSize;
-  }
-  return 0;
-}
-
 template <class Msg>
 void decodeOne(const uint8_t* p, size_t len) {
   Msg m;
