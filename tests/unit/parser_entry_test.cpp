@@ -117,3 +117,28 @@ TEST(ParserEntry, ConnectRequestChecks) {
   r.version = 2;
   EXPECT_EQ(client::checkConnectRequest(r, sizeof r, 1000, false, why), client_wire::ConnectStatus::kVersionMismatch);
 }
+
+TEST(ParserEntry, GeometryFilesWithScalarsOrListsWhereMappingsBelongAreRefusedNotThrown) {
+  // Found with the geometry fuzz target: yaml-cpp throws on operator[] of a scalar and on converting a list key
+  // to a string, and these escaped the loaders (phalanxd ended with an uncaught exception on such a file).
+  design::GloveModel g{};
+  for (const char* text : {"x", "glove_finger_geometry: 3", "glove_finger_geometry: {finger: 1, mechanism: {}}",
+                           "glove_finger_geometry: {finger: {}, mechanism: [1]}"}) {
+    std::string err;
+    EXPECT_NO_THROW(err = design::loadGloveGeometryText(text, "g.yaml", g)) << text;
+    EXPECT_EQ(err.rfind("g.yaml: ", 0), 0u) << text << " → " << err;
+  }
+  pen::Geometry<double> p{};
+  for (const char* text : {"pen_geometry: {? [a, b]: 1}", "x", "pen_geometry: 3"}) {
+    std::string err;
+    EXPECT_NO_THROW(err = design::loadPenGeometryText(text, "p.yaml", p)) << text;
+    EXPECT_EQ(err.rfind("p.yaml: ", 0), 0u) << text << " → " << err;
+  }
+  // A non-finite l_p_mm was accepted (every other length was checked).
+  const std::string glove_path = std::string(PHALANX_SOURCE_DIR) + "/docs/design/glove-index-optimum.yaml";
+  std::string text = slurp(glove_path);
+  const auto at = text.find("l_p_mm:");
+  ASSERT_NE(at, std::string::npos);
+  text = text.substr(0, at) + "l_p_mm: .nan" + text.substr(text.find('\n', at));
+  EXPECT_NE(design::loadGloveGeometryText(text, "g.yaml", g).find("l_p_mm"), std::string::npos);
+}

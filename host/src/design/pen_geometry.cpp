@@ -62,7 +62,8 @@ std::string loadPenGeometryText(const std::string& yaml_text, const std::string&
   const std::set<std::string> allowed{"units", "l6_reading", "l1_m", "l2_m", "l3_m", "l4_m", "l6_m", "home_z_m",
                                       "analysis"};
   for (const auto& kv : g) {
-    const std::string key = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) return path + ": pen_geometry: every key must be a plain name";
+    const std::string key = kv.first.Scalar();
     if (allowed.count(key) == 0) return path + ": pen_geometry." + key + ": unknown key";
   }
   if (!g["units"] || !g["units"].IsScalar() || g["units"].Scalar() != "m") {
