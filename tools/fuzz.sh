@@ -48,9 +48,11 @@ for t in "${targets[@]}"; do
       continue
     fi
   fi
+  dirs=("$work")
+  if [ -d "$seeds" ]; then dirs+=("$seeds"); fi
   rc=0
   nice "$bin" -max_total_time="$secs" "${runs[@]}" -max_len=4096 -timeout=10 -print_final_stats=1 \
-    -artifact_prefix="$art/" "$work" "$seeds" >"$log" 2>&1 || rc=$?
+    -artifact_prefix="$art/" "${dirs[@]}" >"$log" 2>&1 || rc=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n1)
   eps=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -n1)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -n1 | cut -d' ' -f2)

@@ -32,7 +32,7 @@ Command command(const DeviceLayout& l) {
   Command c;
   c.seq = 7;
   c.timeout_ms = 50;
-  c.mode = Mode::kForce;
+  c.mode = Mode::kSetpoint;
   c.channel_count = l.setpoint_count;
   for (uint8_t i = 0; i < l.setpoint_count; ++i) {
     c.setpoint[i] = 0.1f * static_cast<float>(i + 1);
@@ -45,7 +45,7 @@ Telemetry telemetry(const DeviceLayout& l) {
   Telemetry t;
   t.time_us = 1000;
   t.seq = 3;
-  t.mode = Mode::kForce;
+  t.mode = Mode::kSetpoint;
   for (uint8_t i = 0; i < l.sample_count; ++i) t.sample[i] = static_cast<int16_t>(100 * i);
   return t;
 }
