@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up, build and run every Phalanx test: the host build (unit, closed-loop simulation and multi-process
-# integration suites), the sanitizer build (unit suites under ASan + UBSan), a short fuzz run of the decoder and
+# integration suites), the sanitizer build (unit suites under ASan + UBSan), a short fuzz run of every parser and
 # the VM lane (Debian's kernel under QEMU: SocketCAN tests against the real kernel, tools/vm/ci.sh).
 # Usage: tools/run-tests.sh            (what CI runs)
 set -euo pipefail
@@ -19,8 +19,8 @@ cmake --build --preset sanitize
 ctest --preset sanitize -j2
 
 if command -v clang++ >/dev/null; then
-  echo "== decoder fuzz (libFuzzer, 60 s) =="
-  tools/fuzz.sh 60
+  echo "== fuzz every parser (libFuzzer + ASan + UBSan, 6 s per target; docs/fuzzing.md) =="
+  tools/fuzz.sh 6
 fi
 
 echo "== MCU firmware: Cortex-M4F cross builds within budget + QEMU mps2-an386 session with phalanxd =="

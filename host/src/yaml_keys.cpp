@@ -41,6 +41,11 @@ class DuplicateKeyWalk {
     std::map<std::string, std::string> first_line;  // key → line of its first occurrence
     for (const auto& kv : map) {
       const std::string key = keyText(kv.first);
+      // A list or mapping as a key ("? [a, b]: 1") names nothing a loader knows; the loaders read keys as
+      // strings, which yaml-cpp cannot convert it to (it threw out of the geometry loaders).
+      if (kv.first.IsSequence() || kv.first.IsMap()) {
+        return join(path, key) + ": a key must be a plain name, not a list or mapping (line " + lineOf(kv.first) + ")";
+      }
       const auto [it, fresh] = first_line.emplace(key, lineOf(kv.first));
       if (!fresh) {
         return join(path, key) + ": duplicate key (line " + lineOf(kv.first) + "; first at line " + it->second + ")";

@@ -60,3 +60,11 @@ TEST(YamlKeys, AliasesThatExpandToMillionsOfNodesAreRefused) {
   const std::string err = dup(doc);
   EXPECT_NE(err.find("more than 1000000 nodes"), std::string::npos) << err;
 }
+
+TEST(YamlKeys, AListOrMappingAsAKeyIsRefusedByPath) {
+  // Found by tests/fuzz (geometry): loaders read keys as strings, and yaml-cpp threw converting these.
+  EXPECT_EQ(dup("pen_geometry: {? [a, b]: 1}\n").rfind("pen_geometry.[a, b]: a key must be a plain name", 0), 0u)
+      << dup("pen_geometry: {? [a, b]: 1}\n");
+  EXPECT_NE(dup("? {x: 1}\n: 2\n").find("a key must be a plain name"), std::string::npos);
+  EXPECT_EQ(dup("~: 1\n"), "");  // a null key is a scalar: left to the loaders (unknown key)
+}

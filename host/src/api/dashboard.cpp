@@ -140,6 +140,8 @@ thread_local RequestStream* t_stream = nullptr;
 class BoundedServer final : public httplib::Server {
  public:
   std::atomic<int> connections{0};
+  /// One connection's requests from memory (Dashboard::serveInMemory): the same request processing as a socket.
+  std::string serveMemory(const std::string& bytes);
 
  private:
   bool process_and_close_socket(socket_t sock) override {
@@ -184,6 +186,44 @@ class BoundedServer final : public httplib::Server {
     (void)!::send(sock, resp.data(), resp.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   }
 };
+
+/// A connection whose bytes are all in memory: reads end with them, writes are collected.
+class MemoryStream final : public httplib::Stream {
+ public:
+  explicit MemoryStream(const std::string& in) : in_(in) {}
+  bool is_readable() const override { return pos_ < in_.size(); }
+  bool is_writable() const override { return true; }
+  ssize_t read(char* ptr, size_t size) override {
+    if (pos_ >= in_.size()) return -1;
+    const size_t n = std::min(size, in_.size() - pos_);
+    std::memcpy(ptr, in_.data() + pos_, n);
+    pos_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    out_.append(ptr, size);
+    return static_cast<ssize_t>(size);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override { ip = "127.0.0.1", port = 1; }
+  void get_local_ip_and_port(std::string& ip, int& port) const override { ip = "127.0.0.1", port = 0; }
+  socket_t socket() const override { return -1; }
+  bool exhausted() const { return pos_ >= in_.size(); }
+  const std::string& output() const { return out_; }
+
+ private:
+  const std::string& in_;
+  size_t pos_ = 0;
+  std::string out_;
+};
+
+std::string BoundedServer::serveMemory(const std::string& bytes) {
+  MemoryStream strm(bytes);
+  for (size_t left = kKeepAliveMaxCount; left > 0 && !strm.exhausted(); --left) {
+    bool closed = false;
+    if (!process_request(strm, left == 1, closed, nullptr) || closed) break;
+  }
+  return strm.output();
+}
 
 std::string hostPort(const std::string& address, uint16_t port) {
   const bool v6 = address.find(':') != std::string::npos;
@@ -273,6 +313,34 @@ std::string Dashboard::start() {
     std::snprintf(hex, sizeof hex, "%02x", b);
     token_ += hex;
   }
+  routes();
+  httplib::Server& s = http_->server;
+  int port = -1;
+  if (options_.port == 0) {
+    port = s.bind_to_any_port(options_.address);
+  } else if (s.bind_to_port(options_.address, options_.port)) {
+    port = options_.port;
+  }
+  if (port <= 0) return "dashboard: cannot listen on " + hostPort(options_.address, options_.port);
+  port_ = static_cast<uint16_t>(port);
+  running_ = true;
+  listen_thread_ = std::thread([this] { http_->server.listen_after_bind(); });
+  // Serving before start() returns, so that stop() (which only stops a running server) can never miss it.
+  for (int i = 0; i < 1000 && !http_->server.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  sample_thread_ = std::thread([this] { sampleLoop(); });
+  return {};
+}
+
+std::string Dashboard::serveInMemory(const std::string& request_bytes, const std::string& token) {
+  if (running_) return {};
+  token_ = token;
+  routes();
+  return http_->server.serveMemory(request_bytes);
+}
+
+void Dashboard::routes() {
+  if (routes_set_) return;
+  routes_set_ = true;
   httplib::Server& s = http_->server;
   s.new_task_queue = [] { return new httplib::ThreadPool(kWorkers); };
   // cpp-httplib sets SO_REUSEPORT by default, which would let a second process bind the same port and take
@@ -372,21 +440,6 @@ std::string Dashboard::start() {
       res.set_content("{\"ok\":false,\"error\":\"HTTP " + std::to_string(res.status) + "\"}", "application/json");
     }
   });
-
-  int port = -1;
-  if (options_.port == 0) {
-    port = s.bind_to_any_port(options_.address);
-  } else if (s.bind_to_port(options_.address, options_.port)) {
-    port = options_.port;
-  }
-  if (port <= 0) return "dashboard: cannot listen on " + hostPort(options_.address, options_.port);
-  port_ = static_cast<uint16_t>(port);
-  running_ = true;
-  listen_thread_ = std::thread([this] { http_->server.listen_after_bind(); });
-  // Serving before start() returns, so that stop() (which only stops a running server) can never miss it.
-  for (int i = 0; i < 1000 && !http_->server.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  sample_thread_ = std::thread([this] { sampleLoop(); });
-  return {};
 }
 
 void Dashboard::stop() {

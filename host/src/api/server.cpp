@@ -595,6 +595,11 @@ void writeDashboardUrlFile(const std::string& url_file, const std::string& url, 
 
 }  // namespace
 
+std::function<nlohmann::json(const std::string&)> makeRequestHandler(const ServerConfig& config) {
+  auto daemon = std::make_shared<Daemon>(config);
+  return [daemon](const std::string& line) { return daemon->handle(line); };
+}
+
 int serve(const ServerConfig& config) {
   struct sigaction sa {};
   sa.sa_handler = onApiStop;

@@ -208,32 +208,43 @@ void Server::accept() {
   negotiate(fd);
 }
 
+client_wire::ConnectStatus checkConnectRequest(const client_wire::ConnectRequest& req, long got, uint32_t rate_hz,
+                                               bool busy, std::string& why) {
+  const uint32_t min_deadline_ms = 2000 / rate_hz + ((2000 % rate_hz) != 0 ? 1 : 0);
+  if (got != static_cast<long>(sizeof req) || req.magic != client_wire::kMagic) {
+    why = "not a Phalanx client request";
+    return client_wire::ConnectStatus::kBadRequest;
+  }
+  if (req.version != client_wire::kVersion) {
+    why = "client channel version " + std::to_string(req.version) + ", this phalanxd speaks " +
+          std::to_string(client_wire::kVersion);
+    return client_wire::ConnectStatus::kVersionMismatch;
+  }
+  if (busy) {
+    // A client that vanished still holds the device until its deadline forces it off.
+    why = "another client holds this device";
+    return client_wire::ConnectStatus::kBusy;
+  }
+  if (req.deadline_ms < min_deadline_ms || req.deadline_ms > 1000) {
+    why = "deadline_ms " + std::to_string(req.deadline_ms) + " is not in [" + std::to_string(min_deadline_ms) +
+          ", 1000] (at least two daemon periods)";
+    return client_wire::ConnectStatus::kBadRequest;
+  }
+  if (static_cast<uint8_t>(req.fallback) > 1) {
+    why = "fallback must be safe (0) or transparent (1)";
+    return client_wire::ConnectStatus::kBadRequest;
+  }
+  return client_wire::ConnectStatus::kOk;
+}
+
 void Server::negotiate(int fd) {
   setTimeouts(fd, 500000);  // a peer that connects and says nothing holds this thread at most 0.5 s
   client_wire::ConnectRequest req;
   client_wire::ConnectReply reply;
   const ssize_t got = ::recv(fd, &req, sizeof req, MSG_WAITALL);
-  const uint32_t min_deadline_ms = 2000 / id_.rate_hz + ((2000 % id_.rate_hz) != 0 ? 1 : 0);
   std::string why;
-  if (got != static_cast<ssize_t>(sizeof req) || req.magic != client_wire::kMagic) {
-    reply.status = client_wire::ConnectStatus::kBadRequest;
-    why = "not a Phalanx client request";
-  } else if (req.version != client_wire::kVersion) {
-    reply.status = client_wire::ConnectStatus::kVersionMismatch;
-    why = "client channel version " + std::to_string(req.version) + ", this phalanxd speaks " +
-          std::to_string(client_wire::kVersion);
-  } else if (client_fd_ >= 0 || attach_.holding.load(std::memory_order_acquire) != 0) {
-    // A client that vanished still holds the device until its deadline forces it off.
-    reply.status = client_wire::ConnectStatus::kBusy;
-    why = "another client holds this device";
-  } else if (req.deadline_ms < min_deadline_ms || req.deadline_ms > 1000) {
-    reply.status = client_wire::ConnectStatus::kBadRequest;
-    why = "deadline_ms " + std::to_string(req.deadline_ms) + " is not in [" + std::to_string(min_deadline_ms) +
-          ", 1000] (at least two daemon periods)";
-  } else if (static_cast<uint8_t>(req.fallback) > 1) {
-    reply.status = client_wire::ConnectStatus::kBadRequest;
-    why = "fallback must be safe (0) or transparent (1)";
-  }
+  reply.status = checkConnectRequest(req, static_cast<long>(got), id_.rate_hz,
+                                     client_fd_ >= 0 || attach_.holding.load(std::memory_order_acquire) != 0, why);
   const protocol::DeviceLayout& l = *id_.layout;
   reply.device_type = static_cast<uint8_t>(l.type);
   copyText(reply.device_name, sizeof reply.device_name, l.name);

@@ -421,15 +421,27 @@ std::string gloveGeometryYaml(const GloveModel& m, const GloveAnalysis& a, const
 }
 
 std::string loadGloveGeometryYaml(const std::string& path, GloveModel& out) {
+  std::ifstream in(path);
+  std::stringstream text;
+  if (!in || !(text << in.rdbuf())) return "cannot read '" + path + "': bad file: " + path;
+  return loadGloveGeometryText(text.str(), path, out);
+}
+
+std::string loadGloveGeometryText(const std::string& yaml_text, const std::string& path, GloveModel& out) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
+    root = YAML::Load(yaml_text);
   } catch (const std::exception& ex) {
     return "cannot read '" + path + "': " + ex.what();
   }
   if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
-  const YAML::Node g = root["glove_finger_geometry"];
+  // Mappings checked before they are indexed: yaml-cpp throws on operator[] of a scalar.
+  const YAML::Node g = root.IsMap() ? root["glove_finger_geometry"] : YAML::Node();
   if (!g) return path + ": missing 'glove_finger_geometry'";
+  if (!g.IsMap()) return path + ": 'glove_finger_geometry' must be a mapping";
+  for (const char* section : {"finger", "mechanism"}) {
+    if (!g[section] || !g[section].IsMap()) return path + ": 'glove_finger_geometry." + section + "' must be a mapping";
+  }
   auto vec = [&](const YAML::Node& n, std::size_t size, const char* name, std::vector<double>& v) -> std::string {
     if (!n || !n.IsSequence() || n.size() != size) return path + ": '" + name + "' must be a list of " + std::to_string(size);
     v.clear();
@@ -460,6 +472,7 @@ std::string loadGloveGeometryYaml(const std::string& path, GloveModel& out) {
   } catch (const std::exception&) {
     return path + ": 'mechanism.l_p_mm' missing or not a number";
   }
+  if (!std::isfinite(lp)) return path + ": 'mechanism.l_p_mm' has a non-finite value";
   for (int i = 0; i < 3; ++i) {
     if (!(p[i] > 0) || !(l[i] > 0)) return path + ": link lengths must be > 0 mm";
     if (!(tmin[i] < tmax[i]) || !(amin[i] < amax[i])) return path + ": every joint range needs min < max";

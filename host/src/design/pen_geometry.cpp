@@ -3,6 +3,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <set>
 
 #include "phalanx/host/yaml_keys.h"
@@ -37,11 +39,16 @@ std::string penGeometryYaml(const pen::Geometry<double>& g, const std::string& c
 }
 
 std::string loadPenGeometryYaml(const std::string& path, pen::Geometry<double>& out) {
+  std::ifstream in(path);
+  std::stringstream text;
+  if (!in || !(text << in.rdbuf())) return path + ": cannot read pen geometry file";
+  return loadPenGeometryText(text.str(), path, out);
+}
+
+std::string loadPenGeometryText(const std::string& yaml_text, const std::string& path, pen::Geometry<double>& out) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    return path + ": cannot read pen geometry file";
+    root = YAML::Load(yaml_text);
   } catch (const YAML::Exception& ex) {
     return path + ": YAML syntax error at line " + std::to_string(ex.mark.line + 1) + ": " + ex.msg;
   }
@@ -55,7 +62,8 @@ std::string loadPenGeometryYaml(const std::string& path, pen::Geometry<double>& 
   const std::set<std::string> allowed{"units", "l6_reading", "l1_m", "l2_m", "l3_m", "l4_m", "l6_m", "home_z_m",
                                       "analysis"};
   for (const auto& kv : g) {
-    const std::string key = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) return path + ": pen_geometry: every key must be a plain name";
+    const std::string key = kv.first.Scalar();
     if (allowed.count(key) == 0) return path + ": pen_geometry." + key + ": unknown key";
   }
   if (!g["units"] || !g["units"].IsScalar() || g["units"].Scalar() != "m") {

@@ -35,7 +35,8 @@ Server::Server(const ServerOptions& options, const WriteLimits& limits) : opt_(o
 
 Server::~Server() { stop(); }
 
-std::string Server::start() {
+std::string Server::prepare() {
+  if (ctx_ != nullptr) return {};
   const char* ip = opt_.address == "0.0.0.0" || opt_.address == "*" ? nullptr : opt_.address.c_str();
   modbus_t* ctx = modbus_new_tcp(ip, static_cast<int>(opt_.port));
   if (ctx == nullptr) return "modbus: cannot create a TCP context: " + std::string(modbus_strerror(errno));
@@ -45,6 +46,12 @@ std::string Server::start() {
   modbus_set_response_timeout(ctx, 0, opt_.byte_timeout_ms * 1000u);
   mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, 0, hold::kCount, 0, in::kCount);
   if (mapping_ == nullptr) return "modbus: cannot allocate the register map";
+  return {};
+}
+
+std::string Server::start() {
+  if (std::string err = prepare(); !err.empty()) return err;
+  modbus_t* ctx = ctxOf(ctx_);
   listen_fd_ = modbus_tcp_listen(ctx, static_cast<int>(std::min(opt_.max_clients, 64u)));
   if (listen_fd_ < 0) {
     return "modbus: cannot listen on " + opt_.address + ":" + std::to_string(opt_.port) + ": " + modbus_strerror(errno);
@@ -117,14 +124,8 @@ void Server::serve() {
         ++i;
         continue;
       }
-      modbus_set_socket(ctx, fd);
-      const int rc = modbus_receive(ctx, query.data());
-      if (rc > 0) {
-        stats_.requests++;
-        handle(fd, query.data(), rc);
+      if (serveRequest(fd, query.data()) >= 0) {
         ++i;
-      } else if (rc == 0) {
-        ++i;  // not addressed to us (RTU only); nothing to answer
       } else {
         // Closed by the peer, or a frame that is malformed or did not complete within the byte timeout: the
         // stream cannot be resynchronised, so the connection is dropped.
@@ -136,6 +137,27 @@ void Server::serve() {
   }
   for (int fd : clients) ::close(fd);
   modbus_set_socket(ctx, -1);
+}
+
+int Server::serveRequest(int fd, uint8_t* query) {
+  modbus_t* ctx = ctxOf(ctx_);
+  modbus_set_socket(ctx, fd);
+  const int rc = modbus_receive(ctx, query);
+  if (rc > 0) {
+    stats_.requests++;
+    handle(fd, query, rc);
+  }
+  return rc;  // 0: not addressed to us (RTU only), nothing to answer
+}
+
+std::string Server::serveConnection(int fd) {
+  if (running_) return "modbus: the server is listening";
+  if (std::string err = prepare(); !err.empty()) return err;
+  std::vector<uint8_t> query(MODBUS_TCP_MAX_ADU_LENGTH);
+  while (serveRequest(fd, query.data()) >= 0) {
+  }
+  modbus_set_socket(ctxOf(ctx_), -1);
+  return {};
 }
 
 void Server::handle(int fd, const uint8_t* q, int length) {

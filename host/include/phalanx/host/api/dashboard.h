@@ -50,10 +50,16 @@ class Dashboard {
   /// http://ADDRESS:PORT/#token=…
   std::string url() const;
 
+  /// Serve one connection's bytes from memory, without a socket (fuzzing, tests): the same routes and checks as
+  /// the listener (Host, Origin, token, body limits). Only before start(): `token` is the access token the
+  /// routes check, and the port is 0. Returns the response bytes.
+  std::string serveInMemory(const std::string& request_bytes, const std::string& token);
+
   /// The /api/samples answer for samples after `after` (exposed for tests).
   nlohmann::json samplesAfter(uint64_t after) const;
 
  private:
+  void routes();
   void sampleLoop();
   void takeSample();
 
@@ -66,6 +72,7 @@ class Dashboard {
   std::thread listen_thread_;
   std::thread sample_thread_;
   std::atomic<bool> running_{false};
+  bool routes_set_ = false;
   mutable std::mutex mutex_;  // guards everything below
   std::deque<nlohmann::json> ring_;
   uint64_t seq_ = 0;

@@ -3,6 +3,7 @@
 /// address). Access (socket_access.h, docs/security.md): the socket is created mode 0660 in a directory only its
 /// owner can write, and each client's credentials are checked (the daemon's uid, root, or the API group).
 /// docs/api.md is the reference of every request.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,11 @@ struct ServerConfig {
 
 /// Serve until SIGINT/SIGTERM; stops a running session cleanly first. Returns the process exit code.
 int serve(const ServerConfig& config);
+
+/// The request handler serve() runs (one JSON request line → the answer object), without the socket: for
+/// in-process callers (tests, fuzzing). It owns its daemon state; a session it started is stopped when the last
+/// copy of the handler is destroyed.
+std::function<nlohmann::json(const std::string&)> makeRequestHandler(const ServerConfig& config);
 
 
 }  // namespace phalanx::host::api

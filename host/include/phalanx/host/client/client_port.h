@@ -51,6 +51,11 @@ struct ServerCounters {
   std::atomic<uint64_t> disconnects_without_release{0};
 };
 
+/// The checks negotiate() applies to a connection request: `got` bytes were received into req (a short read is a
+/// bad request); `busy` when a client holds the device. Returns kOk, or the refusal with `why` naming it.
+client_wire::ConnectStatus checkConnectRequest(const client_wire::ConnectRequest& req, long got, uint32_t rate_hz,
+                                               bool busy, std::string& why);
+
 class Server {
  public:
   Server(const ClientOptions& options, const DeviceIdentity& identity);

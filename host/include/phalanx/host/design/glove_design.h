@@ -134,5 +134,7 @@ GloveOptResult optimiseGlove(const GloveOptOptions& opt);
 std::string gloveGeometryYaml(const GloveModel& model, const GloveAnalysis& a, const std::string& comment);
 /// Reads a geometry written by gloveGeometryYaml into a glove::Model<double>. Returns an error or "".
 std::string loadGloveGeometryYaml(const std::string& path, GloveModel& out);
+/// The same from YAML text; `path` names the source in errors.
+std::string loadGloveGeometryText(const std::string& yaml_text, const std::string& path, GloveModel& out);
 
 }  // namespace phalanx::host::design

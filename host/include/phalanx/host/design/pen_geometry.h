@@ -24,5 +24,7 @@ std::string penGeometryYaml(const pen::Geometry<double>& g, const std::string& c
 /// the lengths must make a pen that reaches its home pose (pen::makeModel). Returns "" or an error that names
 /// the file and the offending key. `out` is written only on success.
 std::string loadPenGeometryYaml(const std::string& path, pen::Geometry<double>& out);
+/// The same from YAML text; `path` names the source in errors.
+std::string loadPenGeometryText(const std::string& yaml_text, const std::string& path, pen::Geometry<double>& out);
 
 }  // namespace phalanx::host::design

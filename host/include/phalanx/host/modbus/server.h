@@ -36,6 +36,9 @@ class Server {
   std::string start();
   void stop();
   unsigned port() const { return port_; }
+  /// Without the listener (fuzzing, tests): serve the requests of one connected socket as the server thread
+  /// serves a client, until the stream ends or fails (where the thread drops the client). "" or the problem.
+  std::string serveConnection(int fd);
 
   /// Loop side (one producer thread).
   void publish(const LoopSnapshot& s) { snapshot_.publish(s); }
@@ -47,7 +50,9 @@ class Server {
   const WriteLimits& limits() const { return limits_; }
 
  private:
+  std::string prepare();
   void serve();
+  int serveRequest(int fd, uint8_t* query);
   void handle(int fd, const uint8_t* query, int length);
 
   ServerOptions opt_;
