@@ -232,7 +232,7 @@ void expectTypedFrameMatches(const Msg& m) {
 // A field value: zero, a small value or random bits, so that whole fields and single bytes are often 0.
 template <class T>
 T field(std::mt19937& rng) {
-  const uint32_t r = rng();
+  const uint32_t r = static_cast<uint32_t>(rng());
   switch (r % 3) {
     case 0: return T{};
     case 1: return static_cast<T>(r % 7);
@@ -309,7 +309,7 @@ std::vector<uint8_t> randomStream(std::mt19937& rng, size_t pieces) {
   static constexpr uint8_t kIds[] = {0x01, 0x02, 0x10, 0x20, 0x30, 0x31, 0x40, 0x41, 0x42};
   std::vector<uint8_t> s;
   for (size_t k = 0; k < pieces; ++k) {
-    const uint32_t kind = rng() % 10;
+    const uint32_t kind = static_cast<uint32_t>(rng() % 10);
     if (kind == 8) {  // garbage, sometimes longer than any frame
       const std::vector<uint8_t> g = randomBytes(rng, rng() % 160, rng() % 2 == 0 ? 0.0 : 0.05);
       s.insert(s.end(), g.begin(), g.end());
