@@ -32,6 +32,7 @@ PACKAGES=(
   libcpp-httplib-dev chromium
   debootstrap lintian help2man libcap2-bin
   cyclonedds-dev cyclonedds-tools iproute2
+  nanopb libnanopb-dev
 )
 fi
 # Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.

@@ -89,8 +89,8 @@ int HostSession::poll(uint64_t now_ns) {
   for (;;) {
     const size_t n = link_->read(buf, sizeof buf);
     if (n == 0) break;
-    for (size_t i = 0; i < n; ++i) {
-      if (!decoder_.push(buf[i])) continue;
+    for (const uint8_t* p = buf; p < buf + n;) {  // each feed() consumes at least one byte
+      if (!decoder_.feed(p, buf + n)) continue;
       const Frame& f = decoder_.frame();
       if (f.id == static_cast<uint8_t>(MsgId::kTelemetry)) ++telemetry;
       handleFrame(f, now_ns);

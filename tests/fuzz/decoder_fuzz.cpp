@@ -36,6 +36,31 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       case MsgId::kParamValue: check<ParamValue>(f); break;
     }
   }
+  // feed() over the same bytes (in runs of 1 to 16, the split taken from the first byte) must report the same
+  // frames and counters as push() byte by byte.
+  {
+    StreamDecoder by_byte;
+    StreamDecoder by_run;
+    const size_t step = size > 0 ? 1 + data[0] % 16 : 1;
+    size_t frames_byte = 0;
+    size_t frames_run = 0;
+    for (size_t i = 0; i < size; ++i) frames_byte += by_byte.push(data[i]) ? 1 : 0;
+    for (size_t i = 0; i < size; i += step) {
+      const uint8_t* p = data + i;
+      const uint8_t* end = data + (i + step < size ? i + step : size);
+      while (p < end) {
+        const uint8_t* before = p;
+        frames_run += by_run.feed(p, end) ? 1 : 0;
+        if (p <= before || p > end) std::abort();
+      }
+    }
+    const DecodeStats& a = by_byte.stats();
+    const DecodeStats& b = by_run.stats();
+    if (frames_byte != frames_run || a.frames_ok != b.frames_ok || a.crc_errors != b.crc_errors ||
+        a.framing_errors != b.framing_errors || a.unknown_id != b.unknown_id || a.bad_length != b.bad_length) {
+      std::abort();
+    }
+  }
   // Also treat the input as one packet body (CAN-FD / USB path).
   Frame f;
   (void)checkBody(data, size, f);

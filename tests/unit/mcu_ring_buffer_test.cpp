@@ -74,3 +74,31 @@ TEST(McuByteRing, OneProducerThreadAndOneConsumerThreadSeeEveryByteInOrder) {
   producer.join();
   EXPECT_TRUE(in_order);
 }
+
+// write()/read() copy in at most two pieces around the end of the storage (issue 20): every split against a model.
+TEST(McuByteRing, BlockWritesAndReadsOfEveryLengthMatchAQueueModel) {
+  ByteRing<16> r;
+  std::vector<uint8_t> model;  // bytes in the ring, oldest first
+  uint32_t seed = 12345;
+  auto next = [&seed] { return seed = seed * 1103515245u + 12345u, (seed >> 16) & 0x7FFFu; };
+  uint8_t counter = 0;
+  for (int step = 0; step < 20000; ++step) {
+    if (next() % 2 == 0) {
+      uint8_t src[20];
+      const size_t len = next() % 21;
+      for (size_t i = 0; i < len; ++i) src[i] = counter++;
+      const size_t fit = len < 16 - model.size() ? len : 16 - model.size();
+      ASSERT_EQ(r.write(src, len), fit);
+      model.insert(model.end(), src, src + fit);
+      counter = static_cast<uint8_t>(counter - (len - fit));
+    } else {
+      uint8_t dst[20];
+      const size_t len = next() % 21;
+      const size_t got = r.read(dst, len);
+      ASSERT_EQ(got, len < model.size() ? len : model.size());
+      for (size_t i = 0; i < got; ++i) ASSERT_EQ(dst[i], model[i]) << "step " << step;
+      model.erase(model.begin(), model.begin() + static_cast<long>(got));
+    }
+    ASSERT_EQ(r.size(), model.size());
+  }
+}

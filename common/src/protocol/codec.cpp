@@ -1,22 +1,76 @@
 #include "phalanx/protocol/codec.h"
 
 #include <cstring>
+#include <limits>
 
 namespace phalanx::protocol {
 namespace {
 
-// Table-driven CRC-16/CCITT-FALSE, generated at compile time (one 512-byte table in flash on the MCU).
-struct Crc16Table {
-  uint16_t v[256];
-  constexpr Crc16Table() : v{} {
+// CRC-16/CCITT-FALSE, slicing by 4, tables generated at compile time. kCrc.v[0][b] is the CRC of byte b from
+// state 0, kCrc.v[k][b] that of b followed by k zero bytes; four bytes then cost four lookups, the register's two
+// bytes folded into the first two message bytes (the CRC is linear). The register and the tables are kept with
+// their two bytes swapped (the register's high byte in bits 0–7), so that the register folds into a little-endian
+// word with one xor. 4 × 256 × 2 = 2 048 bytes of flash on the MCU (the byte-at-a-time table was 512).
+constexpr uint16_t swap16(uint16_t v) { return static_cast<uint16_t>((v >> 8) | (v << 8)); }
+
+struct Crc16Tables {
+  uint16_t v[4][256];
+  constexpr Crc16Tables() : v{} {
+    uint16_t plain[4][256] = {};
     for (int i = 0; i < 256; ++i) {
       uint16_t c = static_cast<uint16_t>(i << 8);
       for (int b = 0; b < 8; ++b) c = static_cast<uint16_t>((c & 0x8000u) ? ((c << 1) ^ 0x1021u) : (c << 1));
-      v[i] = c;
+      plain[0][i] = c;
+    }
+    for (int k = 1; k < 4; ++k) {
+      for (int i = 0; i < 256; ++i) {
+        const uint16_t c = plain[k - 1][i];
+        plain[k][i] = static_cast<uint16_t>((c << 8) ^ plain[0][c >> 8]);
+      }
+    }
+    for (int k = 0; k < 4; ++k) {
+      for (int i = 0; i < 256; ++i) v[k][i] = swap16(plain[k][i]);
     }
   }
 };
-constexpr Crc16Table kCrcTable{};
+constexpr Crc16Tables kCrc{};
+
+// One byte into the swapped register s.
+inline uint32_t crcByte(uint32_t s, uint8_t b) { return (s >> 8) ^ kCrc.v[0][(s ^ b) & 0xFFu]; }
+
+// Four message bytes, loaded little-endian into w (first byte in bits 0–7), into the swapped register s.
+inline uint32_t crcWord(uint32_t s, uint32_t w) {
+  w ^= s;
+  return static_cast<uint32_t>(kCrc.v[3][w & 0xFFu] ^ kCrc.v[2][(w >> 8) & 0xFFu] ^ kCrc.v[1][(w >> 16) & 0xFFu] ^
+                               kCrc.v[0][w >> 24]);
+}
+
+// Four bytes at p (any alignment) with the first byte in bits 0–7, whatever the host's byte order.
+inline uint32_t loadLe32(const uint8_t* p) {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  uint32_t w;
+  std::memcpy(&w, p, sizeof w);
+  return w;
+#else
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) | (static_cast<uint32_t>(p[2]) << 16) |
+         (static_cast<uint32_t>(p[3]) << 24);
+#endif
+}
+
+// Bit 7 of each byte of the result is set exactly where w's byte is 0 (no borrow between bytes, unlike the
+// classic (w - 0x01010101) & ~w trick, whose bits above a zero byte can be false positives).
+inline uint32_t zeroBytes(uint32_t w) { return ~(((w & 0x7F7F7F7Fu) + 0x7F7F7F7Fu) | w | 0x7F7F7F7Fu); }
+
+// Every body is shorter than one COBS block (254 bytes): each code byte is then the distance to the next zero
+// (or to the end), COBS never inserts a 0xFF block, and encoding is in place.
+static_assert(kMaxFrameBody < 254, "single-block COBS framing");
+
+// On a little-endian target with IEEE-754 floats an array of i16/u16/f32 already has its wire layout: copied whole.
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+constexpr bool kWireLayoutNative = std::numeric_limits<float>::is_iec559;
+#else
+constexpr bool kWireLayoutNative = false;
+#endif
 
 class Writer {
  public:
@@ -30,8 +84,20 @@ class Writer {
     std::memcpy(&bits, &v, sizeof bits);
     u32(bits);
   }
+  template <class T, size_t N>
+  void array(const T (&a)[N]) {
+    if constexpr (kWireLayoutNative) {
+      std::memcpy(p_, a, sizeof a);
+      p_ += sizeof a;
+    } else {
+      for (const T& v : a) put(v);
+    }
+  }
 
  private:
+  void put(int16_t v) { i16(v); }
+  void put(uint16_t v) { u16(v); }
+  void put(float v) { f32(v); }
   uint8_t* p_;
 };
 
@@ -54,8 +120,20 @@ class Reader {
     std::memcpy(&v, &bits, sizeof v);
     return v;
   }
+  template <class T, size_t N>
+  void array(T (&a)[N]) {
+    if constexpr (kWireLayoutNative) {
+      std::memcpy(a, p_, sizeof a);
+      p_ += sizeof a;
+    } else {
+      for (T& v : a) get(v);
+    }
+  }
 
  private:
+  void get(int16_t& v) { v = i16(); }
+  void get(uint16_t& v) { v = u16(); }
+  void get(float& v) { v = f32(); }
   const uint8_t* p_;
 };
 
@@ -65,10 +143,11 @@ bool validMode(uint8_t v) { return v < kModeCount; }
 }  // namespace
 
 uint16_t crc16(const uint8_t* data, size_t len, uint16_t crc) {
-  for (size_t i = 0; i < len; ++i) {
-    crc = static_cast<uint16_t>((crc << 8) ^ kCrcTable.v[((crc >> 8) ^ data[i]) & 0xFFu]);
-  }
-  return crc;
+  uint32_t s = swap16(crc);
+  size_t i = 0;
+  for (; i + 4 <= len; i += 4) s = crcWord(s, loadLe32(data + i));
+  for (; i < len; ++i) s = crcByte(s, data[i]);
+  return swap16(static_cast<uint16_t>(s));
 }
 
 size_t cobsEncode(const uint8_t* src, size_t len, uint8_t* dst) {
@@ -166,8 +245,8 @@ void encodePayload(const Command& m, uint8_t* out) {
   w.u8(m.flags);
   w.u8(m.channel_count);
   w.u8(m.reserved);
-  for (float s : m.setpoint) w.f32(s);
-  for (uint16_t g : m.gain_scale_permille) w.u16(g);
+  w.array(m.setpoint);
+  w.array(m.gain_scale_permille);
 }
 bool decodePayload(const uint8_t* in, size_t len, Command& m) {
   if (len != Command::kWireSize) return false;
@@ -180,8 +259,8 @@ bool decodePayload(const uint8_t* in, size_t len, Command& m) {
   m.flags = r.u8();
   m.channel_count = r.u8();
   m.reserved = r.u8();
-  for (float& s : m.setpoint) s = r.f32();
-  for (uint16_t& g : m.gain_scale_permille) g = r.u16();
+  r.array(m.setpoint);
+  r.array(m.gain_scale_permille);
   return true;
 }
 
@@ -195,7 +274,7 @@ void encodePayload(const Telemetry& m, uint8_t* out) {
   w.u16(m.fault_bits);
   w.u8(m.cmd_lost);
   w.u8(m.rx_errors);
-  for (int16_t s : m.sample) w.i16(s);
+  w.array(m.sample);
 }
 bool decodePayload(const uint8_t* in, size_t len, Telemetry& m) {
   if (len != Telemetry::kWireSize) return false;
@@ -210,7 +289,7 @@ bool decodePayload(const uint8_t* in, size_t len, Telemetry& m) {
   m.fault_bits = r.u16();
   m.cmd_lost = r.u8();
   m.rx_errors = r.u8();
-  for (int16_t& s : m.sample) s = r.i16();
+  r.array(m.sample);
   return true;
 }
 
@@ -283,17 +362,48 @@ bool decodePayload(const uint8_t* in, size_t len, ParamValue& m) {
   return true;
 }
 
+size_t finishFrame(uint8_t* out, size_t len) {
+  // out[1] = id, out[2 .. 2 + len) = payload. One pass over id | payload: CRC four bytes at a time, and every zero
+  // byte found in the same words becomes a COBS code pointing back at the previous code position.
+  const size_t n = 1 + len;
+  uint8_t* body = out + 1;
+  uint32_t crc = 0xFFFF;  // swapped register (0xFFFF either way)
+  size_t code_pos = 0;  // index in out of the code byte still waiting for the distance to the next zero
+  size_t i = 0;
+  for (; i + 4 <= n; i += 4) {  // at most 16 words (n ≤ 65)
+    const uint32_t w = loadLe32(body + i);
+    crc = crcWord(crc, w);
+    for (uint32_t z = zeroBytes(w); z != 0; z &= z - 1) {  // at most 4 zero bytes
+      const size_t at = i + 1 + (static_cast<unsigned>(__builtin_ctz(z)) >> 3);
+      out[code_pos] = static_cast<uint8_t>(at - code_pos);
+      code_pos = at;
+    }
+  }
+  for (; i < n; ++i) {  // at most 3 trailing bytes
+    crc = crcByte(crc, body[i]);
+    if (body[i] == 0) {
+      out[code_pos] = static_cast<uint8_t>(i + 1 - code_pos);
+      code_pos = i + 1;
+    }
+  }
+  out[n + 1] = static_cast<uint8_t>(crc >> 8);  // the CRC's low byte first (little-endian), from the swapped register
+  out[n + 2] = static_cast<uint8_t>(crc);
+  for (size_t at = n + 1; at <= n + 2; ++at) {
+    if (out[at] == 0) {
+      out[code_pos] = static_cast<uint8_t>(at - code_pos);
+      code_pos = at;
+    }
+  }
+  out[code_pos] = static_cast<uint8_t>(n + 3 - code_pos);
+  out[n + 3] = 0;
+  return n + 4;
+}
+
 size_t encodeFrameRaw(uint8_t id, const uint8_t* payload, size_t len, uint8_t* out) {
   if (len > kMaxPayload) return 0;
-  uint8_t body[kMaxFrameBody];
-  body[0] = id;
-  std::memcpy(body + 1, payload, len);
-  const uint16_t crc = crc16(body, 1 + len);
-  body[1 + len] = static_cast<uint8_t>(crc);
-  body[2 + len] = static_cast<uint8_t>(crc >> 8);
-  const size_t n = cobsEncode(body, len + 3, out);
-  out[n] = 0;
-  return n + 1;
+  out[1] = id;
+  std::memcpy(out + 2, payload, len);
+  return finishFrame(out, len);
 }
 
 BodyStatus checkBody(const uint8_t* body, size_t len, Frame& out) {
@@ -322,7 +432,38 @@ bool StreamDecoder::push(uint8_t byte) {
     }
     return false;
   }
-  // Delimiter: judge what was collected.
+  return judge();
+}
+
+bool StreamDecoder::feed(const uint8_t*& data, const uint8_t* end) {
+  while (data < end) {  // bounded: every pass consumes at least one byte
+    const size_t avail = static_cast<size_t>(end - data);
+    const auto* zero = static_cast<const uint8_t*>(std::memchr(data, 0, avail));
+    const size_t run = zero != nullptr ? static_cast<size_t>(zero - data) : avail;
+    if (!hunting_) {
+      if (run <= sizeof raw_ - raw_len_) {
+        std::memcpy(raw_ + raw_len_, data, run);
+        raw_len_ += run;
+      } else {
+        raw_len_ = sizeof raw_;  // the content no longer matters: the frame is discarded at its delimiter
+        overflow_ = true;
+      }
+    }
+    if (zero == nullptr) {
+      data = end;
+      return false;
+    }
+    data = zero + 1;
+    if (hunting_) {
+      hunting_ = false;
+      continue;
+    }
+    if (judge()) return true;
+  }
+  return false;
+}
+
+bool StreamDecoder::judge() {
   const size_t n = raw_len_;
   const bool overflow = overflow_;
   raw_len_ = 0;
@@ -332,12 +473,20 @@ bool StreamDecoder::push(uint8_t byte) {
     ++stats_.framing_errors;
     return false;
   }
-  const size_t body_len = cobsDecode(raw_, n, decoded_, sizeof decoded_);
-  if (body_len == 0) {
+  // COBS in place: follow the code chain (one step per zero of the body, not per byte), zeroing each code byte
+  // after the first. raw_ holds no 0x00 and fewer than 255 bytes, so a 0xFF code always runs past the end.
+  static_assert(sizeof raw_ < 255, "a 0xFF code cannot complete inside the buffer");
+  size_t pos = raw_[0];
+  while (pos < n) {  // at most n steps: every code is ≥ 1
+    const uint8_t code = raw_[pos];
+    raw_[pos] = 0;
+    pos += code;
+  }
+  if (pos != n || n - 1 > kMaxFrameBody) {  // a group runs past the end, or the body is longer than any frame
     ++stats_.framing_errors;
     return false;
   }
-  switch (checkBody(decoded_, body_len, frame_)) {
+  switch (checkBody(raw_ + 1, n - 1, frame_)) {
     case BodyStatus::kOk: ++stats_.frames_ok; return true;
     case BodyStatus::kTooShort: ++stats_.framing_errors; return false;
     case BodyStatus::kCrc: ++stats_.crc_errors; return false;

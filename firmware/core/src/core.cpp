@@ -322,8 +322,9 @@ void FirmwareCore::receive(uint64_t now_us) {
     const size_t n = board_.link->read(buf, budget < sizeof buf ? budget : sizeof buf);
     if (n == 0) break;
     budget -= n;
-    for (size_t i = 0; i < n; ++i) {
-      if (decoder_.push(buf[i])) handleFrame(decoder_.frame(), now_us);
+    const uint8_t* p = buf;
+    while (p < buf + n) {  // each feed() consumes at least one byte
+      if (decoder_.feed(p, buf + n)) handleFrame(decoder_.frame(), now_us);
     }
   }
 }

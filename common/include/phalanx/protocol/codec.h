@@ -43,11 +43,16 @@ bool decodePayload(const uint8_t* in, size_t len, ParamSet& m);
 bool decodePayload(const uint8_t* in, size_t len, ParamValue& m);
 
 /// Frame one message for a byte stream into out (capacity ≥ kMaxEncodedFrame). Returns bytes written incl. 0x00.
+/// Single pass: the payload is serialised straight into its place in out, then one pass over id | payload computes
+/// the CRC and turns the zero bytes into COBS codes in place (the bytes are those of cobsEncode over the body).
 template <class Msg>
 size_t encodeFrame(const Msg& m, uint8_t* out);
 size_t encodeFrameRaw(uint8_t id, const uint8_t* payload, size_t len, uint8_t* out);
+/// The framing step of encodeFrame: out[1] holds the ID and out[2 .. 2 + len) the payload (len ≤ kMaxPayload);
+/// writes the CRC, the COBS codes and the delimiter around them. Returns the frame's length (len + 5).
+size_t finishFrame(uint8_t* out, size_t len);
 
-/// A decoded frame: message ID and its payload (valid until the next push()).
+/// A decoded frame: message ID and its payload (valid until the next push() or feed()).
 struct Frame {
   uint8_t id = 0;
   const uint8_t* payload = nullptr;
@@ -64,11 +69,16 @@ struct DecodeStats {
   uint32_t total_rejected() const { return crc_errors + framing_errors + unknown_id + bad_length; }
 };
 
-/// Incremental byte-stream decoder: feed bytes one at a time; a complete valid frame is reported once.
-/// Bounded memory (one frame buffer); an oversized frame is discarded up to the next delimiter.
+/// Incremental byte-stream decoder: feed bytes as they arrive; a complete valid frame is reported once.
+/// Bounded memory (one frame buffer, decoded in place); an oversized frame is discarded up to the next delimiter.
 class StreamDecoder {
  public:
-  /// Returns true when byte completes a valid frame; then frame() is valid until the next push().
+  /// Consumes bytes from [data, end) up to and including the delimiter of the next valid frame and returns true
+  /// (frame() is then valid until the next push() or feed(); data points past that delimiter), or consumes them
+  /// all and returns false. Call it until data == end. Same result as push() of every byte, a run at a time:
+  /// the delimiter is found with memchr and the bytes before it copied with memcpy.
+  bool feed(const uint8_t*& data, const uint8_t* end);
+  /// One byte; returns true when it completes a valid frame (frame() is then valid until the next push()/feed()).
   bool push(uint8_t byte);
   const Frame& frame() const { return frame_; }
   const DecodeStats& stats() const { return stats_; }
@@ -81,9 +91,9 @@ class StreamDecoder {
   }
 
  private:
+  bool judge();  // at a delimiter: COBS-decode raw_ in place and check the body
   bool hunting_ = false;
   uint8_t raw_[kMaxEncodedFrame] = {};
-  uint8_t decoded_[kMaxFrameBody] = {};
   size_t raw_len_ = 0;
   bool overflow_ = false;
   Frame frame_;
@@ -97,9 +107,10 @@ BodyStatus checkBody(const uint8_t* body, size_t len, Frame& out);
 
 template <class Msg>
 size_t encodeFrame(const Msg& m, uint8_t* out) {
-  uint8_t payload[Msg::kWireSize];
-  encodePayload(m, payload);
-  return encodeFrameRaw(static_cast<uint8_t>(Msg::kId), payload, Msg::kWireSize, out);
+  static_assert(Msg::kWireSize <= kMaxPayload, "every payload fits one frame");
+  out[1] = static_cast<uint8_t>(Msg::kId);
+  encodePayload(m, out + 2);
+  return finishFrame(out, Msg::kWireSize);
 }
 
 }  // namespace phalanx::protocol

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 namespace phalanx::mcu {
 
@@ -40,7 +41,11 @@ class ByteRing {
     const uint32_t head = head_.load(std::memory_order_relaxed);
     const size_t free = kCapacity - static_cast<uint32_t>(head - tail_.load(std::memory_order_acquire));
     const size_t n = len < free ? len : free;
-    for (size_t i = 0; i < n; ++i) buf_[(head + static_cast<uint32_t>(i)) & kMask] = src[i];
+    // At most two contiguous pieces (up to the end of the storage, then from its start): two memcpy, not a loop.
+    const size_t at = head & kMask;
+    const size_t first = n < kCapacity - at ? n : kCapacity - at;
+    std::memcpy(buf_ + at, src, first);
+    std::memcpy(buf_, src + first, n - first);
     head_.store(head + static_cast<uint32_t>(n), std::memory_order_release);
     return n;
   }
@@ -59,7 +64,10 @@ class ByteRing {
     const uint32_t tail = tail_.load(std::memory_order_relaxed);
     const size_t avail = static_cast<uint32_t>(head_.load(std::memory_order_acquire) - tail);
     const size_t n = max_len < avail ? max_len : avail;
-    for (size_t i = 0; i < n; ++i) dst[i] = buf_[(tail + static_cast<uint32_t>(i)) & kMask];
+    const size_t at = tail & kMask;
+    const size_t first = n < kCapacity - at ? n : kCapacity - at;
+    std::memcpy(dst, buf_ + at, first);
+    std::memcpy(dst + first, buf_, n - first);
     tail_.store(tail + static_cast<uint32_t>(n), std::memory_order_release);
     return n;
   }
