@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""What the host cycle's lock to the device buys (issue #20, docs/session-runner.md "The cycle's clock").
+
+Real-time multi-process sessions (firmware-sim + the session runner over the pty, not lockstep), each one run
+with the cycle locked to the device (`--cycle telemetry`) and on the timer alone (`--cycle timer`), side by side
+in one run:
+
+  pen    the pantograph's largest stable wall stiffness: the box floor is raised into the tip of the pen the
+         simulated hand holds at home (--pen-floor-mm), every wall at the swept stiffness; a session is stable
+         when no fault latched, the tip never left the floor after the first second, its penetration stayed
+         within --max-ptp-mm and its speed in contact within --max-speed-mm-s (an unstable wall chatters: the
+         contact breaks, or it buzzes with growing speed).
+  glove  the main job (sim:glove5, rigid ball, grasp) per finger: force RMS error in contact.
+  latency  round trip, sensor to actuation (device ticks from the sample a command was computed from to the
+         tick that applied it) and telemetry-to-command, from every session's summary.
+
+A benchmark, not a test: run by hand; nothing here is timed in CI.
+Usage: tools/lock-bench.py [--phalanx build/host/bin/phalanx] [--seconds 4] [--stiffness 3,6,...] [--repeats 1]
+"""
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+
+MODES = ("telemetry", "timer")
+
+
+def run_session(phalanx, args):
+    p = subprocess.run([phalanx, "run", "--json"] + args, capture_output=True, text=True)
+    try:
+        s = json.loads(p.stdout)
+    except json.JSONDecodeError:
+        s = {"error": "no JSON summary: " + p.stderr.strip()[-300:]}
+    s["_rc"] = p.returncode
+    return s
+
+
+def pen_session(phalanx, mode, k, a, seed):
+    return run_session(phalanx, ["--device", "sim:pantograph", "--scene", "wall", "--scenario", "still",
+                                 "--pen-wall-stiffness", str(k), "--pen-floor-mm", str(a.floor_mm),
+                                 "--cycle", mode, "--seconds", str(a.seconds), "--seed", str(seed)])
+
+
+def judge_pen(s, a):
+    """(stable, why, metrics) from one pen session's summary."""
+    if s["_rc"] != 0 or "error" in s:
+        return False, "exit %d %s" % (s["_rc"], s.get("error", s.get("link_error", ""))), {}
+    c = s["pantograph"]["pen"]["settled_tip_contact"]
+    m = {"ptp_mm": c["penetration_max_mm"] - c["penetration_min_mm"], "speed": c["tip_speed_rms_mm_s"],
+         "breaks": c["contact_breaks"], "contact": c["contact_cycles"] / max(1, c["cycles"]),
+         "s2a_p50": s["sensor_to_actuation"]["p50_us"]}
+    if s["faults_seen"] != "none":
+        return False, "fault " + s["faults_seen"], m
+    if m["contact"] < 0.999 or m["breaks"] > 0:
+        return False, "contact broke %d times" % m["breaks"], m
+    if m["ptp_mm"] > a.max_ptp_mm:
+        return False, "penetration ptp %.2f mm" % m["ptp_mm"], m
+    if m["speed"] > a.max_speed_mm_s:
+        return False, "tip speed %.1f mm/s" % m["speed"], m
+    return True, "", m
+
+
+def latency_row(name, runs, key):
+    cells = []
+    for mode in MODES:
+        hs = [r[key] for r in runs[mode] if key in r] if key != "telemetry_to_command" else \
+             [r["cycle"]["telemetry_to_command"] for r in runs[mode] if "cycle" in r]
+        if not hs:
+            cells.append("%34s" % "-")
+            continue
+        med = lambda f: statistics.median(h[f] for h in hs)
+        cells.append("%7.0f %7.0f %7.0f %8.0f  " % (med("p50_us"), med("p99_us"), med("p999_us"), med("max_us")))
+    return "%-22s %s" % (name, "".join(cells))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--phalanx", default="build/host/bin/phalanx")
+    ap.add_argument("--seconds", type=float, default=4.0, help="each pen session")
+    ap.add_argument("--glove-seconds", type=float, default=10.0)
+    ap.add_argument("--stiffness", default="3,6,10,16,24,32,48,64,96", help="N/cm, comma separated")
+    ap.add_argument("--floor-mm", type=float, default=-60.0, help="box floor (the held pen's tip is at -70)")
+    ap.add_argument("--repeats", type=int, default=1, help="seeds per stiffness and mode")
+    ap.add_argument("--max-ptp-mm", type=float, default=2.0)
+    ap.add_argument("--max-speed-mm-s", type=float, default=30.0)
+    ap.add_argument("--skip-glove", action="store_true")
+    a = ap.parse_args()
+    ks = [float(x) for x in a.stiffness.split(",")]
+    runs = {m: [] for m in MODES}
+
+    print("pen wall stiffness sweep (sim:pantograph, --scene wall, floor %.0f mm, %.1f s per session)" %
+          (a.floor_mm, a.seconds))
+    print("%-8s | %-52s | %-52s" % ("N/cm", "telemetry (locked)", "timer"))
+    largest = {m: 0.0 for m in MODES}
+    unstable_seen = {m: False for m in MODES}
+    for k in ks:
+        cells = []
+        for mode in MODES:
+            verdicts = []
+            for rep in range(a.repeats):
+                s = pen_session(a.phalanx, mode, k, a, seed=1 + rep)
+                runs[mode].append(s)
+                verdicts.append(judge_pen(s, a))
+            ok = all(v[0] for v in verdicts)
+            if ok and not unstable_seen[mode]:
+                largest[mode] = k
+            if not ok:
+                unstable_seen[mode] = True
+            v = next((v for v in verdicts if not v[0]), verdicts[0])
+            m = v[2]
+            txt = ("stable  " if ok else "UNSTABLE") + (
+                " ptp %.2fmm v %.1fmm/s s2a %4.0fus" % (m["ptp_mm"], m["speed"], m["s2a_p50"]) if m else "")
+            if not ok:
+                txt += " (" + v[1] + ")"
+            cells.append("%-52s" % txt[:52])
+        print("%-8g | %s | %s" % (k, cells[0], cells[1]), flush=True)
+    print("largest stable wall stiffness: locked %g N/cm, timer %g N/cm (ratio %.2f)" %
+          (largest["telemetry"], largest["timer"],
+           largest["telemetry"] / largest["timer"] if largest["timer"] > 0 else float("nan")))
+
+    if not a.skip_glove:
+        print("\nglove main job (sim:glove5, rigid ball, grasp, %.0f s): force RMS error in contact, N (contact s)" %
+              a.glove_seconds)
+        g = {}
+        for mode in MODES:
+            s = run_session(a.phalanx, ["--device", "sim:glove5", "--seconds", str(a.glove_seconds), "--cycle", mode])
+            runs[mode].append(s)
+            g[mode] = s
+        fingers = ["thumb", "index", "middle", "ring", "little"]
+        print("%-8s | %-28s | %-28s" % ("finger", "telemetry (locked)", "timer"))
+        for f in fingers:
+            cells = []
+            for mode in MODES:
+                try:
+                    d = g[mode]["glove5"]["fingers"][f]
+                    cells.append("%6.3f N (%5.2f s) free %5.3f N" % (d["force_rms_error_in_contact_N"],
+                                                                     d["contact_s"], d["force_rms_free_N"]))
+                except KeyError:
+                    cells.append("- (%s)" % g[mode].get("error", g[mode].get("link_error", "?"))[:20])
+            print("%-8s | %-28s | %-28s" % (f, cells[0], cells[1]))
+
+    print("\nlatency, us, medians over this run's sessions (%d locked, %d timer)" % (len(runs["telemetry"]),
+                                                                                  len(runs["timer"])))
+    print("%-22s %-34s %-34s" % ("", "telemetry: p50 p99 p99.9 max", "timer: p50 p99 p99.9 max"))
+    for name, key in (("round trip", "round_trip"), ("sensor to actuation", "sensor_to_actuation"),
+                      ("telemetry to command", "telemetry_to_command"), ("period jitter", "period_jitter")):
+        print(latency_row(name, runs, key))
+    for mode in MODES:
+        fb = [r["cycle"]["started_by_timer"] for r in runs[mode] if "cycle" in r]
+        st = [r["telemetry"]["cycles_without_new_telemetry"] for r in runs[mode] if "telemetry" in r]
+        print("%-9s cycles started by the timer (median per session) %s; cycles without new telemetry %s" %
+              (mode, statistics.median(fb) if fb else "-", statistics.median(st) if st else "-"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
