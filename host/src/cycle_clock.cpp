@@ -88,12 +88,10 @@ CycleStart CycleClock::onTelemetry() {
       sleepUntil(fresh > 0 ? open_ns : fallback_ns);
       continue;
     }
-    if (!waitForInput(fallback_ns)) {
-      input_unusable_ = true;
-      continue;
-    }
-    woke = true;
-    ++wakes;
+    const int w = waitForInput(fallback_ns);
+    if (w < 0) input_unusable_ = true;
+    woke = w > 0;
+    wakes += w > 0 ? 1 : 0;
   }
 }
 
@@ -105,9 +103,8 @@ CycleStart CycleClock::started(uint64_t now_ns, uint64_t nominal_ns, int fresh, 
   const uint64_t interval = now_ns - last_ns_;
   s.jitter_us = std::fabs(static_cast<double>(now_ns) - static_cast<double>(nominal_ns)) / 1000.0;
   if (by_telemetry) s.jitter_us = std::fabs(static_cast<double>(interval) - static_cast<double>(period_ns_)) / 1000.0;
-  if (interval > period_ns_ + period_ns_ / 2) {
-    s.missed = static_cast<uint32_t>((interval + period_ns_ / 2) / period_ns_ - 1);
-  }
+  // Whole periods with no cycle in them (the 1.5-period fallback itself is not one).
+  if (interval >= 2 * period_ns_) s.missed = static_cast<uint32_t>(interval / period_ns_ - 1);
   // A timer-started cycle keeps the fallback on a drift-free grid (its deadline, not its wake-up).
   last_ns_ = by_telemetry ? now_ns : nominal_ns;
   last_by_telemetry_ = by_telemetry;
@@ -115,21 +112,21 @@ CycleStart CycleClock::started(uint64_t now_ns, uint64_t nominal_ns, int fresh, 
   return s;
 }
 
-bool CycleClock::waitForInput(uint64_t until_ns) {
+int CycleClock::waitForInput(uint64_t until_ns) {
   pollfd fds[kMaxWaitFds];
   const size_t n = link_.waitFds(fds, kMaxWaitFds);
-  if (n == 0) return false;
+  if (n == 0) return -1;
   const uint64_t now = linux_hal::monotonicNs();
   const uint64_t left = until_ns > now ? until_ns - now : 0;
   timespec ts{};
   ts.tv_sec = static_cast<time_t>(left / 1000000000ull);
   ts.tv_nsec = static_cast<long>(left % 1000000000ull);
   const int r = ::ppoll(fds, static_cast<nfds_t>(n), &ts, nullptr);
-  if (r <= 0) return true;  // the deadline, or a signal (EINTR): the loop above decides
+  if (r <= 0) return 0;  // the deadline, or a signal (EINTR): the loop above decides
   for (size_t i = 0; i < n; ++i) {
-    if ((fds[i].revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) return false;
+    if ((fds[i].revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) return -1;
   }
-  return true;
+  return 1;
 }
 
 }  // namespace phalanx::host

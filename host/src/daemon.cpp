@@ -516,7 +516,6 @@ class SessionRunner {
     clock_ = std::make_unique<CycleClock>(mode, period_ns_, device_hz > 0 ? 1000000000ull / device_hz : 0, *link_,
                                           *session_);
     start_ns_ = linux_hal::monotonicNs();
-    expected_wake_ns_ = start_ns_ + period_ns_;
     next_live_ns_ = start_ns_;
     last_new_telemetry_ns_ = start_ns_;
     // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
@@ -788,7 +787,7 @@ class SessionRunner {
                          {"started_by_telemetry", clock_->startedByTelemetry()},
                          {"started_by_timer", clock_->startedByTimer()},
                          {"wakes_without_telemetry", clock_->wakesWithoutTelemetry()},
-                         {"telemetry_to_command", histogramJson(reaction_us_)}};
+                         {"read_to_command", histogramJson(reaction_us_)}};
     summary_["telemetry"] = {{"received", s.telemetry_received},
                              {"lost", s.telemetry_lost},
                              {"cycles_without_new_telemetry", cycles_without_telemetry_}};
@@ -888,7 +887,7 @@ class SessionRunner {
   std::unique_ptr<LinkRecovery> recovery_;
   std::unique_ptr<CycleClock> clock_;
   CycleStart cycle_start_;
-  Histogram reaction_us_{5000};  ///< telemetry frame received → the command computed from it sent
+  Histogram reaction_us_{5000};  ///< the poll that read a frame → the command computed from it sent
   bool have_safety_io_ = false;
   std::vector<StopRecord> stops_;
   bool awaiting_safe_ = false, log_stop_ = false, last_pressed_ = false;

@@ -74,8 +74,11 @@ void PenController::update(const TelemetryFrame& tel, double t_s, double dt_s, p
 void PenController::noteSettledContact(double t_s) {
   const EndContact& tip = render_.end[pp::kBottom];
   constexpr double kSettleS = 1.0;
+  const double gap_m = render_.p_end_m[pp::kBottom][1] - config_.scene.box_min[1];
+  if (tip.in_contact) stats_.floor_touched = true;
   if (t_s >= kSettleS) {
     ++stats_.settled_cycles;
+    if (stats_.floor_touched) stats_.settled_max_separation_m = std::fmax(stats_.settled_max_separation_m, gap_m);
     if (stats_.last_tip_contact && !tip.in_contact) ++stats_.settled_contact_breaks;
     if (tip.in_contact) {
       ++stats_.settled_contact_cycles;
@@ -103,6 +106,7 @@ void PenController::summarize(nlohmann::json& out) const {
                                          {"contact_breaks", stats_.settled_contact_breaks},
                                          {"penetration_min_mm", stats_.settled_contact_cycles ? stats_.settled_penetration_min_m * 1e3 : 0.0},
                                          {"penetration_max_mm", stats_.settled_penetration_max_m * 1e3},
+                                         {"max_separation_mm", stats_.settled_max_separation_m * 1e3},
                                          {"tip_speed_rms_mm_s", stats_.settled_contact_cycles
                                               ? std::sqrt(stats_.settled_tip_speed_sq_sum / static_cast<double>(stats_.settled_contact_cycles)) * 1e3
                                               : 0.0}}},

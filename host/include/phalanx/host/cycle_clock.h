@@ -48,9 +48,9 @@ class CycleClock {
   CycleStart onTimer();
   CycleStart onTelemetry();
   CycleStart started(uint64_t now_ns, uint64_t nominal_ns, int fresh, bool by_telemetry);
-  /// Sleep in ppoll on the link's descriptors until input, `until_ns`, or a signal; false: nothing to wait on or
-  /// a descriptor reported an error or hang-up (the caller then sleeps on the clock: the cycle's checks see it).
-  bool waitForInput(uint64_t until_ns);
+  /// Sleep in ppoll on the link's descriptors until input (1), `until_ns` or a signal (0); -1: nothing to wait on
+  /// or a descriptor reported an error or hang-up (the caller then sleeps on the clock: the cycle's checks see it).
+  int waitForInput(uint64_t until_ns);
 
   CycleMode mode_;
   uint64_t period_ns_;

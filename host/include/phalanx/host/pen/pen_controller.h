@@ -40,6 +40,8 @@ struct PenControllerStats {
   long settled_contact_breaks = 0;
   double settled_penetration_min_m = 1e9, settled_penetration_max_m = 0.0;
   double settled_tip_speed_sq_sum = 0.0;
+  double settled_max_separation_m = 0.0;  ///< the tip's largest height above the floor it had touched (a bounce)
+  bool floor_touched = false;
   bool last_tip_contact = false;
 };
 
