@@ -5,7 +5,7 @@ Real-time multi-process sessions (firmware-sim + the session runner over the pty
 with the cycle locked to the device (`--cycle telemetry`) and on the timer alone (`--cycle timer`), side by side
 in one run:
 
-  pen    the pantograph's largest stable wall stiffness: the box floor is raised 20 mm into the tip of the pen
+  pen    the pantograph's largest stable wall stiffness: the box floor is raised 4 mm into the tip of the pen
          the simulated hand holds at home (--pen-floor-mm), every wall at the swept stiffness; a session is
          stable when no fault latched and, after the first second, the tip never bounced more than
          --max-separation-mm off the floor, its penetration stayed within --max-ptp-mm and its speed in contact
@@ -60,8 +60,6 @@ def judge_pen(s, a):
          "s2a_p50": s["sensor_to_actuation"]["p50_us"]}
     if s["faults_seen"] != "none":
         return False, "fault " + s["faults_seen"], m
-    if m["sep_mm"] is None and m["breaks"] > 0:  # a daemon older than the separation figure
-        return False, "contact broke %d times" % m["breaks"], m
     if m["sep_mm"] is not None and m["sep_mm"] > a.max_separation_mm:
         return False, "bounced %.2f mm off" % m["sep_mm"], m
     if m["ptp_mm"] > a.max_ptp_mm:
@@ -90,7 +88,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=4.0, help="each pen session")
     ap.add_argument("--glove-seconds", type=float, default=10.0)
     ap.add_argument("--stiffness", default="3,6,10,16,24,32,48,64,96", help="N/cm, comma separated")
-    ap.add_argument("--floor-mm", type=float, default=-50.0, help="box floor (the held pen's tip is at -70)")
+    ap.add_argument("--floor-mm", type=float, default=-66.0, help="box floor (the held pen's tip is at -70)")
     ap.add_argument("--repeats", type=int, default=1, help="seeds per stiffness and mode")
     ap.add_argument("--max-separation-mm", type=float, default=0.5,
                     help="the tip's largest rise above the floor after the first second (a bounce; an encoder count "
@@ -116,15 +114,22 @@ def main():
 
     print("pen wall stiffness sweep (sim:pantograph, --scene wall, floor %.0f mm, %.1f s per session)" %
           (a.floor_mm, a.seconds))
-    print("%-8s | %-52s | %-52s" % ("N/cm", "telemetry (locked)", "timer"))
+    print("%-6s | %-60s | %-60s" % ("N/cm", "telemetry (locked)", "timer"))
     largest = {m: 0.0 for m in MODES}
     unstable_seen = {m: False for m in MODES}
+    starved = {m: 0 for m in MODES}
     for k in ks:
         cells = []
         for mode in MODES:
             verdicts = []
             for rep in range(a.repeats):
-                s = pen_session(a.phalanx, mode, k, a, seed=1 + rep)
+                # A command-timeout fault is the host not sending for 20 ms (a starved machine), not the wall:
+                # that session says nothing about stability and is run again (at most 3 times, counted).
+                for attempt in range(3):
+                    s = pen_session(a.phalanx, mode, k, a, seed=1 + rep)
+                    if "command-timeout" not in s.get("faults_seen", ""):
+                        break
+                    starved[mode] += 1
                 runs[mode].append(s)
                 verdicts.append(judge_pen(s, a))
             ok = all(v[0] for v in verdicts)
@@ -138,8 +143,10 @@ def main():
                 " ptp %.2f sep %.2fmm v %3.0fmm/s %4.0fus" % (m["ptp_mm"], m["sep_mm"] or -1, m["speed"], m["s2a_p50"]) if m else "")
             if not ok:
                 txt += " (" + v[1] + ")"
-            cells.append("%-52s" % txt[:52])
-        print("%-8g | %s | %s" % (k, cells[0], cells[1]), flush=True)
+            cells.append("%-60s" % txt[:60])
+        print("%-6g | %s | %s" % (k, cells[0], cells[1]), flush=True)
+    print("sessions run again after a command-timeout (host starved): locked %d, timer %d" %
+          (starved["telemetry"], starved["timer"]))
     print("largest stable wall stiffness: locked %g N/cm, timer %g N/cm (ratio %.2f)" %
           (largest["telemetry"], largest["timer"],
            largest["telemetry"] / largest["timer"] if largest["timer"] > 0 else float("nan")))

@@ -105,8 +105,14 @@ CycleStart CycleClock::started(uint64_t now_ns, uint64_t nominal_ns, int fresh, 
   if (by_telemetry) s.jitter_us = std::fabs(static_cast<double>(interval) - static_cast<double>(period_ns_)) / 1000.0;
   // Whole periods with no cycle in them (the 1.5-period fallback itself is not one).
   if (interval >= 2 * period_ns_) s.missed = static_cast<uint32_t>(interval / period_ns_ - 1);
-  // A timer-started cycle keeps the fallback on a drift-free grid (its deadline, not its wake-up).
-  last_ns_ = by_telemetry ? now_ns : nominal_ns;
+  // A timer-started cycle keeps the fallback on a drift-free grid (its deadline, not its wake-up); periods the
+  // loop slept through are skipped, not caught up in a burst (as the timer mode's PeriodicTimer does).
+  uint64_t grid_ns = nominal_ns;
+  if (!by_telemetry && now_ns > nominal_ns + period_ns_) {
+    grid_ns += (now_ns - nominal_ns) / period_ns_ * period_ns_;
+    s.missed = static_cast<uint32_t>((now_ns - nominal_ns) / period_ns_);
+  }
+  last_ns_ = by_telemetry ? now_ns : grid_ns;
   last_by_telemetry_ = by_telemetry;
   ++(by_telemetry ? by_telemetry_ : by_timer_);
   return s;
