@@ -140,7 +140,7 @@ def main():
             v = next((v for v in verdicts if not v[0]), verdicts[0])
             m = v[2]
             txt = ("stable  " if ok else "UNSTABLE") + (
-                " ptp %.2f sep %.2fmm v %3.0fmm/s %4.0fus" % (m["ptp_mm"], m["sep_mm"] or -1, m["speed"], m["s2a_p50"]) if m else "")
+                " ptp %.2f sep %.2fmm v %3.0fmm/s %4.0fus" % (m["ptp_mm"], m["sep_mm"] if m["sep_mm"] is not None else -1, m["speed"], m["s2a_p50"]) if m else "")
             if not ok:
                 txt += " (" + v[1] + ")"
             cells.append("%-60s" % txt[:60])
