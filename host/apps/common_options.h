@@ -23,6 +23,15 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
                  "no new telemetry for this long ends the session as a lost link (exit 6)")
       ->check(cli::inRange(10u, 10000u));
   app.add_option("--record", opt.record_csv, "record every cycle to this CSV file");
+  app.add_option("--cycle", opt.cycle, "what starts a host cycle: telemetry (a frame's arrival, locked to the device; "
+                 "the timer as fallback) | timer (the period timer alone)")
+      ->check(CLI::IsMember({"telemetry", "timer"}));
+  app.add_option("--pen-wall-stiffness", opt.pen_wall_stiffness_N_per_cm,
+                 "pantograph: stiffness of every box wall and the floor, N/cm (0: the scene's, 3 and 2.1 N/cm)")
+      ->check(cli::inRange(0.0, 1000.0));
+  app.add_option("--pen-floor-mm", opt.pen_floor_mm,
+                 "pantograph: height of the box floor in {B}, mm (default -90: 2 cm below the tip at home, -70)")
+      ->check(cli::inRange(-120.0, -40.0));
   app.add_option("--scenario", opt.scenario, "simulated hand: still|close-open|grasp|random")
       ->check(CLI::IsMember({"still", "close-open", "grasp", "random"}));
   app.add_option("--scene", opt.scene, "glove virtual scene: none|rigid-ball|soft-ball|wall")

@@ -40,7 +40,8 @@ void requireKeys(const YAML::Node& map, const std::string& where, const std::set
 void apply(const YAML::Node& root, RunOptions& opt) {
   if (root.IsNull()) return;
   requireKeys(root, "", {"version", "device", "seconds", "rate_hz", "command_timeout_ms", "telemetry_timeout_ms", "realtime", "record",
-                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard", "client", "dds"});
+                         "seed", "clear_faults", "glove", "pen", "modbus", "gpio", "dashboard", "client", "dds",
+                         "cycle"});
   if (root["version"] && scalar<int>(root["version"], "version", "integer") != 1) {
     throw ConfigError{"version: only version 1 is understood by this phalanxd"};
   }
@@ -54,6 +55,7 @@ void apply(const YAML::Node& root, RunOptions& opt) {
     opt.telemetry_timeout_ms =
         scalar<unsigned>(root["telemetry_timeout_ms"], "telemetry_timeout_ms", "positive integer");
   }
+  if (root["cycle"]) opt.cycle = scalar<std::string>(root["cycle"], "cycle", "telemetry or timer");
   if (root["record"]) opt.record_csv = scalar<std::string>(root["record"], "record", "path");
   if (root["seed"]) opt.seed = scalar<uint32_t>(root["seed"], "seed", "non-negative integer");
   if (root["clear_faults"]) opt.clear_faults = scalar<bool>(root["clear_faults"], "clear_faults", "boolean");
@@ -63,8 +65,12 @@ void apply(const YAML::Node& root, RunOptions& opt) {
     if (rt["priority"]) opt.rt_priority = scalar<int>(rt["priority"], "realtime.priority", "integer");
   }
   if (const YAML::Node pn = root["pen"]) {
-    requireKeys(pn, "pen", {"geometry"});
+    requireKeys(pn, "pen", {"geometry", "wall_stiffness_N_per_cm", "floor_mm"});
     if (pn["geometry"]) opt.pen_geometry = scalar<std::string>(pn["geometry"], "pen.geometry", "path");
+    if (pn["wall_stiffness_N_per_cm"]) {
+      opt.pen_wall_stiffness_N_per_cm = scalar<double>(pn["wall_stiffness_N_per_cm"], "pen.wall_stiffness_N_per_cm", "number");
+    }
+    if (pn["floor_mm"]) opt.pen_floor_mm = scalar<double>(pn["floor_mm"], "pen.floor_mm", "number");
   }
   if (const YAML::Node mb = root["modbus"]) {
     if (std::string err = modbus::loadServerOptions(mb, opt.modbus); !err.empty()) throw ConfigError{err};

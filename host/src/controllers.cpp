@@ -77,6 +77,11 @@ std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout,
       error = "unknown pen scene '" + opt.scene + "'";
       return nullptr;
     }
+    if (opt.pen_wall_stiffness_N_per_cm > 0.0) {
+      cfg.scene.horizontal.stiffness_N_per_m = opt.pen_wall_stiffness_N_per_cm * 100.0;
+      cfg.scene.vertical.stiffness_N_per_m = opt.pen_wall_stiffness_N_per_cm * 100.0;
+    }
+    cfg.scene.box_min[1] = opt.pen_floor_mm * 1e-3;
     return std::make_unique<pen::PenController>(cfg);
   }
   if (layout.type == protocol::DeviceType::kSeaFinger) {

@@ -21,6 +21,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/controller.h"
 #include "phalanx/host/dds/dds_bridge.h"
+#include "phalanx/host/cycle_clock.h"
 #include "phalanx/host/device_link.h"
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
@@ -208,6 +209,7 @@ std::string validate(const RunOptions& opt) {
     return "telemetry_timeout_ms: must be in [10, 10000]";
   }
   if (opt.rt_priority < 1 || opt.rt_priority > 99) return "realtime.priority: must be in [1, 99]";
+  if (CycleMode m; !parseCycleMode(opt.cycle, m)) return "cycle: '" + opt.cycle + "' is not one of telemetry, timer";
   if (opt.scenario != "still" && opt.scenario != "close-open" && opt.scenario != "grasp" && opt.scenario != "random") {
     return "scenario: '" + opt.scenario + "' is not one of still, close-open, grasp, random";
   }
@@ -228,6 +230,13 @@ std::string validate(const RunOptions& opt) {
   if (!opt.pen_geometry.empty()) {
     phalanx::pen::Geometry<double> g;
     if (std::string err = design::loadPenGeometryYaml(opt.pen_geometry, g); !err.empty()) return "pen.geometry: " + err;
+  }
+  if (!std::isfinite(opt.pen_wall_stiffness_N_per_cm) || opt.pen_wall_stiffness_N_per_cm < 0 ||
+      opt.pen_wall_stiffness_N_per_cm > 1000) {
+    return "pen.wall_stiffness_N_per_cm: must be in [0, 1000]";
+  }
+  if (!std::isfinite(opt.pen_floor_mm) || opt.pen_floor_mm < -120 || opt.pen_floor_mm > -40) {
+    return "pen.floor_mm: must be in [-120, -40]";
   }
   if (std::string err = validateGpio(opt.gpio); !err.empty()) return err;
   if (std::string err = dds::validateDdsOptions(opt.dds, opt.rate_hz); !err.empty()) return err;
@@ -531,9 +540,12 @@ class SessionRunner {
     makeSafe(cmd_);
     startSafetyIo();
     if (link_->reconnects()) std::fprintf(stderr, "phalanxd: control loop started on %s\n", link_->where().c_str());
-    linux_hal::PeriodicTimer timer(period_ns_);
+    CycleMode mode = CycleMode::kTelemetry;
+    parseCycleMode(opt_.cycle, mode);  // validated
+    const unsigned device_hz = session_->deviceInfo().tick_rate_hz;
+    clock_ = std::make_unique<CycleClock>(mode, period_ns_, device_hz > 0 ? 1000000000ull / device_hz : 0, *link_,
+                                          *session_);
     start_ns_ = linux_hal::monotonicNs();
-    expected_wake_ns_ = start_ns_ + period_ns_;
     next_live_ns_ = start_ns_;
     last_new_telemetry_ns_ = start_ns_;
     // Hot-unplug (usb:, serial:): report, send nothing, reconnect, new handshake, start-up parameters, faults
@@ -547,15 +559,15 @@ class SessionRunner {
         [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns_);
     while (g_stop == 0 && (max_cycles_ == 0 || cycles_ < max_cycles_) &&
            (opt_.hooks == nullptr || !opt_.hooks->stopRequested())) {
-      if (!cycle(timer)) break;
+      if (!cycle()) break;
     }
     if (opt_.live_view) std::fputc('\n', stderr);
   }
 
   /// One cycle: telemetry → device model → command source → limits → send. false ends the session.
-  bool cycle(linux_hal::PeriodicTimer& timer) {
-    const uint64_t wake_ns = waitForPeriod(timer);
-    const int new_telemetry = session_->poll(wake_ns);
+  bool cycle() {
+    const uint64_t wake_ns = waitForCycle();
+    const int new_telemetry = cycle_start_.new_telemetry;
     if (link_->reconnects()) {
       const LinkRecovery::Step st = recovery_->step(wake_ns);
       if (st == LinkRecovery::Step::kFailed) return linkLost(recovery_->error());
@@ -572,21 +584,21 @@ class SessionRunner {
     commandFromSources(tel, t_s, wake_ns);
     limits_->apply(tel, cmd_);
     if (!sendCommand(t_s)) return false;
+    if (new_telemetry > 0) reaction_us_.add(static_cast<double>(session_->lastSendNs() - tel.host_rx_ns) / 1000.0);
     recorder_.row(t_s, tel, cmd_, io_.have_sync ? io_.sync.pulses() : 0);
     if (opt_.hooks != nullptr) opt_.hooks->onCycle(wake_ns, t_s, tel, cmd_);
     publish(tel, wake_ns, t_s);
     return !recorder_.failed();  // a recording asked for and failing ends the session (exit 7), never silently
   }
 
-  uint64_t waitForPeriod(linux_hal::PeriodicTimer& timer) {
-    const uint32_t missed = timer.wait();
-    const uint64_t wake_ns = linux_hal::monotonicNs();
-    last_jitter_us_ = std::fabs(static_cast<double>(wake_ns) - static_cast<double>(expected_wake_ns_)) / 1000.0;
+  /// The cycle's clock (docs/session-runner.md): a telemetry frame's arrival, or the period timer; it polls.
+  uint64_t waitForCycle() {
+    cycle_start_ = clock_->next();
+    last_jitter_us_ = cycle_start_.jitter_us;
     jitter_us_.add(last_jitter_us_);
-    overruns_ += missed;
-    expected_wake_ns_ += (1 + missed) * period_ns_;
+    overruns_ += cycle_start_.missed;
     ++cycles_;
-    return wake_ns;
+    return cycle_start_.wake_ns;
   }
 
   /// Why the device is lost although the link is open ("" while it answers): the simulated firmware exited, or
@@ -805,6 +817,12 @@ class SessionRunner {
     summary_["period_jitter"] = histogramJson(jitter_us_);
     summary_["cycle_time"] = histogramJson(cycle_us_);
     summary_["round_trip"] = histogramJson(session_->roundTripUs());
+    summary_["sensor_to_actuation"] = histogramJson(session_->sensorToActuationUs());
+    summary_["cycle"] = {{"mode", cycleModeName(clock_->mode())},
+                         {"started_by_telemetry", clock_->startedByTelemetry()},
+                         {"started_by_timer", clock_->startedByTimer()},
+                         {"wakes_without_telemetry", clock_->wakesWithoutTelemetry()},
+                         {"read_to_command", histogramJson(reaction_us_)}};
     summary_["telemetry"] = {{"received", s.telemetry_received},
                              {"lost", s.telemetry_lost},
                              {"cycles_without_new_telemetry", cycles_without_telemetry_}};
@@ -904,12 +922,15 @@ class SessionRunner {
   std::unique_ptr<dds::Bridge> dds_bridge_;
   std::unique_ptr<SafetyIo> safety_;
   std::unique_ptr<LinkRecovery> recovery_;
+  std::unique_ptr<CycleClock> clock_;
+  CycleStart cycle_start_;
+  Histogram reaction_us_{5000};  ///< the poll that read a frame → the command computed from it sent
   bool have_safety_io_ = false;
   std::vector<StopRecord> stops_;
   bool awaiting_safe_ = false, log_stop_ = false, last_pressed_ = false;
   protocol::Command cmd_;
   uint64_t period_ns_ = 0, max_cycles_ = 0, telemetry_timeout_ns_ = 0;
-  uint64_t start_ns_ = 0, expected_wake_ns_ = 0, next_live_ns_ = 0, last_new_telemetry_ns_ = 0;
+  uint64_t start_ns_ = 0, next_live_ns_ = 0, last_new_telemetry_ns_ = 0;
   Histogram jitter_us_{5000};
   Histogram cycle_us_{5000};
   double last_jitter_us_ = 0.0;

@@ -32,6 +32,13 @@ std::string selfDir() {
   return slash == std::string::npos ? "." : p.substr(0, slash);
 }
 
+/// The byte link's descriptor, readable when bytes arrive (none while it is closed: unplugged).
+size_t fdToWaitOn(const linux_hal::FdLink& link, pollfd* fds, size_t max) {
+  if (!link.isOpen() || max == 0) return 0;
+  fds[0] = {link.fd(), POLLIN, 0};
+  return 1;
+}
+
 /// Tick rate of every board image (firmware/boards/qemu/board_main.cpp, firmware/boards/stm32g474/main.cpp).
 constexpr unsigned kSimDeviceTickHz = 1000;
 
@@ -135,6 +142,7 @@ class SerialDeviceLink : public DeviceLink {
     return err;
   }
   void flush() override { link_.flush(); }
+  size_t waitFds(pollfd* fds, size_t max) override { return fdToWaitOn(link_, fds, max); }
   std::string describe() override {
     if (link_.hungUp()) return "serial port hung up";
     if (link_.isOpen()) return path_;
@@ -178,6 +186,7 @@ class SimDeviceLink : public DeviceLink {
   std::string where() const override { return path_; }
   nlohmann::json info() const override { return path_; }
   void close() override { child_.stop(); }
+  size_t waitFds(pollfd* fds, size_t max) override { return fdToWaitOn(link_, fds, max); }
 
  private:
   SimChild child_;
@@ -207,6 +216,11 @@ class CanDeviceLink : public DeviceLink {
     std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(state_),
                  linux_hal::canBusStateName(can_.state()), t_s);
     state_ = can_.state();
+  }
+  size_t waitFds(pollfd* fds, size_t max) override {
+    if (can_.fd() < 0 || max == 0) return 0;
+    fds[0] = {can_.fd(), POLLIN, 0};
+    return 1;
   }
   std::string where() const override { return opt_.ifname; }
   nlohmann::json info() const override {
@@ -267,6 +281,9 @@ class UsbDeviceLink : public DeviceLink {
   bool lost() override { return !usb_.connected(); }
   std::string reopen() override { return usb_.reconnect(); }
   void flush() override { usb_.service(); }
+  /// libusb's own descriptors (its event and timer descriptors and the device's usbfs node): readiness on any
+  /// of them means completions to handle, which the session's poll does (UsbLink::receive → service).
+  size_t waitFds(pollfd* fds, size_t max) override { return usb_.pollFds(fds, max); }
   std::string describe() override { return usb_.connected() ? usb_.where() : usb_.error(); }
   void summarize(nlohmann::json& summary) const override {
     const auto& u = usb_.stats();

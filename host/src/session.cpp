@@ -37,6 +37,8 @@ bool HostSession::sendCommand(Command& cmd, uint64_t now_ns) {
   const size_t slot = cmd.seq & (kSendLog - 1);
   sent_ns_[slot] = now_ns;
   sent_seq_[slot] = cmd.seq;
+  sent_from_us_[slot] = latest_.device_time_us;
+  last_send_ns_ = now_ns;
   if (!sendMsg(cmd)) {
     ++stats_.commands_unsent;
     return false;
@@ -166,6 +168,9 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
         const size_t slot = t.cmd_seq_echo & (kSendLog - 1);
         if (sent_seq_[slot] == t.cmd_seq_echo && sent_ns_[slot] != 0) {
           rtt_us_.add(static_cast<double>(now_ns - sent_ns_[slot]) / 1000.0);
+          if (sent_from_us_[slot] != 0 && latest_.device_time_us >= sent_from_us_[slot]) {
+            s2a_us_.add(static_cast<double>(latest_.device_time_us - sent_from_us_[slot]));
+          }
           sent_ns_[slot] = 0;
         }
         last_echo_ = t.cmd_seq_echo;

@@ -145,3 +145,32 @@ TEST(CommandPath, ASessionShorterThanOnePeriodIsRefused) {
   EXPECT_EQ(daemon.wait(20000), 2);
   EXPECT_NE(daemon.stderrText().find("seconds"), std::string::npos) << daemon.stderrText();
 }
+
+// Issue #20: the cycle locked to the device falls back to the timer when frames stop (the firmware-sim stopped
+// with SIGSTOP): commands keep flowing on the period, stale cycles are counted, and the telemetry timeout still
+// ends the session as a lost link.
+TEST(CommandPath, WhenFramesStopTheLockedCycleFallsBackToTheTimerAndTheTelemetryTimeoutStillEndsIt) {
+  Process daemon({binPath("phalanxd"), "--device", "sim:glove5", "--seconds", "30", "--no-realtime", "--json",
+                  "--telemetry-timeout-ms", "300"});
+  pid_t sim = 0;
+  for (int i = 0; i < 200 && sim == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    sim = childOf(daemon.pid());
+  }
+  ASSERT_NE(sim, 0) << daemon.stderrText();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  kill(sim, SIGSTOP);
+  const int rc = daemon.wait(20000);
+  kill(sim, SIGCONT);
+  ASSERT_NE(rc, INT_MIN) << "phalanxd ran on after its device stopped answering";
+  EXPECT_EQ(rc, 6) << daemon.stderrText();
+  const auto j = nlohmann::json::parse(daemon.stdoutText(), nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << daemon.stdoutText();
+  EXPECT_NE(j.value("link_error", "").find("no telemetry"), std::string::npos) << j.dump(2);
+  EXPECT_EQ(j["cycle"]["mode"], "telemetry");
+  // 300 ms of silence is about 300 timer-started cycles; 20 leaves room for a starved test machine.
+  EXPECT_GE(j["cycle"]["started_by_timer"].get<int>(), 20) << j.dump(2);
+  EXPECT_GE(j["telemetry"]["cycles_without_new_telemetry"].get<int>(), 20) << j.dump(2);
+  EXPECT_EQ(j["cycle"]["started_by_telemetry"].get<int>() + j["cycle"]["started_by_timer"].get<int>(),
+            j["cycles"].get<int>());
+}

@@ -5,6 +5,7 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <libusb-1.0/libusb.h>
+#include <poll.h>
 #include <unistd.h>
 
 #include <cctype>
@@ -94,6 +95,8 @@ std::string UsbLink::open(const Options& opt) {
     ctx_ = nullptr;
     return std::string("libusb_init: ") + libusb_error_name(rc);
   }
+  poll_fds_stale_ = true;
+  libusb_set_pollfd_notifiers(ctx_, &UsbLink::onPollFdsChanged, &UsbLink::onPollFdRemoved, this);
   for (auto& x : in_) {
     x.t = libusb_alloc_transfer(0);
     x.link = this;
@@ -272,6 +275,27 @@ bool UsbLink::service() {
   return state_ == State::kConnected;
 }
 
+void UsbLink::onPollFdsChanged(int, short, void* self) { static_cast<UsbLink*>(self)->poll_fds_stale_ = true; }
+void UsbLink::onPollFdRemoved(int, void* self) { static_cast<UsbLink*>(self)->poll_fds_stale_ = true; }
+
+size_t UsbLink::pollFds(pollfd* fds, size_t max) {
+  if (ctx_ == nullptr) return 0;
+  if (poll_fds_stale_) {
+    // Allocates (libusb's list): only after libusb added or removed a descriptor (open, unplug, reconnect).
+    poll_fd_count_ = 0;
+    if (const libusb_pollfd** list = libusb_get_pollfds(ctx_); list != nullptr) {
+      for (size_t i = 0; list[i] != nullptr && poll_fd_count_ < kMaxPollFds; ++i) {
+        poll_fds_[poll_fd_count_++] = {list[i]->fd, list[i]->events};
+      }
+      libusb_free_pollfds(list);
+    }
+    poll_fds_stale_ = false;
+  }
+  size_t n = 0;
+  for (; n < poll_fd_count_ && n < max; ++n) fds[n] = {poll_fds_[n].fd, poll_fds_[n].events, 0};
+  return n;
+}
+
 std::string UsbLink::reconnect() {
   if (ctx_ == nullptr) return "USB link was never opened";
   service();
@@ -294,6 +318,9 @@ void UsbLink::close() {
   }
   releaseDevice();
   state_ = State::kClosed;
+  libusb_set_pollfd_notifiers(ctx_, nullptr, nullptr, nullptr);  // a leaked context must not call back into us
+  poll_fd_count_ = 0;
+  poll_fds_stale_ = true;
   if (inFlight() == 0) {
     for (auto& x : in_) libusb_free_transfer(x.t);
     for (auto& x : out_) libusb_free_transfer(x.t);

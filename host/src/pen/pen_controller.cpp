@@ -30,7 +30,7 @@ std::vector<Controller::RequiredParam> PenController::requiredParams() const {
            "pen geometry file '" + config_.geometry_file + "' (fingerprint " + std::to_string(fp) + ")"}};
 }
 
-void PenController::update(const TelemetryFrame& tel, double, double dt_s, protocol::Command& cmd) {
+void PenController::update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) {
   ++stats_.cycles;
   // dt on the device clock (the encoder samples' own spacing); the host period if it is not available.
   double dt = dt_s;
@@ -68,6 +68,27 @@ void PenController::update(const TelemetryFrame& tel, double, double dt_s, proto
   stats_.peak_tip_force_N = std::fmax(stats_.peak_tip_force_N, std::sqrt(pp::dot(tip.force_N, tip.force_N)));
   stats_.peak_tip_penetration_m = std::fmax(stats_.peak_tip_penetration_m, tip.penetration_m);
   stats_.clicks = render_.clicks;
+  noteSettledContact(t_s);
+}
+
+void PenController::noteSettledContact(double t_s) {
+  const EndContact& tip = render_.end[pp::kBottom];
+  constexpr double kSettleS = 1.0;
+  const double gap_m = render_.p_end_m[pp::kBottom][1] - config_.scene.box_min[1];
+  if (tip.in_contact) stats_.floor_touched = true;
+  if (t_s >= kSettleS) {
+    ++stats_.settled_cycles;
+    if (stats_.floor_touched) stats_.settled_max_separation_m = std::fmax(stats_.settled_max_separation_m, gap_m);
+    if (stats_.last_tip_contact && !tip.in_contact) ++stats_.settled_contact_breaks;
+    if (tip.in_contact) {
+      ++stats_.settled_contact_cycles;
+      stats_.settled_penetration_min_m = std::fmin(stats_.settled_penetration_min_m, tip.penetration_m);
+      stats_.settled_penetration_max_m = std::fmax(stats_.settled_penetration_max_m, tip.penetration_m);
+      const Vec3d& v = render_.v_end_m_s[pp::kBottom];
+      stats_.settled_tip_speed_sq_sum += pp::dot(v, v);
+    }
+  }
+  stats_.last_tip_contact = tip.in_contact;
 }
 
 void PenController::summarize(nlohmann::json& out) const {
@@ -80,6 +101,15 @@ void PenController::summarize(nlohmann::json& out) const {
                 {"peak_tip_penetration_mm", stats_.peak_tip_penetration_m * 1e3},
                 {"peak_torque_Nm", stats_.peak_torque_Nm},
                 {"button_clicks", stats_.clicks},
+                {"settled_tip_contact", {{"cycles", stats_.settled_cycles},
+                                         {"contact_cycles", stats_.settled_contact_cycles},
+                                         {"contact_breaks", stats_.settled_contact_breaks},
+                                         {"penetration_min_mm", stats_.settled_contact_cycles ? stats_.settled_penetration_min_m * 1e3 : 0.0},
+                                         {"penetration_max_mm", stats_.settled_penetration_max_m * 1e3},
+                                         {"max_separation_mm", stats_.settled_max_separation_m * 1e3},
+                                         {"tip_speed_rms_mm_s", stats_.settled_contact_cycles
+                                              ? std::sqrt(stats_.settled_tip_speed_sq_sum / static_cast<double>(stats_.settled_contact_cycles)) * 1e3
+                                              : 0.0}}},
                 {"geometry_file", config_.geometry_file.empty() ? "(compile-time default)" : config_.geometry_file},
                 {"geometry_m", {{"l1", config_.geometry.l1_m}, {"l2", config_.geometry.l2_m}, {"l3", config_.geometry.l3_m},
                                 {"l4", config_.geometry.l4_m}, {"l6", config_.geometry.l6_m},

@@ -68,6 +68,9 @@ struct RunOptions {
   unsigned telemetry_timeout_ms = 500;
   bool realtime = true;               ///< try SCHED_FIFO + mlockall
   int rt_priority = 80;
+  /// What starts a host cycle: "telemetry" (a frame's arrival, the timer as fallback: locked to the device) or
+  /// "timer" (the period timer alone). docs/session-runner.md "The cycle's clock".
+  std::string cycle = "telemetry";
   std::string record_csv;             ///< one row per cycle; empty: no recording
   std::string scenario = "grasp";     ///< simulated hand (sim:glove5): still|close-open|grasp|random
   std::string scene = "rigid-ball";   ///< glove virtual scene: none|rigid-ball|soft-ball|wall
@@ -78,6 +81,12 @@ struct RunOptions {
   std::map<std::string, std::string> glove_geometry;
   /// pantograph: pen geometry file written by `phalanx design pen-gii --yaml` (empty: pen::defaultGeometry).
   std::string pen_geometry;
+  /// pantograph: stiffness of every wall of the box and its floor, N/cm (0: the scene's §VI gains); damping and
+  /// braking keep the scene's. The stiffness sweep of tools/lock-bench.py sets it.
+  double pen_wall_stiffness_N_per_cm = 0.0;
+  /// pantograph: the box floor's height y in {B}, mm (the scene's -90 by default; -68 puts it 2 mm into the tip
+  /// of a pen held at home, a steady contact for the stiffness sweep).
+  double pen_floor_mm = -90.0;
   uint32_t seed = 1;
   bool live_view = false;             ///< per-finger terminal view at 10 Hz on stderr
   bool clear_faults = true;           ///< clear faults latched before this session (logged)

@@ -2,6 +2,9 @@
 /// One link to one device, whatever carries it: a serial port (USB CDC-ACM, UART), a pseudo-terminal to the
 /// simulated firmware (sim:*), a CAN bus (CAN-FD, compact CAN-FD, classic) or vendor USB bulk. The session runner
 /// (host/src/daemon.cpp) sees only this interface: it never asks which transport it drives.
+#include <poll.h>
+
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -47,6 +50,14 @@ class DeviceLink : public RecoveryLink {
   virtual void summarize(nlohmann::json& summary) const { (void)summary; }
   /// Leave: the simulated firmware is stopped; real links just close with the object.
   virtual void close() {}
+  /// The descriptors that signal input on this link (at most `max`, written to `fds` with their events): the
+  /// runner waits on them to start a cycle as soon as a telemetry frame arrives (docs/session-runner.md, "The
+  /// cycle's clock"). 0: nothing to wait on now (an unplugged link): the period timer paces the cycles.
+  virtual size_t waitFds(pollfd* fds, size_t max) {
+    (void)fds;
+    (void)max;
+    return 0;
+  }
 
   // RecoveryLink (used by LinkRecovery when reconnects()): defaults for links that never reconnect.
   bool lost() override { return false; }

@@ -65,6 +65,12 @@ class HostSession {
   bool hasTelemetry() const { return stats_.telemetry_received > 0; }
   const LinkStats& stats() const { return stats_; }
   const Histogram& roundTripUs() const { return rtt_us_; }
+  /// Sensor to actuation, in device time: from the device tick whose telemetry was the newest when a command was
+  /// sent (the sample it was computed from) to the tick whose telemetry first echoes it (the tick that applied
+  /// it). One device period is the least a firmware that reads commands once per tick allows (docs/session-runner.md).
+  const Histogram& sensorToActuationUs() const { return s2a_us_; }
+  /// When the last command was handed to the link (sendCommand's now_ns).
+  uint64_t lastSendNs() const { return last_send_ns_; }
   /// Last event received (fault latched, command rejected, …).
   const protocol::Event& lastEvent() const { return last_event_; }
   /// Called for each event (for logging); optional.
@@ -116,6 +122,9 @@ class HostSession {
   static constexpr size_t kSendLog = 1024;  // power of two; outstanding commands tracked for RTT
   std::array<uint64_t, kSendLog> sent_ns_{};
   std::array<uint16_t, kSendLog> sent_seq_{};
+  std::array<uint64_t, kSendLog> sent_from_us_{};  ///< newest telemetry's device time when each was sent
+  Histogram s2a_us_;
+  uint64_t last_send_ns_ = 0;
   bool have_tel_seq_ = false;
   uint16_t last_tel_seq_ = 0;
   uint32_t last_time_us_ = 0;

@@ -16,6 +16,7 @@
 #include "phalanx/linux/usb_out_queue.h"
 
 struct libusb_context;
+struct pollfd;
 struct libusb_device_handle;
 struct libusb_transfer;
 
@@ -64,6 +65,10 @@ class UsbLink : public hal::PacketLink {
   hal::PacketRxStats rxStats() const override { return rx_stats_; }
   /// Handle pending libusb events without waiting; false once the device is gone (connected() then false).
   bool service();
+  /// libusb's descriptors to wait on for completions (at most `max`, with their events), for a caller that
+  /// sleeps in poll()/ppoll() and then calls service() (or receive()). Re-read from libusb only when libusb
+  /// reported a change (device opened or closed): no allocation per call. 0 before open().
+  size_t pollFds(pollfd* fds, size_t max);
 
   bool connected() const { return state_ == State::kConnected; }
   State state() const { return state_; }
@@ -118,6 +123,16 @@ class UsbLink : public hal::PacketLink {
   UsbOutQueue out_queue_;
   size_t ring_head_ = 0;
   size_t ring_len_ = 0;
+  static constexpr size_t kMaxPollFds = 8;
+  struct WaitFd {
+    int fd;
+    short events;
+  };
+  WaitFd poll_fds_[kMaxPollFds] = {};
+  size_t poll_fd_count_ = 0;
+  bool poll_fds_stale_ = true;
+  static void onPollFdsChanged(int fd, short events, void* self);
+  static void onPollFdRemoved(int fd, void* self);
   hal::PacketRxStats rx_stats_;
   UsbLinkStats stats_;
   std::string error_;

@@ -33,6 +33,16 @@ struct PenControllerStats {
   double peak_torque_Nm = 0.0;
   std::uint32_t clicks = 0;
   std::uint8_t limit_active_mask_seen = 0;
+  /// The tip's wall contact after the first second (the stability judgement of tools/lock-bench.py): cycles in
+  /// contact, contacts broken, penetration range and the tip's speed while in contact.
+  long settled_cycles = 0;
+  long settled_contact_cycles = 0;
+  long settled_contact_breaks = 0;
+  double settled_penetration_min_m = 1e9, settled_penetration_max_m = 0.0;
+  double settled_tip_speed_sq_sum = 0.0;
+  double settled_max_separation_m = 0.0;  ///< the tip's largest height above the floor it had touched (a bounce)
+  bool floor_touched = false;
+  bool last_tip_contact = false;
 };
 
 class PenController : public Controller {
@@ -55,6 +65,7 @@ class PenController : public Controller {
   PenScene& scene() { return scene_; }
 
  private:
+  void noteSettledContact(double t_s);
   PenControllerConfig config_;
   phalanx::pen::Model<double> model_;
   PenScene scene_;
