@@ -46,8 +46,10 @@ t_pack=$(date +%s)
 
 echo "== lintian =="
 # Reported in full; gated on errors only (docs/install.md lists the warnings and why they stay).
-lintian --info=no --display-level ">=warning" "${debs[@]}" > "$out/lintian.txt" 2>&1 || true
+lint_rc=0
+lintian "${debs[@]}" > "$out/lintian.txt" 2>&1 || lint_rc=$?
 cat "$out/lintian.txt"
+[ "$lint_rc" -le 1 ] || fail "lintian did not run (exit $lint_rc)"
 errors=$(grep -c '^E: ' "$out/lintian.txt" || true)
 warnings=$(grep -c '^W: ' "$out/lintian.txt" || true)
 echo "lintian: $errors errors, $warnings warnings"
@@ -62,10 +64,12 @@ mount --bind /dev/pts "$root/dev/pts"
 mkdir -p "$cache/apt-archives/partial" "$root/tmp/debs"
 mount --bind "$cache/apt-archives" "$root/var/cache/apt/archives"
 cp "${debs[@]}" "$root/tmp/debs/"
+in_root_debs=()
+for d in "${debs[@]}"; do in_root_debs+=("/tmp/debs/$(basename "$d")"); done
 in_root() { chroot "$root" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin LANG=C.UTF-8 "$@"; }
 in_root apt-get update -qq > "$out/apt.log" 2>&1 || { tail "$out/apt.log"; fail "apt-get update in the clean root"; }
 if ! in_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-     -o APT::Keep-Downloaded-Packages=true /tmp/debs/*.deb >> "$out/apt.log" 2>&1; then
+     -o APT::Keep-Downloaded-Packages=true "${in_root_debs[@]}" >> "$out/apt.log" 2>&1; then
   tail -30 "$out/apt.log"; fail "apt-get install of the packages"
 fi
 echo "installed: $(in_root dpkg-query -W -f '${Package} ' 'phalanx*' 'libphalanx*' 'python3-phalanx')"
