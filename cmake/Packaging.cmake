@@ -70,6 +70,10 @@ file(GLOB PHALANX_FIRMWARE_IMAGES ${PHALANX_FIRMWARE_BUILD_ROOT}/mcu-*/phalanx-*
      ${PHALANX_FIRMWARE_BUILD_ROOT}/mcu-*/phalanx-*.bin ${PHALANX_FIRMWARE_BUILD_ROOT}/mcu-*/phalanx-*.hex)
 if(PHALANX_FIRMWARE_IMAGES)
   install(FILES ${PHALANX_FIRMWARE_IMAGES} DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/phalanx/firmware COMPONENT firmware)
+  # The ELF images are Cortex-M programs for the boards, kept with their symbols for the debugger: lintian's
+  # host-binary checks do not apply to them (packaging/debian/phalanx-firmware.lintian-overrides).
+  install(FILES ${PHALANX_PKG_SRC}/debian/phalanx-firmware.lintian-overrides DESTINATION
+          ${CMAKE_INSTALL_DATAROOTDIR}/lintian/overrides RENAME phalanx-firmware COMPONENT firmware)
 endif()
 
 # --- Debian changelog and copyright in every package's doc directory (Debian policy 12.5, 12.7)
@@ -120,12 +124,12 @@ foreach(comp IN LISTS PHALANX_COMPONENTS)
   string(TOUPPER ${comp} COMP)
   set(CPACK_DEBIAN_${COMP}_PACKAGE_NAME ${PHALANX_DEB_${comp}})
 endforeach()
-set(CPACK_COMPONENT_DAEMON_DESCRIPTION "Phalanx host daemon, CLI and simulated firmware
- phalanxd runs the 1 kHz control session of a Phalanx haptic device (glove5 force-feedback glove, sea_finger
- series-elastic exoskeleton, pantograph pen) over USB, CAN or serial, with one limits stage for every command,
- and serves a control API to the group phalanx. phalanx is the command-line tool; firmware-sim runs the device
- firmware on a simulated board (sim:glove5 and the others). Includes udev rules, a systemd unit and the
- group's real-time limits.")
+set(CPACK_COMPONENT_DAEMON_DESCRIPTION "host daemon, CLI and simulated firmware of the Phalanx haptics stack
+phalanxd runs the 1 kHz control session of a Phalanx haptic device (glove5,
+sea_finger, pantograph) over USB, CAN or serial, with one limits stage for
+every command, and serves a control API to the group phalanx. phalanx is the
+command-line tool; firmware-sim runs the device firmware on a simulated board.
+Includes udev rules, a systemd unit and the group's real-time limits.")
 set(CPACK_DEBIAN_DAEMON_PACKAGE_DEPENDS "passwd, libcap2-bin")
 # Renamed to the control-file names dpkg wants (postinst, postrm) in a directory of their own.
 file(MAKE_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}/packaging/daemon-control)
@@ -139,19 +143,21 @@ set(CPACK_DEBIAN_DAEMON_PACKAGE_CONTROL_EXTRA
     ${CMAKE_CURRENT_BINARY_DIR}/packaging/daemon-control/postinst ${CMAKE_CURRENT_BINARY_DIR}/packaging/daemon-control/postrm
     ${CMAKE_CURRENT_BINARY_DIR}/packaging/daemon-control/conffiles)
 set(CPACK_COMPONENT_SDK_DESCRIPTION "Phalanx client library and its development files
- libphalanx connects a program to phalanxd's client channel (control socket and shared memory) to read a
- device's state and command it at up to 1 kHz; every command passes the daemon's limits stage. With its C and
- C++ headers, CMake package (find_package(phalanx)) and pkg-config file.")
+libphalanx connects a program to phalanxd's client channel to read a device's
+state and command it at up to 1 kHz through the daemon's limits stage. With
+its C and C++ headers, CMake package and pkg-config file.")
 set(CPACK_DEBIAN_SDK_PACKAGE_SECTION libdevel)
-set(CPACK_DEBIAN_SDK_PACKAGE_GENERATE_SHLIBS ON)
+set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON)
+file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/packaging/sdk-control/triggers "activate-noawait ldconfig\n")
+set(CPACK_DEBIAN_SDK_PACKAGE_CONTROL_EXTRA ${CMAKE_CURRENT_BINARY_DIR}/packaging/sdk-control/triggers)
 set(CPACK_COMPONENT_PYTHON_DESCRIPTION "Phalanx Python module
- The phalanx package for Python 3: the client bindings and the session record reader.")
+The phalanx package for Python 3: client bindings and session record reader.")
 set(CPACK_DEBIAN_PYTHON_PACKAGE_SECTION python)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_ARCHITECTURE all)
 set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS "python3")
-set(CPACK_COMPONENT_FIRMWARE_DESCRIPTION "Phalanx firmware images
- Cortex-M4F images (ELF, binary, Intel HEX) of every device app for the STM32G474 board and the emulated
- mps2-an386 and ast1030-evb boards.")
+set(CPACK_COMPONENT_FIRMWARE_DESCRIPTION "Phalanx firmware images for Cortex-M4F boards
+ELF, binary and Intel HEX images of every device app for the STM32G474 board
+and the emulated mps2-an386 and ast1030-evb boards.")
 set(CPACK_DEBIAN_FIRMWARE_PACKAGE_ARCHITECTURE all)
 set(CPACK_DEBIAN_FIRMWARE_PACKAGE_SHLIBDEPS OFF)
 include(CPack)
