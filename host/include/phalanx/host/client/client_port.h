@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/client/client_options.h"
+#include "phalanx/host/client/device_model.h"
 #include "phalanx/host/client/wire.h"
 #include "phalanx/host/session.h"
 #include "phalanx/protocol/devices.h"
@@ -99,7 +100,9 @@ struct ForceOffRecord {
 class ClientPort {
  public:
   /// modbus: the session's Modbus port, or nullptr (exactly one of them commands; the other is refused).
-  ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus);
+  /// geometry: the device models' geometry (the daemon's geometry files, else the defaults).
+  ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus,
+             const ModelGeometry& geometry = {});
 
   /// After the controller and Modbus: true when the client commands this cycle - its newest command (mode,
   /// setpoints, nominal gains), or its fallback state (safe or transparent) once force went off. The limits stage
@@ -121,7 +124,10 @@ class ClientPort {
   bool commandIsValid() const;
   void forceOff(client_wire::ForceOffCause cause, uint64_t now_ns);
   void fallbackCommand(protocol::Command& cmd) const;
-  void clientCommand(protocol::Command& cmd) const;
+  void clientCommand(protocol::Command& cmd);
+  void springFallback(protocol::Command& cmd);
+  void noteConversion(ConvertStatus st, float scale);
+  void observeOnce(const TelemetryFrame& tel);
   void holdControl(bool hold);
   void noteSentCommand(const protocol::Command& sent, uint64_t now_ns);
   void updateRate(uint64_t now_ns);
@@ -138,6 +144,12 @@ class ClientPort {
   uint64_t deadline_ns_ = 0;
   client_wire::Fallback fallback_ = client_wire::Fallback::kSafe;
   client_wire::CommandPayload command_{};
+  DeviceModelStage model_;
+  std::array<float, protocol::kMaxSetpoints> intended_{};  ///< the client's setpoints before the limits stage
+  bool observed_this_cycle_ = false;
+  client_wire::Rendered rendered_ = client_wire::Rendered::kNothing;
+  float model_scale_ = 1.0f;
+  uint64_t model_saturated_ = 0, fallback_cycles_ = 0;
   uint32_t last_command_seq_ = 0;
   uint64_t last_fresh_ns_ = 0;
   bool commanded_this_cycle_ = false, offered_this_cycle_ = false, invalid_this_cycle_ = false;
