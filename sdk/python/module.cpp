@@ -87,6 +87,7 @@ PYBIND11_MODULE(_phalanx, m) {
                              [](const phalanx::State& s) { return phalanx_force_off_cause_name(s.force_off_cause); })
       .def_property_readonly("rendered", [](const phalanx::State& s) { return renderedName(s.rendered); })
       .def_readonly("commands_used", &phalanx::State::commands_used)
+      .def_readonly("command_seq_used", &phalanx::State::command_seq_used)
       .def_readonly("refused_invalid", &phalanx::State::refused_invalid)
       .def_readonly("refused_other_source", &phalanx::State::refused_other_source)
       .def_readonly("limited", &phalanx::State::limited)

@@ -132,6 +132,7 @@ struct Client::Impl {
     std::memcpy(s.pen.force_N, p.pen.force_N, sizeof s.pen.force_N);
     std::memcpy(s.pen.torque_Nm, p.pen.torque_Nm, sizeof s.pen.torque_Nm);
     s.pen.valid = p.pen.valid;
+    s.command_seq_used = p.command_seq_used;
   }
 
   void write(const Command& cmd) {

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "phalanx/host/client/client_port.h"
+#include "phalanx/host/client/device_model.h"
 #include "phalanx/host/modbus/server.h"
 
 namespace phalanx::host::client {
@@ -25,12 +26,15 @@ constexpr uint16_t kNominalGainPermille = 1000;
 
 ClientPort::ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus,
                        const ModelGeometry& geometry)
-    : server_(server), layout_(layout), modbus_(modbus), period_ns_(1000000000ull / rate_hz), model_(layout, geometry) {}
+    : server_(server), layout_(layout), modbus_(modbus), period_ns_(1000000000ull / rate_hz),
+      model_(std::make_unique<DeviceModelStage>(layout, geometry)) {}
+
+ClientPort::~ClientPort() = default;
 
 void ClientPort::observeOnce(const TelemetryFrame& tel) {
   if (observed_this_cycle_) return;
   observed_this_cycle_ = true;
-  model_.observe(tel);  // the device-model stage: the state a client reads, the pose a model command needs
+  model_->observe(tel);  // the device-model stage: the state a client reads, the pose a model command needs
 }
 
 bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& cmd, uint64_t now_ns) {
@@ -65,6 +69,7 @@ bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& c
     fallbackCommand(cmd);
     return true;
   }
+  if (!fresh) ++cycles_without_fresh_;
   if (!fresh && command_.fallback.kind == client_wire::FallbackKind::kSpring) {
     springFallback(cmd);  // a missed cycle: the client's spring-damper at this cycle's state, not a stale force
   } else {
@@ -152,7 +157,7 @@ void ClientPort::clientCommand(protocol::Command& cmd) {
     }
   } else {
     float scale = 1.0f;
-    noteConversion(model_.convert(command_.kind, command_.model, cmd, scale), scale);
+    noteConversion(model_->convert(command_.kind, command_.model, cmd, scale), scale);
   }
   for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
 }
@@ -161,7 +166,7 @@ void ClientPort::springFallback(protocol::Command& cmd) {
   cmd.mode = protocol::Mode::kSetpoint;
   for (auto& g : cmd.gain_scale_permille) g = kNominalGainPermille;
   float scale = 1.0f;
-  noteConversion(model_.renderSpring(command_.fallback, cmd, scale), scale);
+  noteConversion(model_->renderSpring(command_.fallback, cmd, scale), scale);
   for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
   rendered_ = client_wire::Rendered::kFallbackSpring;
   ++fallback_cycles_;
@@ -217,7 +222,7 @@ void ClientPort::publish(const TelemetryFrame& tel, const protocol::Command& sen
   if (phase_ != Phase::kIdle) observeOnce(tel);
   observed_this_cycle_ = false;
   if (generation_ == 0) return;
-  model_.fill(state_);
+  model_->fill(state_);
   state_.rendered = static_cast<uint8_t>(commanded_this_cycle_ ? rendered_ : client_wire::Rendered::kNothing);
   state_.model_scale = model_scale_;
   state_.cycle = cycle;
@@ -305,6 +310,7 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
           {"limited", limited_},
           {"model_saturated", model_saturated_},
           {"fallback_cycles", fallback_cycles_},
+          {"cycles_without_fresh_command", cycles_without_fresh_},
           {"force_offs", force_offs_},
           {"force_off_records", list}};
 }

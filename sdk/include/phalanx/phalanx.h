@@ -135,6 +135,7 @@ typedef struct {
   phalanx_glove_model glove;
   phalanx_sea_model sea;
   phalanx_pen_model pen;
+  uint32_t command_seq_used;  /* the number of this client's command the cycle sent (its n-th command: n), 0: none */
 } phalanx_state;
 
 /* Servo callback: fill setpoints[0..setpoint_count) from state; return non-zero to stop. */

@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "phalanx/glove/kinematics.h"
+#include "phalanx/host/client/model_geometry.h"
 #include "phalanx/host/client/wire.h"
 #include "phalanx/host/pen/force_split.h"
 #include "phalanx/host/session.h"
@@ -22,13 +23,6 @@ class SeaTherapyDevice;
 }
 
 namespace phalanx::host::client {
-
-/// The geometry the daemon runs with (its --glove-geometry / --pen-geometry files, else the defaults).
-struct ModelGeometry {
-  std::array<phalanx::glove::Model<double>, 5> glove = defaultGlove();
-  phalanx::pen::Geometry<double> pen = phalanx::pen::defaultGeometry<double>();
-  static std::array<phalanx::glove::Model<double>, 5> defaultGlove();
-};
 
 /// The outcome of one conversion.
 enum class ConvertStatus : uint8_t {

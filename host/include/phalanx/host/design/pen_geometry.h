@@ -17,12 +17,12 @@
 namespace phalanx::host::design {
 
 /// YAML text of a pen geometry; `analysis` entries (e.g. GII, Q1, distance) are written under `analysis`.
-std::string penGeometryYaml(const ::phalanx::pen::Geometry<double>& g, const std::string& comment,
+std::string penGeometryYaml(const pen::Geometry<double>& g, const std::string& comment,
                             const std::map<std::string, double>& analysis = {});
 
 /// Reads and validates a pen geometry file: every key known, every length a finite number > 0 (metres), and
 /// the lengths must make a pen that reaches its home pose (pen::makeModel). Returns "" or an error that names
 /// the file and the offending key. `out` is written only on success.
-std::string loadPenGeometryYaml(const std::string& path, ::phalanx::pen::Geometry<double>& out);
+std::string loadPenGeometryYaml(const std::string& path, pen::Geometry<double>& out);
 
 }  // namespace phalanx::host::design
