@@ -13,7 +13,7 @@ deadline (then force off, as always).
 
   pen_field.py --socket PATH [--seconds 2] [--plane-mm 5] [--magnet-mm 10,0,0] [--k-plane 400] [--k-magnet 150]
                [--radius-mm 30] [--damping 2] [--k-fallback 400] [--deadline-ms 250] [--log FILE]
-               [--slow-every 0 --slow-ms 5]
+               [--slow-every 0 --slow-ms 5]      (--k-fallback 0: no fallback, a missed cycle repeats the command)
 The plane and the magnet are placed relative to the first pen centre seen (plane that many mm ABOVE it, so the
 field engages at once). --log writes per command: telemetry_seq, rendered force (3), measured force (3) of the
 state it was computed from, rendered kind (command / fallback-spring / ...).
@@ -85,8 +85,8 @@ def main():
             break
         p, v = s.pen_centre, s.pen_velocity
         f = field(p, v, plane_y, magnet, a) if s.pen_valid else np.zeros(3)
-        target = p + f / a.k_fallback
-        client.set_pen_wrench(f, (0.0, 0.0, 0.0), fallback=[(target, a.k_fallback, 0.0)])
+        fallback = [(p + f / a.k_fallback, a.k_fallback, 0.0)] if a.k_fallback > 0 else None
+        client.set_pen_wrench(f, (0.0, 0.0, 0.0), fallback=fallback)
         if log:
             m = s.pen_force
             log.write("%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%s\n" % (s.telemetry_seq, f[0], f[1], f[2], m[0], m[1], m[2],

@@ -48,7 +48,7 @@ const char* renderedName(int r) {
 phalanx::FallbackSpring fallbackFrom(const py::object& spec) {
   phalanx::FallbackSpring fb{};
   if (spec.is_none()) return fb;
-  const auto elems = spec.cast<std::vector<py::tuple>>();
+  const auto elems = spec.cast<std::vector<py::sequence>>();
   if (elems.size() > PHALANX_MAX_SPRINGS) throw py::value_error("fallback: at most 5 springs");
   fb.enabled = 1;
   for (size_t i = 0; i < elems.size(); ++i) {

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
         have_c0 = true;
       }
       std::array<double, 3> f{};
-      for (int i = 0; i < 3; ++i) f[i] = have_c0 ? 100.0 * (c0[i] - s.pen.centre_m[i]) : 0.0;
+      for (int i = 0; i < 3; ++i) f[i] = have_c0 ? 100.0 * static_cast<double>(c0[i] - s.pen.centre_m[i]) : 0.0;
       cmd.penWrench(f, {0, 0, 0});
       ++seq;
       if (seq < rx_of_seq.size()) rx_of_seq[seq] = s.telemetry_rx_ns;

@@ -72,7 +72,10 @@ std::unique_ptr<Process> startDaemon(const std::string& device, const std::strin
                                      std::vector<std::string> extra = {}) {
   std::vector<std::string> argv{binPath("phalanxd"), "--device", device, "--seconds", seconds, "--no-realtime",
                                 "--mode", "transparent", "--scene", "none", "--scenario", scenario,
-                                "--client-socket", sock, "--record", csv, "--json"};
+                                "--client-socket", sock, "--record", csv, "--json",
+                                // The firmware's own timeout for a silent daemon: this machine runs builds beside
+                                // the tests without real-time priority (the default 50 ms starves into a fault).
+                                "--command-timeout-ms", "500"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   auto d = std::make_unique<Process>(argv);
   for (int i = 0; i < 400; ++i) {
@@ -179,63 +182,87 @@ double measurementBound(const pp::Data<double>& kin) {
   return bound;
 }
 
+/// A starved firmware-sim can still latch a fault (current limit, command timeout) that forces the client off
+/// with cause device-fault - correct, but not what these tests are about: such a run is repeated (at most 3).
+bool deviceFaulted(const nlohmann::json& j) {
+  for (const auto& r : j["client"]["force_off_records"]) {
+    if (r["cause"] == "device-fault") return true;
+  }
+  return false;
+}
+
+template <class Run>
+void withoutDeviceFault(Run run) {
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    if (run(attempt)) return;
+    std::fprintf(stderr, "attempt %d: the simulated device faulted; once more\n", attempt);
+  }
+  FAIL() << "the simulated device faulted in all 3 attempts";
+}
+
 }  // namespace
 
 // examples/pen_field.py (a plane plus a magnet point, Python, numpy) against sim:pantograph, the hand holding the
-// pen still: (1) every cycle the client commanded, the joint torques the daemon sent exert - through the host's
+// pen still, without a fallback (a missed cycle repeats the last command): (1) every cycle the client commanded, the joint torques the daemon sent exert - through the host's
 // statics at that row's pose - a force the example rendered from one of the states before (within 2 mN: float
 // torques, 5 significant CSV digits); (2) the force measured from the firmware's telemetry (its current sense) is
 // one the example rendered in the 8 cycles before, within the current sense's own bound (measurementBound) - for
 // at least 99 % of the rows; the plane and magnet pulled more than 1 N (not a vacuous comparison).
 TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
   if (!havePython()) GTEST_SKIP() << "no Python bindings built (pybind11-dev, python3-numpy: tools/setup.sh)";
-  const std::string sock = tmpPath("pen.sock"), csv = tmpPath("pen.csv"), log = tmpPath("pen.log");
-  auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "still");
-  Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
-                        "--damping", "0", "--log", log}));
-  const int rc = field.wait(30000);
-  const nlohmann::json j = finish(*daemon);
-  ASSERT_EQ(rc, 0) << field.stdoutText() << field.stderrText() << daemon->stderrText();
-  EXPECT_EQ(j["client"]["force_offs"], 0) << j.dump(2);
-  EXPECT_EQ(j["client"]["model_saturated"], 0) << j.dump(2);
-  const auto rendered = readFieldLog(log);
-  ASSERT_GT(rendered.size(), 500u) << field.stderrText();
-  const Csv rec = readCsv(csv);
-  const pp::Model<double> m = penModel();
-  size_t commanded = 0, sent_matched = 0, measured = 0, measured_matched = 0;
-  double peak = 0.0, worst_bound = 0.0;
-  for (size_t i = 10; i + 1 < rec.rows(); ++i) {
-    if (rec.at("mode", i) != 2 || rec.at("mode", i + 1) != 2) continue;
-    pp::Data<double> kin;
-    if (!penKinematics(m, rec, i, kin)) continue;
-    std::array<double, 3> sent{}, meas{};
-    if (!penForce(kin, columns(rec, "setpoint", 0, i), sent) || !penForce(kin, columns(rec, "sample", 6, i), meas)) continue;
-    if (dist(sent, {0, 0, 0}) == 0.0) continue;  // before the first command
-    ++commanded;
-    peak = std::fmax(peak, dist(sent, {0, 0, 0}));
-    bool found = false;
-    for (size_t back = 0; back <= 250 && !found && back < i; ++back) {
-      const auto range = rendered.equal_range(static_cast<int>(rec.at("seq", i - back)));
-      for (auto it = range.first; it != range.second && !found; ++it) found = dist(it->second, sent) <= 2e-3;
+  withoutDeviceFault([&](int attempt) {
+    const std::string n = std::to_string(attempt);
+    const std::string sock = tmpPath("pen" + n + ".sock"), csv = tmpPath("pen" + n + ".csv"), log = tmpPath("pen" + n + ".log");
+    auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "still");
+    Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
+                          "--damping", "0", "--k-fallback", "0", "--log", log}));
+    const int rc = field.wait(30000);
+    const nlohmann::json j = finish(*daemon);
+    if (deviceFaulted(j)) return false;
+    EXPECT_EQ(rc, 0) << field.stdoutText() << field.stderrText() << daemon->stderrText();
+    EXPECT_EQ(j["client"]["force_offs"], 0) << j.dump(2);
+    EXPECT_EQ(j["client"]["model_saturated"], 0) << j.dump(2);
+    EXPECT_EQ(j["client"]["fallback_cycles"], 0) << "no fallback was handed over: missed cycles repeat the command";
+    const auto rendered = readFieldLog(log);
+    EXPECT_GT(rendered.size(), 500u) << field.stderrText();
+    const Csv rec = readCsv(csv);
+    const pp::Model<double> m = penModel();
+    size_t commanded = 0, sent_matched = 0, measured = 0, measured_matched = 0;
+    double peak = 0.0, worst_bound = 0.0;
+    for (size_t i = 10; i + 1 < rec.rows(); ++i) {
+      if (rec.at("mode", i) != 2 || rec.at("mode", i + 1) != 2) continue;
+      pp::Data<double> kin;
+      if (!penKinematics(m, rec, i, kin)) continue;
+      std::array<double, 3> sent{}, meas{};
+      if (!penForce(kin, columns(rec, "setpoint", 0, i), sent) || !penForce(kin, columns(rec, "sample", 6, i), meas)) continue;
+      if (dist(sent, {0, 0, 0}) == 0.0) continue;  // before the first command
+      ++commanded;
+      peak = std::fmax(peak, dist(sent, {0, 0, 0}));
+      bool found = false;
+      for (size_t back = 0; back <= 250 && !found && back < i; ++back) {
+        const auto range = rendered.equal_range(static_cast<int>(rec.at("seq", i - back)));
+        for (auto it = range.first; it != range.second && !found; ++it) found = dist(it->second, sent) <= 2e-3;
+      }
+      sent_matched += found ? 1 : 0;
+      // The measurement: the current that answers a command appears one to a few telemetry frames later.
+      const double bound = measurementBound(kin);
+      worst_bound = std::fmax(worst_bound, bound);
+      ++measured;
+      bool near = false;
+      for (size_t back = 1; back <= 8 && !near && back < i; ++back) {
+        const auto range = rendered.equal_range(static_cast<int>(rec.at("seq", i - back)));
+        for (auto it = range.first; it != range.second && !near; ++it) near = dist(it->second, meas) <= bound;
+      }
+      measured_matched += near ? 1 : 0;
     }
-    sent_matched += found ? 1 : 0;
-    // The measurement: the current that answers a command appears one to a few telemetry frames later.
-    const double bound = measurementBound(kin);
-    worst_bound = std::fmax(worst_bound, bound);
-    ++measured;
-    bool near = false;
-    for (size_t back = 1; back <= 8 && !near && back < i; ++back) {
-      const auto range = rendered.equal_range(static_cast<int>(rec.at("seq", i - back)));
-      for (auto it = range.first; it != range.second && !near; ++it) near = dist(it->second, meas) <= bound;
-    }
-    measured_matched += near ? 1 : 0;
-  }
-  std::printf("pen field: %zu commanded rows, sent = rendered in %zu; measured within bound (<= %.3f N) in %zu of %zu; "
-              "peak %.2f N\n", commanded, sent_matched, worst_bound, measured_matched, measured, peak);
-  EXPECT_GT(commanded, 1000u);
-  EXPECT_EQ(sent_matched, commanded) << "a force was sent that the example never rendered";
-  EXPECT_GE(static_cast<double>(measured_matched), 0.99 * static_cast<double>(measured));
-  EXPECT_GT(peak, 1.0) << "the field never pushed (the comparison would be vacuous)";
+    std::printf("pen field: %zu commanded rows, sent = rendered in %zu; measured within bound (<= %.3f N) in %zu of %zu; "
+                "peak %.2f N\n", commanded, sent_matched, worst_bound, measured_matched, measured, peak);
+    EXPECT_GT(commanded, 1000u);
+    EXPECT_EQ(sent_matched, commanded) << "a force was sent that the example never rendered";
+    EXPECT_GE(static_cast<double>(measured_matched), 0.99 * static_cast<double>(measured));
+    EXPECT_GT(peak, 1.0) << "the field never pushed (the comparison would be vacuous)";
+    return true;
+  });
 }
 
 // A slow Python client (5 ms asleep every 100 cycles) on a moving hand: the daemon renders the example's fallback
@@ -248,44 +275,49 @@ TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
 // be the whole force, > 1 N here (checked: B is below half the mean force).
 TEST(ClientModel, ASlowPythonClientGetsItsFallbackNotAForceStep) {
   if (!havePython()) GTEST_SKIP() << "no Python bindings built (pybind11-dev, python3-numpy: tools/setup.sh)";
-  const std::string sock = tmpPath("slow.sock"), csv = tmpPath("slow.csv"), log = tmpPath("slow.log");
-  auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "random");
-  const double k_plane = 400, k_magnet = 150, k_fallback = 400;
-  Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
-                        "--damping", "0", "--radius-mm", "60", "--slow-every", "100", "--slow-ms", "5", "--log", log}));
-  const int rc = field.wait(30000);
-  const nlohmann::json j = finish(*daemon);
-  ASSERT_EQ(rc, 0) << field.stdoutText() << field.stderrText() << daemon->stderrText();
-  EXPECT_EQ(j["client"]["force_offs"], 0) << j.dump(2);
-  EXPECT_GE(j["client"]["fallback_cycles"].get<int>(), 20) << j.dump(2);  // ≥ 5 cycles per 100, 2.5 s
-  const Csv rec = readCsv(csv);
-  const pp::Model<double> m = penModel();
-  std::vector<std::array<double, 3>> centre(rec.rows()), sent(rec.rows());
-  std::vector<bool> ok(rec.rows(), false);
-  for (size_t i = 0; i < rec.rows(); ++i) {
-    pp::Data<double> kin;
-    if (!penKinematics(m, rec, i, kin)) continue;
-    centre[i] = {kin.B_p_centre[0], kin.B_p_centre[1], kin.B_p_centre[2]};
-    ok[i] = penForce(kin, columns(rec, "setpoint", 0, i), sent[i]) && rec.at("mode", i) == 2;
-  }
-  double D = 0.0, worst_step = 0.0, mean_force = 0.0;
-  size_t n = 0;
-  for (size_t i = 12; i < rec.rows(); ++i) {
-    if (ok[i] && ok[i - 12]) D = std::fmax(D, dist(centre[i], centre[i - 12]));
-  }
-  for (size_t i = 1; i < rec.rows(); ++i) {
-    if (!ok[i] || !ok[i - 1] || dist(sent[i - 1], {0, 0, 0}) == 0.0) continue;
-    worst_step = std::fmax(worst_step, dist(sent[i], sent[i - 1]));
-    mean_force += dist(sent[i], {0, 0, 0});
-    ++n;
-  }
-  ASSERT_GT(n, 1000u);
-  mean_force /= static_cast<double>(n);
-  const double B = (k_plane + k_magnet + k_fallback) * D + 0.02;
-  std::printf("slow client: fallback cycles %d, worst step %.3f N, bound %.3f N (D = %.3f mm), mean force %.2f N\n",
-              j["client"]["fallback_cycles"].get<int>(), worst_step, B, D * 1e3, mean_force);
-  EXPECT_LE(worst_step, B);
-  EXPECT_LT(B, 0.5 * mean_force) << "the bound would not tell a force step from the fallback";
+  withoutDeviceFault([&](int attempt) {
+    const std::string n = std::to_string(attempt);
+    const std::string sock = tmpPath("slow" + n + ".sock"), csv = tmpPath("slow" + n + ".csv"), log = tmpPath("slow" + n + ".log");
+    auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "random");
+    const double k_plane = 400, k_magnet = 150, k_fallback = 400;
+    Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
+                          "--damping", "0", "--radius-mm", "60", "--slow-every", "100", "--slow-ms", "5", "--log", log}));
+    const int rc = field.wait(30000);
+    const nlohmann::json j = finish(*daemon);
+    if (deviceFaulted(j)) return false;
+    EXPECT_EQ(rc, 0) << field.stdoutText() << field.stderrText() << daemon->stderrText();
+    EXPECT_EQ(j["client"]["force_offs"], 0) << j.dump(2);
+    EXPECT_GE(j["client"]["fallback_cycles"].get<int>(), 20) << j.dump(2);  // ≥ 5 cycles per 100, 2.5 s
+    const Csv rec = readCsv(csv);
+    const pp::Model<double> m = penModel();
+    std::vector<std::array<double, 3>> centre(rec.rows()), sent(rec.rows());
+    std::vector<bool> ok(rec.rows(), false);
+    for (size_t i = 0; i < rec.rows(); ++i) {
+      pp::Data<double> kin;
+      if (!penKinematics(m, rec, i, kin)) continue;
+      centre[i] = {kin.B_p_centre[0], kin.B_p_centre[1], kin.B_p_centre[2]};
+      ok[i] = penForce(kin, columns(rec, "setpoint", 0, i), sent[i]) && rec.at("mode", i) == 2;
+    }
+    double D = 0.0, worst_step = 0.0, mean_force = 0.0;
+    size_t steps = 0;
+    for (size_t i = 12; i < rec.rows(); ++i) {
+      if (ok[i] && ok[i - 12]) D = std::fmax(D, dist(centre[i], centre[i - 12]));
+    }
+    for (size_t i = 1; i < rec.rows(); ++i) {
+      if (!ok[i] || !ok[i - 1] || dist(sent[i - 1], {0, 0, 0}) == 0.0) continue;
+      worst_step = std::fmax(worst_step, dist(sent[i], sent[i - 1]));
+      mean_force += dist(sent[i], {0, 0, 0});
+      ++steps;
+    }
+    EXPECT_GT(steps, 1000u);
+    mean_force /= static_cast<double>(std::max<size_t>(steps, 1));
+    const double B = (k_plane + k_magnet + k_fallback) * D + 0.02;
+    std::printf("slow client: fallback cycles %d, worst step %.3f N, bound %.3f N (D = %.3f mm), mean force %.2f N\n",
+                j["client"]["fallback_cycles"].get<int>(), worst_step, B, D * 1e3, mean_force);
+    EXPECT_LE(worst_step, B);
+    EXPECT_LT(B, 0.5 * mean_force) << "the bound would not tell a force step from the fallback";
+    return true;
+  });
 }
 
 // SEA finger joint torques from a Python client, through J_n (001 eq 6/11): every row the client commanded, the
@@ -294,58 +326,63 @@ TEST(ClientModel, ASlowPythonClientGetsItsFallbackNotAForceStep) {
 // counted (model_saturated), and nothing sent ever exceeds the device's limits.
 TEST(ClientModel, SeaFingerTorquesAreConvertedThroughJnAndEndWithinLimits) {
   if (!havePython()) GTEST_SKIP() << "no Python bindings built (pybind11-dev, python3-numpy: tools/setup.sh)";
-  const std::string sock = tmpPath("sea.sock"), csv = tmpPath("sea.csv");
-  auto daemon = startDaemon("sim:sea_finger", sock, csv, "3", "still");
-  const std::string script = writeScript("sea.py", R"(
-import json, sys, phalanx
-c = phalanx.Client(sys.argv[1], deadline_ms=250)
-def run(n, mcp, pip):
-    for _ in range(n):
-        s = c.wait_state(200)
-        c.set_finger_torques(mcp, pip)
-    return s
-run(400, 0.05, 0.02)
-run(100, float("nan"), 0.0)
-s = run(400, 5.0, 5.0)
-s = c.wait_state(200)
-print(json.dumps({"refused_invalid": s.refused_invalid, "model_saturated": s.model_saturated,
-                  "control": s.control, "sea_valid": s.sea_valid}))
-c.release()
-)");
-  Process client(python({script, sock}));
-  const int rc = client.wait(30000);
-  const nlohmann::json j = finish(*daemon);
-  ASSERT_EQ(rc, 0) << client.stdoutText() << client.stderrText() << daemon->stderrText();
-  const auto cj = nlohmann::json::parse(client.stdoutText(), nullptr, false);
-  ASSERT_FALSE(cj.is_discarded()) << client.stdoutText();
-  EXPECT_TRUE(cj["sea_valid"].get<bool>());
-  EXPECT_GE(j["client"]["refused_invalid"].get<int>(), 50) << j.dump(2);
-  EXPECT_GE(j["client"]["model_saturated"].get<int>(), 200) << j.dump(2);
-  const Csv rec = readCsv(csv);
-  namespace ps = phalanx::sea;
-  const auto model = ps::defaultModel<double>();
-  size_t small = 0, small_matched = 0, at_limit = 0;
-  for (size_t i = 0; i < rec.rows(); ++i) {
-    const double a = rec.at("setpoint0", i), b = rec.at("setpoint1", i);
-    ASSERT_TRUE(std::isfinite(a) && std::isfinite(b)) << "row " << i;
-    EXPECT_LE(std::fmax(std::fabs(a), std::fabs(b)), 0.5 + 1e-4) << "row " << i;
-    if (rec.at("mode", i) != 2) continue;
-    if (std::fabs(std::fmax(std::fabs(a), std::fabs(b)) - 0.5) < 1e-4) ++at_limit;
-    ps::Sensors<double> s{};
-    for (size_t k = 0; k < ps::kNumSensors; ++k) s[k] = rec.at("sample" + std::to_string(k), i);
-    ps::Data<double> d;
-    if (!ps::isUsable(ps::computeFromSensors(model, s, d)) || !d.J_valid) continue;
-    const auto tj = ps::exoTorqueFromFingerTorque(d.J_n, ps::Vec2<double>{0.05, 0.02});
-    if (std::fmax(std::fabs(tj[0]), std::fabs(tj[1])) > 0.5 || std::fmax(std::fabs(a), std::fabs(b)) > 0.3) continue;
-    if (a == 0.0 && b == 0.0) continue;
-    ++small;
-    small_matched += std::fabs(a - tj[0]) <= 2e-3 && std::fabs(b - tj[1]) <= 2e-3 ? 1 : 0;
-  }
-  std::printf("sea: %zu rows of the 0.05/0.02 N·m phase, %zu = J_n^T tau_f; %zu rows at the 0.5 N·m limit\n", small,
-              small_matched, at_limit);
-  EXPECT_GT(small, 200u);
-  EXPECT_GE(static_cast<double>(small_matched), 0.98 * static_cast<double>(small));
-  EXPECT_GT(at_limit, 200u) << "the saturating phase never reached the limit";
+  withoutDeviceFault([&](int attempt) {
+    const std::string n = std::to_string(attempt);
+    const std::string sock = tmpPath("sea" + n + ".sock"), csv = tmpPath("sea" + n + ".csv");
+    auto daemon = startDaemon("sim:sea_finger", sock, csv, "3", "still");
+    const std::string script = writeScript("sea.py", R"(
+  import json, sys, phalanx
+  c = phalanx.Client(sys.argv[1], deadline_ms=250)
+  def run(n, mcp, pip):
+      for _ in range(n):
+          s = c.wait_state(200)
+          c.set_finger_torques(mcp, pip)
+      return s
+  run(400, 0.05, 0.02)
+  run(100, float("nan"), 0.0)
+  s = run(400, 5.0, 5.0)
+  s = c.wait_state(200)
+  print(json.dumps({"refused_invalid": s.refused_invalid, "model_saturated": s.model_saturated,
+                    "control": s.control, "sea_valid": s.sea_valid}))
+  c.release()
+  )");
+    Process client(python({script, sock}));
+    const int rc = client.wait(30000);
+    const nlohmann::json j = finish(*daemon);
+    if (deviceFaulted(j)) return false;
+    EXPECT_EQ(rc, 0) << client.stdoutText() << client.stderrText() << daemon->stderrText();
+    const auto cj = nlohmann::json::parse(client.stdoutText(), nullptr, false);
+    EXPECT_FALSE(cj.is_discarded()) << client.stdoutText();
+    EXPECT_TRUE(cj["sea_valid"].get<bool>());
+    EXPECT_GE(j["client"]["refused_invalid"].get<int>(), 50) << j.dump(2);
+    EXPECT_GE(j["client"]["model_saturated"].get<int>(), 200) << j.dump(2);
+    const Csv rec = readCsv(csv);
+    namespace ps = phalanx::sea;
+    const auto model = ps::defaultModel<double>();
+    size_t small = 0, small_matched = 0, at_limit = 0;
+    for (size_t i = 0; i < rec.rows(); ++i) {
+      const double a = rec.at("setpoint0", i), b = rec.at("setpoint1", i);
+      EXPECT_TRUE(std::isfinite(a) && std::isfinite(b)) << "row " << i;
+      EXPECT_LE(std::fmax(std::fabs(a), std::fabs(b)), 0.5 + 1e-4) << "row " << i;
+      if (rec.at("mode", i) != 2) continue;
+      if (std::fabs(std::fmax(std::fabs(a), std::fabs(b)) - 0.5) < 1e-4) ++at_limit;
+      ps::Sensors<double> s{};
+      for (size_t k = 0; k < ps::kNumSensors; ++k) s[k] = rec.at("sample" + std::to_string(k), i);
+      ps::Data<double> d;
+      if (!ps::isUsable(ps::computeFromSensors(model, s, d)) || !d.J_valid) continue;
+      const auto tj = ps::exoTorqueFromFingerTorque(d.J_n, ps::Vec2<double>{0.05, 0.02});
+      if (std::fmax(std::fabs(tj[0]), std::fabs(tj[1])) > 0.5 || std::fmax(std::fabs(a), std::fabs(b)) > 0.3) continue;
+      if (a == 0.0 && b == 0.0) continue;
+      ++small;
+      small_matched += std::fabs(a - tj[0]) <= 2e-3 && std::fabs(b - tj[1]) <= 2e-3 ? 1 : 0;
+    }
+    std::printf("sea: %zu rows of the 0.05/0.02 N·m phase, %zu = J_n^T tau_f; %zu rows at the 0.5 N·m limit\n", small,
+                small_matched, at_limit);
+    EXPECT_GT(small, 200u);
+    EXPECT_GE(static_cast<double>(small_matched), 0.98 * static_cast<double>(small));
+    EXPECT_GT(at_limit, 200u) << "the saturating phase never reached the limit";
+    return true;
+  });
 }
 
 // One source at a time: while a client holds the glove, a Modbus write selecting Modbus control is refused and

@@ -130,8 +130,8 @@ TEST(ClientPort, AMissedCycleRendersTheFallbackSpringAtTheNewState) {
   moved.seq = tel.seq;
   ASSERT_TRUE(rig.cycle(moved, cmd));
   const wire::StatePayload s2 = rig.state();
-  const double fx = 200.0 * (s0.glove.fingertip[1][0] - s2.glove.fingertip[1][0]);
-  const double fy = 200.0 * (s0.glove.fingertip[1][1] + 0.01 - s2.glove.fingertip[1][1]);
+  const double fx = 200.0 * static_cast<double>(s0.glove.fingertip[1][0] - s2.glove.fingertip[1][0]);
+  const double fy = 200.0 * static_cast<double>(s0.glove.fingertip[1][1] + 0.01f - s2.glove.fingertip[1][1]);
   const auto n = phalanx::glove::padNormal<double>(s2.glove.fingertip[1][2]);
   EXPECT_NEAR(cmd.setpoint[1], fx * n[0] + fy * n[1], 2e-4);
   // Past the deadline: force off (safe), cause client-timeout.
