@@ -27,7 +27,10 @@ print("  daemon: cycles commanded %s, held cycles without a fresh command (misse
       % (c.get("cycles_commanded"), c.get("cycles_without_fresh_command"), c.get("fallback_cycles"), c.get("force_offs")))
 PY
 }
-echo "== C++ callback client, ${cpp_s} s"
-run cpp "$cpp_s" "$build/bin/phalanx_client_latency"
+# The C++ client at SCHED_FIFO 70 (below the daemon's loop) when allowed: the documented real-time set-up.
+rt=()
+if [ "$(id -u)" -eq 0 ] && command -v chrt > /dev/null; then rt=(chrt -f 70); fi
+echo "== C++ callback client, ${cpp_s} s ${rt[*]}"
+run cpp "$cpp_s" "${rt[@]}" "$build/bin/phalanx_client_latency"
 echo "== Python client, ${py_s} s"
 run py "$py_s" env PYTHONPATH="$root/python" python3 "$root/tools/client_latency.py"

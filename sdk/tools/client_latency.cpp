@@ -5,7 +5,7 @@
 //  - built-in: the same daemon cycle's wake-up minus the arrival of the telemetry it computed from (what the
 //    built-in controller's command waits on the same clock), over the same run.
 // Both exclude the few µs from the wake-up to the send, equal for both.
-//   phalanx_client_latency SOCKET SECONDS
+//   phalanx_client_latency SOCKET SECONDS [DEADLINE_MS=250]
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -28,13 +28,14 @@ void print(const char* what, std::vector<double>& v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 3) {
-    std::fprintf(stderr, "usage: phalanx_client_latency SOCKET SECONDS\n");
+  if (argc != 3 && argc != 4) {
+    std::fprintf(stderr, "usage: phalanx_client_latency SOCKET SECONDS [DEADLINE_MS=250]\n");
     return 2;
   }
   const double seconds = std::atof(argv[2]);
   try {
-    phalanx::Client client({argv[1], 20, phalanx::Fallback::kSafe});
+    const unsigned deadline_ms = argc == 4 ? static_cast<unsigned>(std::atoi(argv[3])) : 250u;
+    phalanx::Client client({argv[1], deadline_ms, phalanx::Fallback::kSafe});
     const unsigned rate = client.device().rate_hz;
     const size_t n = static_cast<size_t>(seconds * rate) + 16;
     std::vector<uint64_t> rx_of_seq(n + 2, 0);  // preallocated: command k (seq k) was computed from this arrival

@@ -105,9 +105,17 @@ std::vector<std::string> python(std::vector<std::string> args) {
   return argv;
 }
 
+/// Writes a Python script, dedented by the first line's indentation (the scripts are indented in this source).
 std::string writeScript(const std::string& name, const std::string& text) {
   const std::string path = tmpPath(name);
-  std::ofstream(path) << text;
+  std::stringstream in(text);
+  std::ofstream out(path);
+  std::string line;
+  size_t indent = std::string::npos;
+  while (std::getline(in, line)) {
+    if (indent == std::string::npos && line.find_first_not_of(' ') != std::string::npos) indent = line.find_first_not_of(' ');
+    out << (indent != std::string::npos && line.size() >= indent ? line.substr(indent) : line) << "\n";
+  }
   return path;
 }
 
@@ -265,23 +273,24 @@ TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
   });
 }
 
-// A slow Python client (5 ms asleep every 100 cycles) on a moving hand: the daemon renders the example's fallback
+// A slow Python client (5 ms asleep every 100 cycles), the hand holding the pen (it still moves under the field): the daemon renders the example's fallback
 // spring in the cycles it misses (counted; never forced off), and the force sent never steps by more than
 //   B = (k_plane + k_magnet + k_fallback) · D + 0.02 N
 // between consecutive cycles, D being the largest centre displacement over any 12 cycles of the run (a missed
 // stretch is ≤ 5 ms + the client's own jitter): the fallback is k_fallback (target − c) with target chosen so that
 // it equals the client's last force at the client's pose, so it moves only with the pen; the next fresh command is
 // the field at a pose at most those cycles later. Without the spring (force off in a missed cycle) the step would
-// be the whole force, > 1 N here (checked: B is below half the mean force).
+// be the whole force, > 1 N here (checked: B is below half the mean force). The magnet's radius is 1 m here, so
+// that the field itself is continuous (at a finite radius it steps by k_magnet · radius).
 TEST(ClientModel, ASlowPythonClientGetsItsFallbackNotAForceStep) {
   if (!havePython()) GTEST_SKIP() << "no Python bindings built (pybind11-dev, python3-numpy: tools/setup.sh)";
   withoutDeviceFault([&](int attempt) {
     const std::string n = std::to_string(attempt);
     const std::string sock = tmpPath("slow" + n + ".sock"), csv = tmpPath("slow" + n + ".csv"), log = tmpPath("slow" + n + ".log");
-    auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "random");
+    auto daemon = startDaemon("sim:pantograph", sock, csv, "6", "still");
     const double k_plane = 400, k_magnet = 150, k_fallback = 400;
-    Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
-                          "--damping", "0", "--radius-mm", "60", "--slow-every", "100", "--slow-ms", "5", "--log", log}));
+    Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "4",
+                          "--damping", "0", "--radius-mm", "1000", "--slow-every", "100", "--slow-ms", "5", "--log", log}));
     const int rc = field.wait(30000);
     const nlohmann::json j = finish(*daemon);
     if (deviceFaulted(j)) return false;
@@ -309,7 +318,7 @@ TEST(ClientModel, ASlowPythonClientGetsItsFallbackNotAForceStep) {
       mean_force += dist(sent[i], {0, 0, 0});
       ++steps;
     }
-    EXPECT_GT(steps, 1000u);
+    EXPECT_GT(steps, 500u);
     mean_force /= static_cast<double>(std::max<size_t>(steps, 1));
     const double B = (k_plane + k_magnet + k_fallback) * D + 0.02;
     std::printf("slow client: fallback cycles %d, worst step %.3f N, bound %.3f N (D = %.3f mm), mean force %.2f N\n",
@@ -413,8 +422,12 @@ TEST(ClientModel, ModbusAndAClientLockEachOtherOut) {
   const std::string hold = writeScript("hold.py", R"(
 import json, sys, time, phalanx
 c = phalanx.Client(sys.argv[1], deadline_ms=250)
-end = time.monotonic() + float(sys.argv[2])
 s = None
+while s is None:  # the daemon's loop starts after the device's handshake
+    s = c.wait_state(1000)
+c.set_fingertip_forces([(0.0, 0.3)] * 5)
+print("holding", flush=True)
+end = time.monotonic() + float(sys.argv[2])
 while time.monotonic() < end:
     s = c.wait_state(200) or s
     c.set_fingertip_forces([(0.0, 0.3)] * 5)
@@ -423,7 +436,8 @@ c.release()
 )");
   {
     Process holder(python({hold, sock, "1.5"}));
-    std::this_thread::sleep_for(std::chrono::milliseconds(600));
+    EXPECT_EQ(holder.readStdoutLine(30000), "holding");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
     const std::string r = mbpoll({"-t", "4", "-r", "0", "127.0.0.1", "1", "2"});  // Modbus control, setpoint mode
     EXPECT_NE(r.find("Written 2 references"), std::string::npos) << r;
     ASSERT_EQ(holder.wait(20000), 0) << holder.stderrText();
@@ -468,6 +482,7 @@ TEST(ClientModel, APeerWithoutPermissionIsRefused) {
         phalanx::Client c({sock, 250, phalanx::Fallback::kSafe});
         _exit(0);
       } catch (const phalanx::Error& e) {
+        std::fprintf(stderr, "child (gid %u): %s\n", static_cast<unsigned>(primary), e.what());
         _exit(std::string(e.what()).find("closed the connection") != std::string::npos ? 1 : 11);
       }
     }

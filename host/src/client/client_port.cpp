@@ -157,7 +157,8 @@ void ClientPort::clientCommand(protocol::Command& cmd) {
     }
   } else {
     float scale = 1.0f;
-    noteConversion(model_->convert(command_.kind, command_.model, cmd, scale), scale);
+    const ConvertStatus st = model_->convert(command_.kind, command_.model, cmd, scale);
+    noteConversion(st, scale);
   }
   for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
 }
@@ -166,7 +167,8 @@ void ClientPort::springFallback(protocol::Command& cmd) {
   cmd.mode = protocol::Mode::kSetpoint;
   for (auto& g : cmd.gain_scale_permille) g = kNominalGainPermille;
   float scale = 1.0f;
-  noteConversion(model_->renderSpring(command_.fallback, cmd, scale), scale);
+  const ConvertStatus st = model_->renderSpring(command_.fallback, cmd, scale);
+  noteConversion(st, scale);
   for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
   rendered_ = client_wire::Rendered::kFallbackSpring;
   ++fallback_cycles_;
