@@ -199,6 +199,8 @@ void ClientPort::forceOff(ForceOffCause cause, uint64_t now_ns) {
 }
 
 void ClientPort::publish(const TelemetryFrame& tel, const protocol::Command& sent, uint64_t now_ns, uint64_t cycle) {
+  // A client that connects while Modbus (or the stop) commands is attached here: it reads states and is refused.
+  if (!offered_this_cycle_) followAttachment();
   if (!offered_this_cycle_ && phase_ != Phase::kIdle) {
     // The cycle's command came from an earlier source: Modbus (this client is refused) or the stop.
     const bool modbus = modbus_ != nullptr && modbus_->commanding();
