@@ -33,6 +33,7 @@ PACKAGES=(
   debootstrap lintian help2man libcap2-bin
   cyclonedds-dev cyclonedds-tools iproute2
   nanopb libnanopb-dev
+  pybind11-dev python3-dev python3-numpy
 )
 fi
 # Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.
@@ -42,6 +43,24 @@ PIP_PACKAGES=(
 
 if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi
 PACKAGES=($(printf '%s\n' "${PACKAGES[@]}" | sort -u))
+
+# `import phalanx` for a plain python3 (docs/sdk.md "Python"): a .pth file in each python3's site directory that
+# puts this tree's python/ on the path; the build puts the extension module (_phalanx*.so) into python/phalanx/.
+# Skipped when only extra packages were asked for, or when the site directory is not writable.
+link_python_package() {
+  [ $# -gt 0 ] && return 0
+  local repo py site
+  repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+  for py in $(command -v python3) /usr/bin/python3; do
+    [ -x "$py" ] || continue
+    site="$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])' 2>/dev/null)" || continue
+    mkdir -p "$site" 2>/dev/null || true
+    if [ -w "$site" ]; then
+      echo "$repo/python" > "$site/phalanx-tree.pth"
+      echo "setup: $py imports phalanx from $repo/python ($site/phalanx-tree.pth)"
+    fi
+  done
+}
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -73,3 +92,4 @@ if [ "$set_name" = test ]; then
     python3 -m pip install --break-system-packages -q "${pip_missing[@]}"
   fi
 fi
+link_python_package "$@"

@@ -491,6 +491,18 @@ class SessionRunner {
     return 0;
   }
 
+  /// The client channel's device models use the session's geometry files (validated before the device opened).
+  client::ModelGeometry clientModelGeometry() const {
+    client::ModelGeometry g;
+    static const char* const kFingers[5] = {"thumb", "index", "middle", "ring", "little"};
+    for (size_t f = 0; f < 5; ++f) {
+      const auto it = opt_.glove_geometry.find(kFingers[f]);
+      if (it != opt_.glove_geometry.end()) design::loadGloveGeometryYaml(it->second, g.glove[f]);
+    }
+    if (!opt_.pen_geometry.empty()) design::loadPenGeometryYaml(opt_.pen_geometry, g.pen);
+    return g;
+  }
+
   /// Optional local client channel (docs/sdk.md): its socket thread; the loop only copies through shared memory.
   int startClientChannel() {
     if (opt_.client.socket_path.empty()) return 0;
@@ -499,7 +511,8 @@ class SessionRunner {
     client_server_ = std::make_unique<client::Server>(opt_.client, id);
     if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
     std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
-    client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get());
+    client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get(),
+                                                        clientModelGeometry());
     return 0;
   }
 

@@ -105,6 +105,62 @@ int phalanx_run_servo(phalanx_client* c, phalanx_servo_fn fn, void* user, phalan
   return rc;
 }
 
+namespace {
+phalanx::Command fromC(const phalanx_command& c) {
+  phalanx::Command cmd;
+  cmd.mode = static_cast<phalanx::Mode>(c.mode);
+  cmd.kind = static_cast<phalanx::CommandKind>(c.kind);
+  for (size_t i = 0; i < cmd.setpoint.size(); ++i) cmd.setpoint[i] = c.setpoint[i];
+  for (size_t i = 0; i < cmd.model.size(); ++i) cmd.model[i] = c.model[i];
+  cmd.fallback = c.fallback;
+  return cmd;
+}
+void toC(const phalanx::Command& cmd, phalanx_command& c) {
+  c.mode = static_cast<int>(cmd.mode);
+  c.kind = static_cast<int>(cmd.kind);
+  for (size_t i = 0; i < cmd.setpoint.size(); ++i) c.setpoint[i] = cmd.setpoint[i];
+  for (size_t i = 0; i < cmd.model.size(); ++i) c.model[i] = cmd.model[i];
+  c.fallback = cmd.fallback;
+}
+}  // namespace
+
+int phalanx_set_command(phalanx_client* c, const phalanx_command* cmd) {
+  if (c == nullptr || cmd == nullptr) return failed(PHALANX_EARG, "phalanx_set_command: NULL argument");
+  // The daemon validates everything (kind for the device, finite values, k and b >= 0) and counts refusals.
+  c->client.set(fromC(*cmd));
+  return PHALANX_OK;
+}
+
+int phalanx_sea_set_finger_torques(phalanx_client* c, const double tau_Nm[2], const phalanx_fallback_spring* fallback) {
+  if (c == nullptr || tau_Nm == nullptr) return failed(PHALANX_EARG, "phalanx_sea_set_finger_torques: NULL argument");
+  return c->client.setFingerTorques(tau_Nm[0], tau_Nm[1], fallback) ? PHALANX_OK
+                                                                     : failed(PHALANX_EARG, "not a sea_finger device");
+}
+
+int phalanx_pen_set_wrench(phalanx_client* c, const double force_N[3], const double torque_Nm[3],
+                           const phalanx_fallback_spring* fallback) {
+  if (c == nullptr || force_N == nullptr) return failed(PHALANX_EARG, "phalanx_pen_set_wrench: NULL argument");
+  std::array<double, 3> f{force_N[0], force_N[1], force_N[2]}, t{};
+  if (torque_Nm != nullptr) t = {torque_Nm[0], torque_Nm[1], torque_Nm[2]};
+  return c->client.setPenWrench(f, t, fallback) ? PHALANX_OK : failed(PHALANX_EARG, "not a pantograph device");
+}
+
+int phalanx_run_servo_command(phalanx_client* c, phalanx_servo_command_fn fn, void* user, phalanx_state* last) {
+  if (c == nullptr || fn == nullptr) return failed(PHALANX_EARG, "phalanx_run_servo_command: NULL argument");
+  phalanx_command cc{};
+  cc.mode = PHALANX_MODE_SETPOINT;
+  const int rc = c->client.runServo(
+      [&](const phalanx::State& s, phalanx::Command& cmd) {
+        const bool go = fn(&s, &cc, user) == 0;
+        cmd = fromC(cc);
+        return go;
+      },
+      last);
+  (void)toC;
+  if (rc == PHALANX_EFORCED_OFF) return failed(rc, "the daemon forced this client off");
+  return rc;
+}
+
 const char* phalanx_force_off_cause_name(int cause) {
   if (cause < 0 || cause > PHALANX_CAUSE_DAEMON_STOP) return "unknown";
   return phalanx::client_wire::forceOffCauseName(static_cast<phalanx::client_wire::ForceOffCause>(cause));

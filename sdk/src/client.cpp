@@ -19,8 +19,10 @@
 namespace phalanx {
 namespace wire = client_wire;
 
-static_assert(PHALANX_MAX_SAMPLES == wire::kMaxSamples && PHALANX_MAX_SETPOINTS == wire::kMaxSetpoints,
+static_assert(PHALANX_MAX_SAMPLES == wire::kMaxSamples && PHALANX_MAX_SETPOINTS == wire::kMaxSetpoints &&
+                  PHALANX_MAX_MODEL_VALUES == wire::kMaxModelValues,
               "C ABI and wire sizes");
+static_assert(sizeof(phalanx_spring) == sizeof(wire::SpringElement), "spring layout");
 
 namespace {
 
@@ -107,6 +109,30 @@ struct Client::Impl {
     s.achieved_rate_hz = p.achieved_rate_hz;
     std::memcpy(s.sample, p.sample, sizeof s.sample);
     std::memcpy(s.setpoint_sent, p.setpoint_sent, sizeof s.setpoint_sent);
+    s.model_saturated = p.model_saturated;
+    s.fallback_cycles = p.fallback_cycles;
+    s.rendered = p.rendered;
+    s.model_scale = p.model_scale;
+    std::memcpy(s.glove.joint_rad, p.glove.joint_rad, sizeof s.glove.joint_rad);
+    std::memcpy(s.glove.fingertip, p.glove.fingertip, sizeof s.glove.fingertip);
+    std::memcpy(s.glove.fingertip_velocity, p.glove.fingertip_velocity, sizeof s.glove.fingertip_velocity);
+    std::memcpy(s.glove.pad_force_N, p.glove.pad_force_N, sizeof s.glove.pad_force_N);
+    std::memcpy(s.glove.valid, p.glove.valid, sizeof s.glove.valid);
+    std::memcpy(s.sea.flexion_rad, p.sea.flexion_rad, sizeof s.sea.flexion_rad);
+    std::memcpy(s.sea.flexion_rate_rad_s, p.sea.flexion_rate_rad_s, sizeof s.sea.flexion_rate_rad_s);
+    std::memcpy(s.sea.finger_torque_Nm, p.sea.finger_torque_Nm, sizeof s.sea.finger_torque_Nm);
+    std::memcpy(s.sea.exo_torque_Nm, p.sea.exo_torque_Nm, sizeof s.sea.exo_torque_Nm);
+    s.sea.valid = p.sea.valid;
+    std::memcpy(s.pen.centre_m, p.pen.centre_m, sizeof s.pen.centre_m);
+    std::memcpy(s.pen.axis, p.pen.axis, sizeof s.pen.axis);
+    std::memcpy(s.pen.tip_m, p.pen.tip_m, sizeof s.pen.tip_m);
+    s.pen.theta_x_rad = p.pen.theta_x_rad;
+    s.pen.theta_z_rad = p.pen.theta_z_rad;
+    std::memcpy(s.pen.velocity_m_s, p.pen.velocity_m_s, sizeof s.pen.velocity_m_s);
+    std::memcpy(s.pen.force_N, p.pen.force_N, sizeof s.pen.force_N);
+    std::memcpy(s.pen.torque_Nm, p.pen.torque_Nm, sizeof s.pen.torque_Nm);
+    s.pen.valid = p.pen.valid;
+    s.command_seq_used = p.command_seq_used;
   }
 
   void write(const Command& cmd) {
@@ -116,6 +142,10 @@ struct Client::Impl {
     p.for_telemetry_seq = last_telemetry_seq;
     p.mode = static_cast<uint8_t>(cmd.mode);
     for (size_t i = 0; i < wire::kMaxSetpoints; ++i) p.setpoint[i] = cmd.setpoint[i];
+    p.kind = static_cast<wire::CommandKind>(cmd.kind);
+    for (size_t i = 0; i < wire::kMaxModelValues; ++i) p.model[i] = cmd.model[i];
+    p.fallback.kind = cmd.fallback.enabled != 0 ? wire::FallbackKind::kSpring : wire::FallbackKind::kNone;
+    std::memcpy(p.fallback.element, cmd.fallback.element, sizeof p.fallback.element);
     wire::seqlockWrite(channel->command.seq, channel->command.payload, p);
   }
 };
@@ -212,6 +242,55 @@ bool Client::setFingertipForces(const std::array<double, PHALANX_GLOVE_FINGERS>&
   if (impl_->info.device_type != 1) return false;  // glove5 only
   Command cmd;
   for (size_t i = 0; i < force_N.size(); ++i) cmd.setpoint[i] = static_cast<float>(force_N[i]);
+  impl_->write(cmd);
+  return true;
+}
+
+void Command::fingerTorques(double mcp_Nm, double pip_Nm) {
+  kind = CommandKind::kSeaFingerTorque;
+  model = {};
+  model[0] = static_cast<float>(mcp_Nm);
+  model[1] = static_cast<float>(pip_Nm);
+}
+
+void Command::penWrench(const std::array<double, 3>& force_N, const std::array<double, 3>& torque_Nm) {
+  kind = CommandKind::kPenWrench;
+  model = {};
+  for (size_t i = 0; i < 3; ++i) {
+    model[i] = static_cast<float>(force_N[i]);
+    model[3 + i] = static_cast<float>(torque_Nm[i]);
+  }
+}
+
+void Command::fingertipForces(const std::array<std::array<double, 2>, PHALANX_GLOVE_FINGERS>& force_N) {
+  kind = CommandKind::kGloveFingertipForce;
+  model = {};
+  for (size_t f = 0; f < force_N.size(); ++f) {
+    model[2 * f] = static_cast<float>(force_N[f][0]);
+    model[2 * f + 1] = static_cast<float>(force_N[f][1]);
+  }
+}
+
+bool Client::set(const Command& cmd) {
+  impl_->write(cmd);
+  return true;
+}
+
+bool Client::setFingerTorques(double mcp_Nm, double pip_Nm, const FallbackSpring* fallback) {
+  if (impl_->info.device_type != 2) return false;  // sea_finger only
+  Command cmd;
+  cmd.fingerTorques(mcp_Nm, pip_Nm);
+  if (fallback != nullptr) cmd.fallback = *fallback;
+  impl_->write(cmd);
+  return true;
+}
+
+bool Client::setPenWrench(const std::array<double, 3>& force_N, const std::array<double, 3>& torque_Nm,
+                          const FallbackSpring* fallback) {
+  if (impl_->info.device_type != 3) return false;  // pantograph only
+  Command cmd;
+  cmd.penWrench(force_N, torque_Nm);
+  if (fallback != nullptr) cmd.fallback = *fallback;
   impl_->write(cmd);
   return true;
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "phalanx/host/client/client_port.h"
+#include "phalanx/host/client/device_model.h"
 #include "phalanx/host/modbus/server.h"
 
 namespace phalanx::host::client {
@@ -23,15 +24,27 @@ constexpr uint16_t kNominalGainPermille = 1000;
 
 }  // namespace
 
-ClientPort::ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus)
-    : server_(server), layout_(layout), modbus_(modbus), period_ns_(1000000000ull / rate_hz) {}
+ClientPort::ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus,
+                       const ModelGeometry& geometry)
+    : server_(server), layout_(layout), modbus_(modbus), period_ns_(1000000000ull / rate_hz),
+      model_(std::make_unique<DeviceModelStage>(layout, geometry)) {}
+
+ClientPort::~ClientPort() = default;
+
+void ClientPort::observeOnce(const TelemetryFrame& tel) {
+  if (observed_this_cycle_) return;
+  observed_this_cycle_ = true;
+  model_->observe(tel);  // the device-model stage: the state a client reads, the pose a model command needs
+}
 
 bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& cmd, uint64_t now_ns) {
-  (void)tel;
   offered_this_cycle_ = true;
   commanded_this_cycle_ = false;
   invalid_this_cycle_ = false;
+  rendered_ = client_wire::Rendered::kNothing;
+  model_scale_ = 1.0f;
   followAttachment();
+  if (phase_ != Phase::kIdle) observeOnce(tel);
   if (phase_ == Phase::kIdle) return false;
   if (phase_ == Phase::kForcedOff) {
     fallbackCommand(cmd);
@@ -56,7 +69,13 @@ bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& c
     fallbackCommand(cmd);
     return true;
   }
-  clientCommand(cmd);
+  if (!fresh) ++cycles_without_fresh_;
+  if (!fresh && command_.fallback.kind == client_wire::FallbackKind::kSpring) {
+    springFallback(cmd);  // a missed cycle: the client's spring-damper at this cycle's state, not a stale force
+  } else {
+    clientCommand(cmd);
+    rendered_ = fresh ? client_wire::Rendered::kCommand : client_wire::Rendered::kRepeat;
+  }
   commanded_this_cycle_ = true;
   ++cycles_commanded_;
   return true;
@@ -116,17 +135,51 @@ bool ClientPort::readFreshCommand(uint64_t now_ns) {
 
 bool ClientPort::commandIsValid() const {
   if (command_.mode >= protocol::kModeCount) return false;
+  if (!DeviceModelStage::finite(command_)) return false;
+  const auto k = command_.kind;
+  const auto t = layout_.type;
+  if (k == client_wire::CommandKind::kGloveFingertipForce && t != protocol::DeviceType::kGlove5) return false;
+  if (k == client_wire::CommandKind::kSeaFingerTorque && t != protocol::DeviceType::kSeaFinger) return false;
+  if (k == client_wire::CommandKind::kPenWrench && t != protocol::DeviceType::kPantograph) return false;
+  if (command_.kind != client_wire::CommandKind::kRaw) return true;
   for (uint8_t i = 0; i < layout_.setpoint_count; ++i) {
     if (!std::isfinite(command_.setpoint[i])) return false;
   }
   return true;
 }
 
-void ClientPort::clientCommand(protocol::Command& cmd) const {
+void ClientPort::clientCommand(protocol::Command& cmd) {
   cmd.mode = static_cast<protocol::Mode>(command_.mode);
-  for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) {
-    cmd.setpoint[i] = i < layout_.setpoint_count ? command_.setpoint[i] : 0.0f;
-    cmd.gain_scale_permille[i] = kNominalGainPermille;
+  for (auto& g : cmd.gain_scale_permille) g = kNominalGainPermille;
+  if (command_.kind == client_wire::CommandKind::kRaw) {
+    for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) {
+      cmd.setpoint[i] = i < layout_.setpoint_count ? command_.setpoint[i] : 0.0f;
+    }
+  } else {
+    float scale = 1.0f;
+    const ConvertStatus st = model_->convert(command_.kind, command_.model, cmd, scale);
+    noteConversion(st, scale);
+  }
+  for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
+}
+
+void ClientPort::springFallback(protocol::Command& cmd) {
+  cmd.mode = protocol::Mode::kSetpoint;
+  for (auto& g : cmd.gain_scale_permille) g = kNominalGainPermille;
+  float scale = 1.0f;
+  const ConvertStatus st = model_->renderSpring(command_.fallback, cmd, scale);
+  noteConversion(st, scale);
+  for (size_t i = 0; i < protocol::kMaxSetpoints; ++i) intended_[i] = cmd.setpoint[i];
+  rendered_ = client_wire::Rendered::kFallbackSpring;
+  ++fallback_cycles_;
+  ++state_.fallback_cycles;
+}
+
+void ClientPort::noteConversion(ConvertStatus st, float scale) {
+  model_scale_ = scale;
+  if (st == ConvertStatus::kSaturated) {
+    ++model_saturated_;
+    ++state_.model_saturated;
   }
 }
 
@@ -146,6 +199,8 @@ void ClientPort::forceOff(ForceOffCause cause, uint64_t now_ns) {
 }
 
 void ClientPort::publish(const TelemetryFrame& tel, const protocol::Command& sent, uint64_t now_ns, uint64_t cycle) {
+  // A client that connects while Modbus (or the stop) commands is attached here: it reads states and is refused.
+  if (!offered_this_cycle_) followAttachment();
   if (!offered_this_cycle_ && phase_ != Phase::kIdle) {
     // The cycle's command came from an earlier source: Modbus (this client is refused) or the stop.
     const bool modbus = modbus_ != nullptr && modbus_->commanding();
@@ -168,7 +223,12 @@ void ClientPort::publish(const TelemetryFrame& tel, const protocol::Command& sen
   }
   offered_this_cycle_ = false;
   updateRate(now_ns);
+  if (phase_ != Phase::kIdle) observeOnce(tel);
+  observed_this_cycle_ = false;
   if (generation_ == 0) return;
+  model_->fill(state_);
+  state_.rendered = static_cast<uint8_t>(commanded_this_cycle_ ? rendered_ : client_wire::Rendered::kNothing);
+  state_.model_scale = model_scale_;
   state_.cycle = cycle;
   state_.daemon_time_ns = now_ns;
   state_.telemetry_rx_ns = tel.host_rx_ns;
@@ -193,7 +253,7 @@ void ClientPort::noteSentCommand(const protocol::Command& sent, uint64_t now_ns)
     return;
   }
   for (uint8_t i = 0; i < layout_.setpoint_count; ++i) {
-    if (sent.setpoint[i] != command_.setpoint[i]) {
+    if (sent.setpoint[i] != intended_[i]) {
       ++limited_;
       ++state_.limited;
       return;
@@ -252,6 +312,9 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
           {"refused_other_source", refused_other_source_},
           {"modbus_refused_while_client_held", modbus_ != nullptr ? modbus_->refusedCycles() : 0},
           {"limited", limited_},
+          {"model_saturated", model_saturated_},
+          {"fallback_cycles", fallback_cycles_},
+          {"cycles_without_fresh_command", cycles_without_fresh_},
           {"force_offs", force_offs_},
           {"force_off_records", list}};
 }

@@ -33,10 +33,30 @@ class Error : public std::runtime_error {
 using DeviceInfo = phalanx_device_info;
 using State = phalanx_state;
 
-/// One command: raw per-channel setpoints in the device's SI units (glove: pad force N).
+enum class CommandKind : int {
+  kRaw = PHALANX_COMMAND_RAW,
+  kGloveFingertipForce = PHALANX_COMMAND_GLOVE_FINGERTIP_FORCE,
+  kSeaFingerTorque = PHALANX_COMMAND_SEA_FINGER_TORQUE,
+  kPenWrench = PHALANX_COMMAND_PEN_WRENCH,
+};
+using Spring = phalanx_spring;
+using FallbackSpring = phalanx_fallback_spring;
+
+/// One command: raw per-channel setpoints in the device's SI units (glove: pad force N), or a model-level
+/// command (kind, model[]), with the compliant fallback the daemon renders in cycles this client misses.
 struct Command {
   Mode mode = Mode::kSetpoint;
   std::array<float, PHALANX_MAX_SETPOINTS> setpoint{};
+  CommandKind kind = CommandKind::kRaw;
+  std::array<float, PHALANX_MAX_MODEL_VALUES> model{};
+  FallbackSpring fallback{};
+
+  /// sea_finger: finger joint torques MCP, PIP (N·m, + extends), converted through J_n by the daemon.
+  void fingerTorques(double mcp_Nm, double pip_Nm);
+  /// pantograph: wrench at the pen centre in the base frame.
+  void penWrench(const std::array<double, 3>& force_N, const std::array<double, 3>& torque_Nm = {});
+  /// glove5: force (x, y) on each fingertip in its base frame, N; the glove exerts its pad-normal part.
+  void fingertipForces(const std::array<std::array<double, 2>, PHALANX_GLOVE_FINGERS>& force_N);
 };
 
 struct ConnectOptions {
@@ -68,6 +88,12 @@ class Client {
   bool setCommand(const Command& cmd);
   /// glove5: fingertip pad forces in N, thumb..little (positive resists flexion).
   bool setFingertipForces(const std::array<double, PHALANX_GLOVE_FINGERS>& force_N);
+  /// Any command (raw or model-level, with its fallback).
+  bool set(const Command& cmd);
+  /// sea_finger / pantograph shorthands (fallback: none = the daemon repeats this command when a cycle is missed).
+  bool setFingerTorques(double mcp_Nm, double pip_Nm, const FallbackSpring* fallback = nullptr);
+  bool setPenWrench(const std::array<double, 3>& force_N, const std::array<double, 3>& torque_Nm,
+                    const FallbackSpring* fallback = nullptr);
   /// The rate at which the daemon received this client's commands, over the last second (Hz).
   double achievedRateHz();
   /// Servo loop: cb runs once per daemon cycle with the newest state and fills the command; return false to

@@ -9,12 +9,14 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/client/client_options.h"
+#include "phalanx/host/client/model_geometry.h"
 #include "phalanx/host/client/wire.h"
 #include "phalanx/host/session.h"
 #include "phalanx/protocol/devices.h"
@@ -24,6 +26,9 @@ class LoopPort;
 }
 
 namespace phalanx::host::client {
+
+class DeviceModelStage;
+enum class ConvertStatus : uint8_t;
 
 /// What the daemon tells a connecting client about itself.
 struct DeviceIdentity {
@@ -104,7 +109,10 @@ struct ForceOffRecord {
 class ClientPort {
  public:
   /// modbus: the session's Modbus port, or nullptr (exactly one of them commands; the other is refused).
-  ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus);
+  /// geometry: the device models' geometry (the daemon's geometry files, else the defaults).
+  ClientPort(Server& server, const protocol::DeviceLayout& layout, uint32_t rate_hz, modbus::LoopPort* modbus,
+             const ModelGeometry& geometry = {});
+  ~ClientPort();
 
   /// After the controller and Modbus: true when the client commands this cycle - its newest command (mode,
   /// setpoints, nominal gains), or its fallback state (safe or transparent) once force went off. The limits stage
@@ -126,7 +134,10 @@ class ClientPort {
   bool commandIsValid() const;
   void forceOff(client_wire::ForceOffCause cause, uint64_t now_ns);
   void fallbackCommand(protocol::Command& cmd) const;
-  void clientCommand(protocol::Command& cmd) const;
+  void clientCommand(protocol::Command& cmd);
+  void springFallback(protocol::Command& cmd);
+  void noteConversion(ConvertStatus st, float scale);
+  void observeOnce(const TelemetryFrame& tel);
   void holdControl(bool hold);
   void noteSentCommand(const protocol::Command& sent, uint64_t now_ns);
   void updateRate(uint64_t now_ns);
@@ -143,6 +154,13 @@ class ClientPort {
   uint64_t deadline_ns_ = 0;
   client_wire::Fallback fallback_ = client_wire::Fallback::kSafe;
   client_wire::CommandPayload command_{};
+  std::unique_ptr<DeviceModelStage> model_;  ///< allocated once, at construction
+  std::array<float, protocol::kMaxSetpoints> intended_{};  ///< the client's setpoints before the limits stage
+  bool observed_this_cycle_ = false;
+  client_wire::Rendered rendered_ = client_wire::Rendered::kNothing;
+  float model_scale_ = 1.0f;
+  uint64_t model_saturated_ = 0, fallback_cycles_ = 0;
+  uint64_t cycles_without_fresh_ = 0;  ///< held cycles without a fresh command (fallback or repeat): missed cycles
   uint32_t last_command_seq_ = 0;
   uint64_t last_fresh_ns_ = 0;
   bool commanded_this_cycle_ = false, offered_this_cycle_ = false, invalid_this_cycle_ = false;

@@ -21,7 +21,7 @@ namespace phalanx::client_wire {
 
 constexpr uint32_t kMagic = 0x50484c58u;  // "PHLX"
 /// Bumped on any change to the structs below; the daemon refuses another (ConnectStatus::kVersionMismatch).
-constexpr uint16_t kVersion = 1;
+constexpr uint16_t kVersion = 2;  // 2: model-level state and commands, the compliant fallback
 constexpr size_t kMaxSamples = 25;
 constexpr size_t kMaxSetpoints = 8;
 
@@ -106,6 +106,37 @@ struct Release {
 };
 static_assert(sizeof(Release) == 8, "Release layout");
 
+/// Model-level state, computed by the daemon each cycle from the telemetry through its own device models
+/// (host/src/client/device_model.cpp). Only the block of the connected device type is filled; `valid` is 0 when
+/// the model could not be evaluated this cycle (its fields are then 0).
+struct GloveModelState {
+  float joint_rad[5][3] = {};   ///< finger angles θ1..θ3 per finger, thumb..little (flexion negative, 000 eq 3–8)
+  float fingertip[5][3] = {};   ///< fingertip pose (x_m, y_m, phi_rad) in the finger's base frame {O}
+  float fingertip_velocity[5][2] = {};  ///< d(x, y)/dt, m/s (device clock, low-pass 30 Hz)
+  float pad_force_N[5] = {};    ///< measured pad force, + pushes towards extension (along padNormal(phi))
+  uint8_t valid[5] = {};
+  uint8_t reserved[3] = {};
+};
+struct SeaModelState {
+  float flexion_rad[3] = {};          ///< MCP, PIP, DIP flexion (+ flexes), 001 eq 3–5
+  float flexion_rate_rad_s[3] = {};   ///< low-pass 30 Hz
+  float finger_torque_Nm[2] = {};     ///< MCP, PIP finger joint torque τ̂_f = J_n^{-T} τ̂_j (001 eq 9), + extends
+  float exo_torque_Nm[2] = {};        ///< measured SEA (exoskeleton joint) torques τ̂_j
+  uint8_t valid = 0;
+  uint8_t reserved[3] = {};
+};
+struct PenModelState {
+  float centre_m[3] = {};         ///< pen centre in the base frame {B} (seeds/004)
+  float axis[3] = {};             ///< unit pen axis, tip → eraser
+  float tip_m[3] = {};            ///< bottom end (tip)
+  float theta_x_rad = 0.0f, theta_z_rad = 0.0f;  ///< the two controlled rotations (Table X)
+  float velocity_m_s[3] = {};     ///< centre velocity (device clock, low-pass 30 Hz)
+  float force_N[3] = {};          ///< measured wrench at the centre, from the measured motor torques (f = J⁻ᵀτ)
+  float torque_Nm[3] = {};
+  uint8_t valid = 0;
+  uint8_t reserved[3] = {};
+};
+
 /// Written by the daemon's loop once per cycle, after the command was sent (StateBlock::payload).
 struct StatePayload {
   uint32_t generation = 0;       ///< the connection this block is meant for
@@ -128,12 +159,53 @@ struct StatePayload {
   float achieved_rate_hz = 0.0f;       ///< fresh commands per second over the last second
   float sample[kMaxSamples] = {};      ///< telemetry samples (SI)
   float setpoint_sent[kMaxSetpoints] = {};  ///< what the daemon sent (after limits)
+  // version 2
+  uint32_t model_saturated = 0;        ///< cycles a model-level command was scaled by the device model's saturation
+  uint32_t fallback_cycles = 0;        ///< cycles the client's compliant fallback was rendered (no fresh command)
+  uint8_t rendered = 0;                ///< Rendered: what this cycle sent for this client
+  uint8_t reserved2[3] = {};
+  float model_scale = 1.0f;            ///< fraction of the model-level command delivered this cycle (1: exact)
+  GloveModelState glove{};
+  SeaModelState sea{};
+  PenModelState pen{};
 };
+
+/// What the daemon rendered for the client this cycle (state.rendered).
+enum class Rendered : uint8_t { kNothing = 0, kCommand = 1, kFallbackSpring = 2, kRepeat = 3 };
 
 struct StateBlock {
   std::atomic<uint32_t> seq{0};  ///< seqlock: odd while being written; also the futex word clients wait on
   uint32_t pad = 0;
   StatePayload payload;
+};
+
+/// What CommandPayload carries. Model-level commands are converted by the daemon's device model into the raw
+/// setpoints BEFORE the limits stage (device, then patient), like every other command.
+enum class CommandKind : uint8_t {
+  kRaw = 0,                 ///< setpoint[] as sent (the bench's per-channel access)
+  kGloveFingertipForce = 1, ///< model[2f], model[2f+1]: force (x, y) on fingertip f in {O}, N; the glove exerts
+                            ///< its pad-normal component F·padNormal(phi) as that finger's pad force
+  kSeaFingerTorque = 2,     ///< model[0..1]: finger joint torque MCP, PIP (N·m, + extends); τ_j = J_nᵀ τ_f
+                            ///< (001 eq 6/11), scaled down together when |τ_j| > 0.5 N·m
+  kPenWrench = 3,           ///< model[0..2] force (N), model[3..5] moment (N·m) at the pen centre in {B};
+                            ///< the redundant-actuator force split (seeds/004 Fig. 18) with its saturation
+  kCount = 4,
+};
+constexpr size_t kMaxModelValues = 10;
+
+/// A spring-damper the daemon renders while the client sends no fresh command (until the client's deadline;
+/// then force-off). kind kNone repeats the last command, as version 1 did.
+enum class FallbackKind : uint8_t { kNone = 0, kSpring = 1 };
+struct SpringElement {
+  float target[3] = {};   ///< glove: fingertip (x, y) in {O}, m; SEA: joint flexion [0] rad; pen: centre, m
+  float stiffness = 0.0f; ///< glove, pen: N/m; SEA: N·m/rad (≥ 0)
+  float damping = 0.0f;   ///< glove, pen: N·s/m; SEA: N·m·s/rad (≥ 0)
+};
+struct FallbackSpring {
+  FallbackKind kind = FallbackKind::kNone;
+  uint8_t reserved[3] = {};
+  SpringElement element[5] = {};  ///< glove: per finger (stiffness 0: that finger gets 0 N); SEA: [0] MCP,
+                                  ///< [1] PIP; pen: [0] (force only, no moment)
 };
 
 /// Written by the client; read by the daemon once per cycle (a torn or in-progress write is skipped).
@@ -142,8 +214,10 @@ struct CommandPayload {
   uint32_t command_seq = 0;      ///< incremented by the client per command; a new value is a fresh command
   uint16_t for_telemetry_seq = 0;///< the state's telemetry_seq this command was computed from
   uint8_t mode = 2;              ///< protocol::Mode: 1 transparent, 2 setpoint (0 safe releases force itself)
-  uint8_t reserved = 0;
-  float setpoint[kMaxSetpoints] = {};  ///< raw per-channel setpoints, SI (glove: pad force N)
+  CommandKind kind = CommandKind::kRaw;
+  float setpoint[kMaxSetpoints] = {};  ///< kRaw: per-channel setpoints, SI (glove: pad force N)
+  float model[kMaxModelValues] = {};   ///< model-level command, layout by `kind` (see CommandKind)
+  FallbackSpring fallback{};           ///< rendered by the daemon in cycles without a fresh command
 };
 
 struct CommandBlock {
