@@ -7,6 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 tools/setup.sh
+tools/setup-python.sh   # pinned PyPI packages the tests use (fhir.resources: the FHIR export's validator)
 
 echo "== host build =="
 cmake --preset host >/dev/null

@@ -63,7 +63,10 @@ class Daemon {
     std::ofstream(dir_ + "/p-ok.yaml") << kGloveProfile;
     std::vector<std::string> argv = {binPath("phalanxd"), "--api", socket_, "--records-dir", records_,
                                      "--profiles-dir", dir_, "--no-realtime", "--device", "sim:glove5",
-                                     "--scenario", "close-open"};
+                                     "--scenario", "close-open",
+                                     // causeCommandTimeout() stops the daemon for 300 ms: the telemetry timeout
+                                     // (default 500 ms) gets a wide margin on a loaded machine.
+                                     "--telemetry-timeout-ms", "3000"};
     argv.insert(argv.end(), extra.begin(), extra.end());
     proc_ = std::make_unique<Process>(argv);
     EXPECT_EQ(proc_->readStdoutLine(10000), "API " + socket_) << proc_->stderrText();
@@ -113,7 +116,7 @@ nlohmann::json waitFor(Daemon& d, Pred pred, int timeout_ms = 20000) {
 }
 
 /// A real fault, caused the way a busy computer causes it: phalanxd stopped (SIGSTOP) for 300 ms, far beyond the
-/// 20 ms command timeout and well inside the 500 ms telemetry timeout: firmware-sim, a separate process, latches
+/// 20 ms command timeout and well inside the daemon's 3 s telemetry timeout: firmware-sim, a separate process, latches
 /// command-timeout and goes safe. Returns the status that shows it.
 nlohmann::json causeCommandTimeout(Daemon& d) {
   d.process().signal(SIGSTOP);
