@@ -308,6 +308,8 @@ inline int waitForSessionStart(TherapyCli& t) {
     if (r.contains("session") && r["session"].contains("t_s")) return 0;
     if (!r.value("session_running", false)) {
       const nlohmann::json last = r.value("last_session", nlohmann::json::object());
+      // A short session (--seconds) may have run and ended already: that is a start.
+      if (last.value("exit_code", -1) == 0 && last.value("cycles", 0) > 0 && !last.contains("error")) return 0;
       std::string why = jstr(last, "error", "");
       if (why.empty()) why = last.contains("link_error") ? jstr(last, "link_error") : "it ended before its first cycle";
       std::fprintf(stderr, "phalanx: error: the session did not start: %s (exit code %s)\n", why.c_str(),

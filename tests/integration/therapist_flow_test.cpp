@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <chrono>
 #include <climits>
 #include <cstdio>
@@ -44,6 +45,21 @@ std::vector<std::string> linesOf(const std::string& text) {
   return out;
 }
 
+/// A number printed as negative zero: "-0", "-0.0", "-0.00" … not followed by another digit.
+bool hasNegativeZero(const std::string& text) {
+  for (std::size_t p = text.find("-0"); p != std::string::npos; p = text.find("-0", p + 1)) {
+    // A number starts a word ("p-ok-0a…" in a path is none).
+    if (p > 0 && std::string(" \t(=[,:/").find(text[p - 1]) == std::string::npos) continue;
+    std::size_t q = p + 2;
+    if (q < text.size() && text[q] == '.') {
+      ++q;
+      while (q < text.size() && text[q] == '0') ++q;
+    }
+    if (q >= text.size() || !std::isalnum(static_cast<unsigned char>(text[q]))) return true;
+  }
+  return false;
+}
+
 /// Position of `needle` in `text` (npos → INT_MAX so an order check on a missing word fails).
 long at(const std::string& text, const std::string& needle) {
   const auto p = text.find(needle);
@@ -64,9 +80,12 @@ class Daemon {
     std::vector<std::string> argv = {binPath("phalanxd"), "--api", socket_, "--records-dir", records_,
                                      "--profiles-dir", dir_, "--no-realtime", "--device", "sim:glove5",
                                      "--scenario", "close-open",
-                                     // causeCommandTimeout() stops the daemon for 300 ms: the telemetry timeout
+                                     // causeCommandTimeout() stops the daemon for 400 ms: the telemetry timeout
                                      // (default 500 ms) gets a wide margin on a loaded machine.
-                                     "--telemetry-timeout-ms", "3000"};
+                                     "--telemetry-timeout-ms", "3000",
+                                     // and a 100 ms command timeout: a loaded machine's stalls do not latch
+                                     // faults of their own before the one the test causes.
+                                     "--command-timeout-ms", "100"};
     argv.insert(argv.end(), extra.begin(), extra.end());
     proc_ = std::make_unique<Process>(argv);
     EXPECT_EQ(proc_->readStdoutLine(10000), "API " + socket_) << proc_->stderrText();
@@ -115,12 +134,12 @@ nlohmann::json waitFor(Daemon& d, Pred pred, int timeout_ms = 20000) {
   return s;
 }
 
-/// A real fault, caused the way a busy computer causes it: phalanxd stopped (SIGSTOP) for 300 ms, far beyond the
-/// 20 ms command timeout and well inside the daemon's 3 s telemetry timeout: firmware-sim, a separate process, latches
+/// A real fault, caused the way a busy computer causes it: phalanxd stopped (SIGSTOP) for 400 ms, beyond the
+/// 100 ms command timeout and well inside the daemon's 3 s telemetry timeout: firmware-sim, a separate process, latches
 /// command-timeout and goes safe. Returns the status that shows it.
 nlohmann::json causeCommandTimeout(Daemon& d) {
   d.process().signal(SIGSTOP);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
   d.process().signal(SIGCONT);
   return waitFor(d, [](const nlohmann::json& s) {
     return s.contains("session") && s["session"].value("faults", "none").find("command-timeout") != std::string::npos;
@@ -204,9 +223,7 @@ TEST(TherapistFlow, ClientOutputIsForPeopleInAnatomicalOrderAndJsonOnlyWithJson)
     EXPECT_EQ(out.find('{'), std::string::npos) << out;
     EXPECT_EQ(out.find("99999"), std::string::npos) << out;
     EXPECT_EQ(out.find("00000"), std::string::npos) << out;
-    EXPECT_EQ(out.find("-0 "), std::string::npos) << out;
-    EXPECT_EQ(out.find("-0\n"), std::string::npos) << out;
-    EXPECT_EQ(out.find("-0."), std::string::npos) << out;
+    EXPECT_FALSE(hasNegativeZero(out)) << out;
   };
   const std::string profile = d.cli({"profile", "p-ok"}, &rc).stdoutText();
   EXPECT_EQ(rc, 0);
@@ -277,6 +294,8 @@ TEST(TherapistFlow, TheLiveViewFitsEightyColumnsAndExplainsItself) {
         }
         shown += line[i];
       }
+      // Only the live view's own lines (the legend and the redrawn block), not the daemon's messages.
+      if (shown.rfind("phalanxd", 0) == 0 || shown.rfind("WARNING", 0) == 0 || shown.empty()) continue;
       std::size_t cols = 0;
       for (unsigned char c : shown) cols += (c & 0xC0) != 0x80 ? 1 : 0;  // UTF-8: count code points
       widest = std::max(widest, cols);
@@ -291,10 +310,10 @@ TEST(TherapistFlow, TheLiveViewFitsEightyColumnsAndExplainsItself) {
       EXPECT_NE(err.find("force = measured fingertip pad force"), std::string::npos);
       EXPECT_NE(err.find("  thumb "), std::string::npos);
       EXPECT_LT(at(err, "  thumb "), at(err, "  index "));
-      EXPECT_EQ(err.find("-0.00"), std::string::npos) << "no negative zero";
+      EXPECT_FALSE(hasNegativeZero(err)) << "no negative zero";
     } else {
       EXPECT_NE(err.find("finger torque = "), std::string::npos);
-      EXPECT_EQ(err.find("-0.000"), std::string::npos) << "no negative zero";
+      EXPECT_FALSE(hasNegativeZero(err)) << "no negative zero";
     }
   }
 }
@@ -337,7 +356,7 @@ TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
   std::ofstream(binPath("") + "/../therapist-flow-report.html") << html;  // a test artefact under build/
   const auto m0 = html.find("<script type='application/json' id='metrics'>");
   ASSERT_NE(m0, std::string::npos);
-  std::string mj = html.substr(m0 + 46, html.find("</script>", m0) - m0 - 46);
+  std::string mj = html.substr(m0 + 45, html.find("</script>", m0) - m0 - 45);
   for (auto [from, to] : {std::pair<std::string, std::string>{"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
     for (std::size_t p; (p = mj.find(from)) != std::string::npos;) mj.replace(p, from.size(), to);
   }
@@ -364,7 +383,8 @@ TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
   }
   EXPECT_EQ(marked, 15) << "every joint's change is marked better, worse or no change";
   // The therapist's requests in words, not JSON.
-  EXPECT_NE(html.find("exercise changed to resistance</td><td class='text'>stiffness_per_rad 1.5"), std::string::npos);
+  EXPECT_NE(html.find("exercise changed to resistance</td><td class='text'>"), std::string::npos);
+  EXPECT_NE(html.find("stiffness_per_rad 1.5"), std::string::npos);
   EXPECT_NE(html.find("effort limit lowered</td><td class='text'>index 1.5 N"), std::string::npos);
   EXPECT_NE(html.find("reset faults (ClearFaults sent)"), std::string::npos);
   EXPECT_GT(at(html, "{&quot;"), static_cast<long>(m0)) << "no raw JSON before the embedded metrics";
@@ -380,7 +400,7 @@ TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
   EXPECT_EQ(bundle["entry"][0]["resource"]["subject"]["reference"], "Patient/p-ok");
   EXPECT_EQ(bundle["entry"][0]["resource"]["bodySite"]["text"], "thumb CMC joint") << "anatomical order";
   std::ofstream(binPath("") + "/../therapist-flow.fhir.json") << bundle.dump(2);  // artefact
-  Process validate({"python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", fhir});
+  Process validate({"/usr/bin/env", "python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", fhir});
   const int vrc = validate.wait(60000);
   if (vrc == 2 && std::getenv("CI") == nullptr) {
     GTEST_SKIP() << "fhir.resources is not installed (tools/setup-python.sh installs it): " << validate.stderrText();
@@ -391,7 +411,7 @@ TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
   nlohmann::json broken = bundle;
   broken["entry"][1]["resource"].erase("status");
   std::ofstream(d.dir() + "/broken.json") << broken.dump();
-  Process refuse({"python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", d.dir() + "/broken.json"});
+  Process refuse({"/usr/bin/env", "python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", d.dir() + "/broken.json"});
   EXPECT_EQ(refuse.wait(60000), 1) << refuse.stdoutText();
   EXPECT_NE(refuse.stdoutText().find("status"), std::string::npos) << refuse.stdoutText();
 }

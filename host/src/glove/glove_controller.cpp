@@ -122,8 +122,9 @@ std::string GloveController::liveLine(const TelemetryFrame& tel) const {
   for (size_t f = 0; f < kNumFingers; ++f) {
     const auto force = static_cast<double>(tel.value[kForceSample0 + f]);
     std::snprintf(buf, sizeof buf, "  %-6s  a %4.0f %4.0f %4.0f deg   force %5.2f N   set %5.2f N  %s%s", kFingerNames[f],
-                  static_cast<double>(tel.value[3 * f]) * 57.29578, static_cast<double>(tel.value[3 * f + 1]) * 57.29578,
-                  static_cast<double>(tel.value[3 * f + 2]) * 57.29578, shown(force, 2),
+                  shown(static_cast<double>(tel.value[3 * f]) * 57.29578, 0),
+                  shown(static_cast<double>(tel.value[3 * f + 1]) * 57.29578, 0),
+                  shown(static_cast<double>(tel.value[3 * f + 2]) * 57.29578, 0), shown(force, 2),
                   shown(out_[f].force_setpoint_N, 2), out_[f].in_contact ? "contact" : "",
                   f + 1 < kNumFingers ? "\n" : "");
     lines += buf;

@@ -103,12 +103,16 @@ std::string SeaFingerController::liveLine(const TelemetryFrame&) const {
     const double r = std::round(v * 1000.0) / 1000.0;
     return r == 0.0 ? 0.0 : r;
   };
+  const auto z1 = [](double v) {  // the same at the angles' 1 decimal
+    const double r = std::round(v * 10.0) / 10.0;
+    return r == 0.0 ? 0.0 : r;
+  };
   char buf[200];
   std::snprintf(buf, sizeof buf,
                 "  finger angle (deg)    MCP %6.1f   PIP %6.1f   DIP %6.1f\n"
                 "  exo torque set (N m)  MCP %6.3f   PIP %6.3f\n"
                 "  finger torque (N m)   MCP %6.3f   PIP %6.3f",
-                d.theta4_rad * 57.29578, d.theta8_rad * 57.29578, d.theta_dip_rad * 57.29578, z(map_.tau_j_d_Nm[0]),
+                z1(d.theta4_rad * 57.29578), z1(d.theta8_rad * 57.29578), z1(d.theta_dip_rad * 57.29578), z(map_.tau_j_d_Nm[0]),
                 z(map_.tau_j_d_Nm[1]), z(map_.tau_f_hat_Nm[0]), z(map_.tau_f_hat_Nm[1]));
   return buf;
 }
