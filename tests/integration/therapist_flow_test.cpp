@@ -295,7 +295,10 @@ TEST(TherapistFlow, TheLiveViewFitsEightyColumnsAndExplainsItself) {
         shown += line[i];
       }
       // Only the live view's own lines (the legend and the redrawn block), not the daemon's messages.
-      if (shown.rfind("phalanxd", 0) == 0 || shown.rfind("WARNING", 0) == 0 || shown.empty()) continue;
+      if (shown.rfind("phalanxd", 0) == 0 || shown.rfind("firmware-sim", 0) == 0 || shown.rfind("WARNING", 0) == 0 ||
+          shown.empty()) {
+        continue;
+      }
       std::size_t cols = 0;
       for (unsigned char c : shown) cols += (c & 0xC0) != 0x80 ? 1 : 0;  // UTF-8: count code points
       widest = std::max(widest, cols);
