@@ -234,12 +234,12 @@ TEST(TherapistFlow, ClientOutputIsForPeopleInAnatomicalOrderAndJsonOnlyWithJson)
   EXPECT_LT(at(profile, "index_pip"), at(profile, "little_dip"));
   const std::string missing = d.cli({"profile", "nobody"}, &rc).stderrText();
   EXPECT_EQ(rc, 1);
-  EXPECT_NE(missing.find("no profile for patient 'nobody': " + d.dir() + "/nobody.yaml does not exist"),
+  EXPECT_NE(missing.find("no profile for patient 'nobody': cannot read " + d.dir() + "/nobody.yaml: it does not exist"),
             std::string::npos) << missing;
   EXPECT_NE(missing.find("profiles in " + d.dir() + ": p-ok"), std::string::npos) << missing;
   const std::string no_start = d.cli({"start", "--patient", "nobody"}, &rc).stderrText();
   EXPECT_EQ(rc, 1);
-  EXPECT_NE(no_start.find(d.dir() + "/nobody.yaml does not exist"), std::string::npos) << no_start;
+  EXPECT_NE(no_start.find(d.dir() + "/nobody.yaml: it does not exist"), std::string::npos) << no_start;
 
   Process& start = d.cli({"start", "--patient", "p-ok", "--seed", "4"}, &rc);
   ASSERT_EQ(rc, 0) << start.stderrText();

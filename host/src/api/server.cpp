@@ -256,7 +256,7 @@ class Daemon {
     if (::lstat(path.c_str(), &st) != 0 && errno == ENOENT) {
       std::string known;
       for (const auto& f : listDir(cfg_.profiles_dir, ".yaml")) known += (known.empty() ? "" : ", ") + f.substr(0, f.size() - 5);
-      throw RequestError{"no profile for patient '" + patient + "': " + path + " does not exist (profiles are " +
+      throw RequestError{"no profile for patient '" + patient + "': cannot read " + path + ": it does not exist (profiles are " +
                          "<profiles-dir>/<patient>.yaml; " +
                          (known.empty() ? "the profiles directory " + cfg_.profiles_dir + " has none"
                                         : "profiles in " + cfg_.profiles_dir + ": " + known) + ")"};
