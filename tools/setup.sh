@@ -39,6 +39,7 @@ fi
 # Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.
 PIP_PACKAGES=(
   cyclonedds==11.0.1
+  fhir.resources==8.1.0 fhir-core==1.1.12   # the FHIR export's validator (docs/fhir.md)
 )
 
 if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi

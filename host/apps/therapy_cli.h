@@ -3,7 +3,15 @@
 //   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
 //   phalanx record export FILE --csv [--out PATH] | record info FILE | record report FILE [--previous F] --out F
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <thread>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -14,12 +22,14 @@
 #include "phalanx/host/api/client.h"
 #include "phalanx/host/api/server.h"
 #include "phalanx/host/record/record_reader.h"
+#include "phalanx/host/therapy/fhir.h"
+#include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/report.h"
 
 namespace phalanx::host::cli {
 
 struct TherapyCli {
-  std::string socket = api::defaultSocketPath();
+  std::string socket;  ///< --socket; else $PHALANX_SOCKET, the client config's `socket`, the default (resolveSocket)
   long daemon_uid = -1;  ///< a daemon account to trust besides root and the caller (socket_access.h)
   bool json = false;
   std::map<std::string, CLI::App*> cmds;
@@ -34,6 +44,7 @@ struct TherapyCli {
   CLI::App* rec_export = nullptr;
   CLI::App* rec_info = nullptr;
   CLI::App* rec_report = nullptr;
+  CLI::App* rec_fhir = nullptr;
   std::string rec_file, rec_out, rec_previous, rec_reference;
   bool csv = false;
 };
@@ -41,7 +52,10 @@ struct TherapyCli {
 inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   auto client = [&](const char* name, const char* help) {
     CLI::App* sc = app.add_subcommand(name, help);
-    sc->add_option("--socket", t.socket, "phalanxd's API socket");
+    sc->add_option("--socket", t.socket,
+                   "phalanxd's API socket (default: $PHALANX_SOCKET, else `socket:` in the client config "
+                   "$PHALANX_CLIENT_CONFIG or ~/.config/phalanx/client.yaml or /etc/phalanx/client.yaml, else " +
+                       api::defaultSocketPath() + ")");
     sc->add_option("--daemon-uid", t.daemon_uid,
                    "also trust a phalanxd running as this uid (default: only root or yourself)");
     sc->add_flag("--json", t.json, "print the daemon's JSON answer");
@@ -86,6 +100,28 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_report->add_option("--reference", t.rec_reference,
                            "device-free recording of the same motion (CSV t_s,<joint>_deg,...): transparency Pearson r")
       ->check(CLI::ExistingFile);
+  t.rec_fhir = t.record->add_subcommand("fhir", "export a record's results as a FHIR R4 Bundle of Observations (JSON)");
+  t.rec_fhir->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
+  t.rec_fhir->add_option("--out", t.rec_out, "output file (default: FILE with .fhir.json; never the record itself)");
+}
+
+using therapy::anatomicalKeys;
+using therapy::humanNumber;
+
+inline std::string jstr(const nlohmann::json& j, const char* key, const std::string& def = "–") {
+  return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : def;
+}
+inline std::string jnum(const nlohmann::json& j, const char* key, int digits = 2) {
+  return j.is_object() && j.contains(key) && j[key].is_number() ? humanNumber(j[key].get<double>(), digits) : "–";
+}
+
+/// The fault guidance (what happened, whether the patient is safe, what to do) of a status or summary.
+inline void printFaultGuidance(const nlohmann::json& guidance) {
+  if (!guidance.is_array()) return;
+  for (const auto& g : guidance) {
+    std::printf("FAULT %s\n  what happened: %s\n  patient safe:  %s\n  what to do:    %s\n", jstr(g, "fault").c_str(),
+                jstr(g, "what").c_str(), jstr(g, "safe").c_str(), jstr(g, "action").c_str());
+  }
 }
 
 inline void printSessionStatus(const nlohmann::json& s) {
@@ -93,18 +129,47 @@ inline void printSessionStatus(const nlohmann::json& s) {
   if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
   if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
   if (s.contains("t_s")) {
-    std::printf(", %.1f s, device %s, faults %s%s", s["t_s"].get<double>(), s["device_mode"].get<std::string>().c_str(),
-                s["faults"].get<std::string>().c_str(), s["estop"].get<bool>() ? ", E-STOP" : "");
+    std::printf(", %s s, device %s, faults %s%s", humanNumber(s["t_s"].get<double>(), 1).c_str(),
+                s["device_mode"].get<std::string>().c_str(), s["faults"].get<std::string>().c_str(),
+                s["estop"].get<bool>() ? ", E-STOP" : "");
   }
   std::printf("\n");
   if (s.contains("record_error")) std::printf("  RECORD FAILED: %s\n", s["record_error"].get<std::string>().c_str());
   if (s.contains("channels")) {
-    for (const auto& [name, c] : s["channels"].items()) {
-      auto f = [&](const char* k) { return c[k].is_number() ? c[k].get<double>() : 0.0; };
-      std::printf("  %-8s q %6.1f deg  effort %6.2f (cmd %6.2f, max %.2f) %s\n", name.c_str(), f("q_deg"),
-                  f("effort_measured"), f("effort_command"), f("effort_max"), s["effort_unit"].get<std::string>().c_str());
+    const std::string unit = jstr(s, "effort_unit", "");
+    std::printf("  %-8s %8s %8s %10s %10s %8s\n", "channel", "q (deg)", "target", ("effort " + unit).c_str(),
+                "commanded", "max");
+    for (const std::string& name : anatomicalKeys(s["channels"])) {
+      const auto& c = s["channels"][name];
+      std::printf("  %-8s %8s %8s %10s %10s %8s\n", name.c_str(), jnum(c, "q_deg", 1).c_str(),
+                  jnum(c, "target_deg", 1).c_str(), jnum(c, "effort_measured", 3).c_str(),
+                  jnum(c, "effort_command", 3).c_str(), jnum(c, "effort_max", 3).c_str());
     }
   }
+  printFaultGuidance(s.value("fault_guidance", nlohmann::json()));
+}
+
+/// `stop`'s end-of-session summary in a few lines (the whole JSON, loop statistics and all, with --json).
+inline void printEndSummary(const nlohmann::json& r) {
+  if (!r.is_object()) {
+    std::printf("no session summary\n");
+    return;
+  }
+  std::printf("session ended: %s s, %s cycles, faults seen: %s, device left %s\n", jnum(r, "seconds", 1).c_str(),
+              jnum(r, "cycles", 0).c_str(), jstr(r, "faults_seen", "none").c_str(), jstr(r, "final_mode").c_str());
+  if (r.contains("session_record") && r["session_record"].is_object()) {
+    const auto& rec = r["session_record"];
+    std::printf("record: %s (%s cycles written", jstr(rec, "path").c_str(), jnum(rec, "cycles_written", 0).c_str());
+    if (rec.value("cycles_lost", 0) > 0 || rec.value("cycles_dropped", 0) > 0) {
+      std::printf(", %s lost, %s dropped", jnum(rec, "cycles_lost", 0).c_str(), jnum(rec, "cycles_dropped", 0).c_str());
+    }
+    std::printf(")\n");
+  }
+  if (r.contains("report") && r["report"].is_object()) {
+    if (r["report"].contains("path")) std::printf("report: %s\n", jstr(r["report"], "path").c_str());
+    else std::printf("report: %s\n", jstr(r["report"], "error").c_str());
+  }
+  if (r.contains("error")) std::printf("the session ended with an error: %s\n", jstr(r, "error").c_str());
 }
 
 inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
@@ -116,7 +181,145 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
     }
     return;
   }
+  if (cmd == "start") {
+    std::printf("session started, exercise %s\nrecord: %s\nreport (written at stop): %s\n", jstr(r, "exercise").c_str(),
+                jstr(r, "record").c_str(), jstr(r, "report").c_str());
+    const std::string prev = jstr(r, "previous_record", "");
+    std::printf("previous session: %s\n", prev.empty() ? "none" : prev.c_str());
+    return;
+  }
+  if (cmd == "stop") return printEndSummary(r);
+  if (cmd == "exercise" || cmd == "mode") {
+    std::printf("exercise %s: taken by the session at its next cycle\n", jstr(r, "exercise").c_str());
+    return;
+  }
+  if (cmd == "reset") {
+    std::printf("reset sent: the device clears its faults unless their cause is still present (see phalanx status)\n");
+    return;
+  }
+  if (cmd == "limits") {
+    const std::string unit = jstr(r, "effort_unit", "");
+    std::printf("effort limit (%s)\n", unit.c_str());
+    for (const std::string& c : anatomicalKeys(r.value("effort_max", nlohmann::json::object()))) {
+      std::printf("  %-8s %s\n", c.c_str(), humanNumber(r["effort_max"][c].get<double>(), 3).c_str());
+    }
+    std::printf("allowed flexion range (deg)\n");
+    for (const std::string& j : anatomicalKeys(r.value("range_deg", nlohmann::json::object()))) {
+      const auto& v = r["range_deg"][j];
+      std::printf("  %-11s %6s … %s\n", j.c_str(), humanNumber(v[0].get<double>(), 1).c_str(),
+                  humanNumber(v[1].get<double>(), 1).c_str());
+    }
+    return;
+  }
+  if (cmd == "profile") {
+    std::printf("patient %s, device %s, size %s, %s hand\nfile: %s\n", jstr(r, "patient").c_str(),
+                jstr(r, "device").c_str(), jstr(r, "size").c_str(), jstr(r, "handedness").c_str(),
+                jstr(r, "file").c_str());
+    const nlohmann::json rom = r.value("rom_deg", nlohmann::json::object());
+    if (rom.empty()) std::printf("measured range of motion: none in the profile\n");
+    else std::printf("measured range of motion (deg)\n");
+    for (const std::string& j : anatomicalKeys(rom)) {
+      std::printf("  %-11s %6s … %s\n", j.c_str(), humanNumber(rom[j][0].get<double>(), 1).c_str(),
+                  humanNumber(rom[j][1].get<double>(), 1).c_str());
+    }
+    return;
+  }
+  if (cmd == "profiles") {
+    if (r.empty()) std::printf("no profiles\n");
+    for (const auto& p : r) {
+      if (p.value("valid", false)) {
+        std::printf("%-24s %s (%s)\n", jstr(p, "file").c_str(), jstr(p, "patient").c_str(), jstr(p, "device").c_str());
+      } else {
+        std::printf("%-24s INVALID: %s\n", jstr(p, "file").c_str(), jstr(p, "error").c_str());
+      }
+    }
+    return;
+  }
+  if (cmd == "recordings") {
+    if (r.empty()) std::printf("no records\n");
+    for (const auto& f : r) {
+      const std::string rep = jstr(f, "report", "");
+      std::printf("%s  %s bytes  report: %s\n", jstr(f, "file").c_str(), jnum(f, "bytes", 0).c_str(),
+                  rep.empty() ? "none" : rep.c_str());
+    }
+    return;
+  }
   std::cout << r.dump(2) << std::endl;
+}
+
+/// The client's socket: --socket, else $PHALANX_SOCKET, else `socket:` of the client config file
+/// ($PHALANX_CLIENT_CONFIG, else $XDG_CONFIG_HOME or ~/.config /phalanx/client.yaml, else
+/// /etc/phalanx/client.yaml; the first that exists), else the default. Returns an error for a bad config file.
+inline std::string resolveSocket(TherapyCli& t) {
+  if (!t.socket.empty()) return {};
+  if (const char* env = std::getenv("PHALANX_SOCKET"); env != nullptr && *env != 0) {
+    t.socket = env;
+    return {};
+  }
+  std::vector<std::string> candidates;
+  if (const char* c = std::getenv("PHALANX_CLIENT_CONFIG"); c != nullptr && *c != 0) {
+    candidates.push_back(c);
+  } else {
+    if (const char* x = std::getenv("XDG_CONFIG_HOME"); x != nullptr && *x != 0) {
+      candidates.push_back(std::string(x) + "/phalanx/client.yaml");
+    } else if (const char* h = std::getenv("HOME"); h != nullptr && *h != 0) {
+      candidates.push_back(std::string(h) + "/.config/phalanx/client.yaml");
+    }
+    candidates.push_back("/etc/phalanx/client.yaml");
+  }
+  for (const std::string& path : candidates) {
+    if (::access(path.c_str(), F_OK) != 0) {
+      if (std::getenv("PHALANX_CLIENT_CONFIG") != nullptr) return path + ": " + std::strerror(errno);
+      continue;
+    }
+    try {
+      const YAML::Node n = YAML::LoadFile(path);
+      if (!n.IsMap()) return path + ": expected a mapping with the key `socket`";
+      for (const auto& kv : n) {
+        const std::string k = kv.first.as<std::string>();
+        if (k == "socket") {
+          t.socket = kv.second.as<std::string>();
+        } else if (k == "daemon_uid") {
+          if (t.daemon_uid < 0) t.daemon_uid = kv.second.as<long>();
+        } else {
+          return path + ": " + k + ": unknown key (known: socket, daemon_uid)";
+        }
+      }
+      if (t.socket.empty()) return path + ": socket: missing or empty";
+      return {};
+    } catch (const std::exception& e) {
+      return path + ": " + e.what();
+    }
+  }
+  t.socket = api::defaultSocketPath();
+  return {};
+}
+
+/// After `start` answered: waits (bounded) until the session runs, or says why it ended; non-zero if it did not
+/// start. The daemon starts the device after answering, so a failure there would otherwise go unnoticed.
+inline int waitForSessionStart(TherapyCli& t) {
+  for (int i = 0; i < 200; ++i) {  // 20 s: device start-up (firmware-sim start, strain-gauge tare) takes ~1-3 s
+    nlohmann::json resp;
+    if (const std::string err = api::call(t.socket, {{"cmd", "status"}}, resp, 15000, t.daemon_uid); !err.empty()) {
+      std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+      return 3;
+    }
+    const nlohmann::json& r = resp["result"];
+    if (r.contains("session") && r["session"].contains("t_s")) return 0;
+    if (!r.value("session_running", false)) {
+      const nlohmann::json last = r.value("last_session", nlohmann::json::object());
+      // A short session (--seconds) may have run and ended already: that is a start.
+      if (last.value("exit_code", -1) == 0 && last.value("cycles", 0) > 0 && !last.contains("error")) return 0;
+      std::string why = jstr(last, "error", "");
+      if (why.empty()) why = last.contains("link_error") ? jstr(last, "link_error") : "it ended before its first cycle";
+      std::fprintf(stderr, "phalanx: error: the session did not start: %s (exit code %s)\n", why.c_str(),
+                   jnum(last, "exit_code", 0).c_str());
+      return 4;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::fprintf(stderr, "phalanx: error: the session has not started within 20 s (see phalanx status)\n");
+  return 4;
 }
 
 /// path with the extension of its file name (not of a directory's) replaced by ext.
@@ -144,6 +347,15 @@ inline int runTherapyCommands(TherapyCli& t) {
         return 1;
       }
       std::printf("report: %s\n", out.c_str());
+      return 0;
+    }
+    if (t.rec_fhir->parsed()) {
+      const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".fhir.json") : t.rec_out;
+      if (const std::string err = therapy::writeFhirBundle(t.rec_file, out); !err.empty()) {
+        std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+        return 1;
+      }
+      std::printf("FHIR bundle: %s\n", out.c_str());
       return 0;
     }
     if (const std::string err = record::readRecord(t.rec_file, rec, progress); !err.empty()) {
@@ -208,6 +420,10 @@ inline int runTherapyCommands(TherapyCli& t) {
       if (name == "profile" || (name == "recordings" && !t.patient.empty())) req["patient"] = t.patient;
       line = req.dump();
     }
+    if (const std::string err = resolveSocket(t); !err.empty()) {
+      std::fprintf(stderr, "phalanx: error: client config %s\n", err.c_str());
+      return 2;
+    }
     std::string answer;
     if (const std::string err = api::callRaw(t.socket, line, answer, 15000, t.daemon_uid); !err.empty()) {
       std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
@@ -224,6 +440,8 @@ inline int runTherapyCommands(TherapyCli& t) {
     }
     if (t.json || name == "api") std::cout << resp.dump(2) << std::endl;
     else printHuman(name, resp["result"]);
+    if (name == "start") return waitForSessionStart(t);
+    if (name == "stop" && resp["result"].is_object() && resp["result"].contains("error")) return 1;
     return 0;
   }
   return -1;

@@ -12,6 +12,7 @@
 namespace phalanx::host {
 
 std::string Controller::liveLine(const TelemetryFrame&) const { return {}; }
+std::string Controller::liveLegend() const { return {}; }
 
 void TransparentController::update(const TelemetryFrame&, double, double, protocol::Command& cmd) {
   cmd.mode = protocol::Mode::kTransparent;

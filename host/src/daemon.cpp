@@ -574,7 +574,6 @@ class SessionRunner {
            (opt_.hooks == nullptr || !opt_.hooks->stopRequested())) {
       if (!cycle()) break;
     }
-    if (opt_.live_view) std::fputc('\n', stderr);
   }
 
   /// One cycle: telemetry → device model → command source → limits → send. false ends the session.
@@ -773,10 +772,40 @@ class SessionRunner {
     if (dds_port_) dds_port_->offer(tel, wake_ns, cycles_, overruns_, last_jitter_us_, cycle_us);
     if (opt_.live_view && wake_ns >= next_live_ns_) {
       next_live_ns_ = wake_ns + 100000000ull;
-      std::fprintf(stderr, "\r\033[K%7.2fs %-11s faults=%s %s", t_s, modeName(tel.mode),
-                   faultList(tel.fault_bits).c_str(), controller_->liveLine(tel).c_str());
-      std::fflush(stderr);
+      drawLiveView(tel, t_s);
     }
+  }
+
+  /// The live terminal view: a legend once, then a block redrawn in place (cursor moved up over the previous
+  /// block), every line cut to 79 columns so an 80-column terminal never wraps it.
+  void drawLiveView(const TelemetryFrame& tel, double t_s) {
+    char head[48];
+    std::snprintf(head, sizeof head, "  t %.1f s   device ", t_s);
+    std::string block = head + std::string(modeName(tel.mode)) + "   faults " + faultList(tel.fault_bits);
+    if (tel.fault_bits != 0) block += "  (phalanx status explains)";
+    block += "\n" + controller_->liveLine(tel);
+    std::string out;
+    if (live_lines_ == 0) {
+      const std::string legend = controller_->liveLegend();
+      out += (legend.empty() ? "Live view, every 0.1 s" : legend) +
+             "\n  device = the mode the device reports (safe/transparent/setpoint/lock)\n";
+    } else {
+      out += "\033[" + std::to_string(live_lines_) + "A";
+    }
+    int lines = 0;
+    std::size_t pos = 0;
+    while (pos <= block.size()) {
+      const std::size_t nl = block.find('\n', pos);
+      std::string line = block.substr(pos, nl == std::string::npos ? std::string::npos : nl - pos);
+      if (line.size() > 79) line.resize(79);  // ASCII only: bytes are columns
+      out += "\r\033[K" + line + "\n";
+      ++lines;
+      if (nl == std::string::npos) break;
+      pos = nl + 1;
+    }
+    live_lines_ = lines;
+    std::fputs(out.c_str(), stderr);
+    std::fflush(stderr);
   }
 
   // ---- stage 6: leave the device safe (drives disabled, then explicit safe commands; the device would also
@@ -944,6 +973,7 @@ class SessionRunner {
   protocol::Command cmd_;
   uint64_t period_ns_ = 0, max_cycles_ = 0, telemetry_timeout_ns_ = 0;
   uint64_t start_ns_ = 0, next_live_ns_ = 0, last_new_telemetry_ns_ = 0;
+  int live_lines_ = 0;  ///< lines of the live view's last block (drawLiveView)
   Histogram jitter_us_{5000};
   Histogram cycle_us_{5000};
   double last_jitter_us_ = 0.0;

@@ -4,8 +4,22 @@
 
 const WINDOW_S = 10;          // plotted time window
 const POLL_MS = 100;          // poll period: 5 samples per answer at 50 Hz
-const COLORS = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#8c564b', '#17becf', '#7f7f7f',
-                '#bcbd22', '#e377c2', '#393b79', '#637939', '#8c6d31', '#843c39', '#7b4173'];
+// One colour per finger (channel), shared by its joints, its flexion, its target and its efforts.
+const COLORS = ['#1f77b4', '#d62728', '#2ca02c', '#9467bd', '#ff7f0e', '#8c564b', '#17becf', '#7f7f7f'];
+// Line styles: the channel's own trace solid, its target/command dashed; joints by position in the finger.
+const DASH = { solid: [], dashed: [6, 4], dotted: [2, 3] };
+
+// "Nice" axis ticks: a step of 1, 2 or 5 × 10^k giving about `count` intervals over [lo, hi].
+function niceTicks(lo, hi, count) {
+  const raw = (hi - lo) / Math.max(1, count);
+  const mag = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw) || 10 * mag;
+  const first = Math.floor(lo / step) * step, last = Math.ceil(hi / step) * step;
+  const ticks = [];
+  for (let v = first; v <= last + step / 2; v += step) ticks.push(Math.abs(v) < step / 1e6 ? 0 : v);
+  const decimals = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+  return { lo: first, hi: last, ticks, label: (v) => v.toFixed(decimals) };
+}
 
 function tokenFromUrl() {
   const m = /token=([0-9a-f]+)/.exec(window.location.hash);
@@ -26,10 +40,11 @@ class StripChart {
     this.title = title;
     this.reset([], '');
   }
-  reset(names, unit, dashed) {
+  // styles[i]: {color, dash} of series i (a finger's colour, a dash pattern by role).
+  reset(names, unit, styles) {
     this.names = names;
     this.unit = unit;
-    this.dashed = dashed || [];
+    this.styles = styles || [];
     this.t = [];
     this.y = names.map(() => []);
   }
@@ -64,8 +79,8 @@ class StripChart {
     for (const s of this.y) for (const v of s) if (!isNaN(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
     if (!isFinite(lo)) { lo = -1; hi = 1; }
     if (hi - lo < 1e-6) { lo -= 1; hi += 1; }
-    const pad = 0.05 * (hi - lo);
-    lo -= pad; hi += pad;
+    const axis = niceTicks(lo, hi, 4);
+    lo = axis.lo; hi = axis.hi;
     const X = (t) => L + (t - t0) / WINDOW_S * (W - L - R);
     const Y = (v) => T + (hi - v) / (hi - lo) * (H - T - B);
     // grid and axes
@@ -73,10 +88,9 @@ class StripChart {
     c.lineWidth = 1;
     c.fillStyle = '#555';
     c.font = '11px sans-serif';
-    for (let k = 0; k <= 4; ++k) {
-      const v = lo + (hi - lo) * k / 4;
+    for (const v of axis.ticks) {
       c.beginPath(); c.moveTo(L, Y(v)); c.lineTo(W - R, Y(v)); c.stroke();
-      c.fillText(v.toPrecision(3), 4, Y(v) + 4);
+      c.fillText(axis.label(v), 4, Y(v) + 4);
     }
     for (let s = Math.ceil(t0); s <= t1; s += 2) {
       c.beginPath(); c.moveTo(X(s), T); c.lineTo(X(s), H - B); c.stroke();
@@ -86,10 +100,11 @@ class StripChart {
     c.strokeRect(L, T, W - L - R, H - T - B);
     // series
     for (let i = 0; i < this.y.length; ++i) {
-      const color = COLORS[i % COLORS.length];
+      const style = this.styles[i] || { color: COLORS[i % COLORS.length], dash: DASH.solid };
+      const color = style.color;
       c.strokeStyle = color;
       c.lineWidth = 1.6;
-      c.setLineDash(this.dashed[i] ? [5, 4] : []);
+      c.setLineDash(style.dash);
       c.beginPath();
       let pen = false;
       for (let k = 0; k < this.t.length; ++k) {
@@ -101,7 +116,11 @@ class StripChart {
       c.stroke();
       c.setLineDash([]);
       c.fillStyle = color;
-      c.fillText(this.names[i], W - R + 8, T + 12 + 13 * i);
+      const ly = T + 8 + 12 * i;
+      c.setLineDash(style.dash);
+      c.beginPath(); c.moveTo(W - R + 6, ly); c.lineTo(W - R + 24, ly); c.stroke();
+      c.setLineDash([]);
+      c.fillText(this.names[i], W - R + 28, ly + 4);
     }
   }
 }
@@ -133,6 +152,8 @@ function showStatus(st) {
   setField('patient', st.patient || '–');
   setField('device', st.device || '–');
   setField('exercise', st.exercise || '–');
+  followExercise(running ? st.exercise : null);
+  showGuidance(running ? st.fault_guidance : null);
   setField('mode', st.device_mode || '–');
   // The API gives the latched faults as one comma-separated string ("none" when none).
   let faults = Array.isArray(st.faults) ? st.faults.join(', ') : String(st.faults || '');
@@ -152,9 +173,79 @@ function startSession(meta) {
   session = meta.session;
   const unit = meta.effort_unit || '';
   const ch = meta.channels || [];
-  charts.joints.reset(meta.joints || [], 'deg');
-  charts.channels.reset(ch.concat(ch.map((c) => c + ' target')), 'deg', ch.map(() => false).concat(ch.map(() => true)));
-  charts.efforts.reset(ch.concat(ch.map((c) => c + ' cmd')), unit, ch.map(() => false).concat(ch.map(() => true)));
+  const colorOf = (name) => COLORS[Math.max(0, ch.indexOf(name)) % COLORS.length];
+  // Joints take their finger's colour; within a finger the first joint is solid, the next dashed, then dotted.
+  const joints = meta.joints || [], jch = meta.joint_channels || [];
+  const seen = {};
+  const jointStyles = joints.map((j, i) => {
+    const c = jch[i] || '';
+    const k = seen[c] = (seen[c] === undefined ? 0 : seen[c] + 1);
+    return { color: colorOf(c), dash: [DASH.solid, DASH.dashed, DASH.dotted][k % 3] };
+  });
+  charts.joints.reset(joints, 'deg', jointStyles);
+  const own = ch.map((c) => ({ color: colorOf(c), dash: DASH.solid }));
+  const paired = ch.map((c) => ({ color: colorOf(c), dash: DASH.dashed }));
+  charts.channels.reset(ch.concat(ch.map((c) => c + ' target')), 'deg', own.concat(paired));
+  charts.efforts.reset(ch.concat(ch.map((c) => c + ' cmd')), unit, own.concat(paired));
+}
+
+// Fault guidance (the daemon's one table: what happened, whether the patient is safe, what to do).
+function showGuidance(list) {
+  const box = document.getElementById('guidance'), out = document.getElementById('guidance-list');
+  if (!Array.isArray(list) || list.length === 0) { box.style.display = 'none'; out.textContent = ''; return; }
+  const key = JSON.stringify(list);
+  if (out.dataset.key !== key) {
+    out.textContent = '';
+    for (const g of list) {
+      const dl = document.createElement('dl');
+      dl.className = 'fault';
+      for (const [label, text] of [['fault', g.fault], ['what happened', g.what], ['is the patient safe', g.safe],
+                                   ['what to do', g.action]]) {
+        const dt = document.createElement('dt'); dt.textContent = label;
+        const dd = document.createElement('dd'); dd.textContent = text;
+        dl.append(dt, dd);
+      }
+      out.append(dl);
+    }
+    out.dataset.key = key;
+  }
+  box.style.display = 'block';
+}
+
+// The exercise list shows the running exercise unless the therapist picked another one to change to.
+let shownExercise = null;
+let exercisePicked = false;
+function followExercise(running) {
+  const sel = document.getElementById('exercise-select');
+  if (running && running !== shownExercise) {
+    shownExercise = running;
+    exercisePicked = false;
+  }
+  if (running && !exercisePicked && sel.value !== running) sel.value = running;
+}
+
+// The patient picker: the valid profiles of the daemon's --profiles-dir (an invalid one is listed, disabled,
+// with its error as the tooltip).
+async function loadProfiles() {
+  const a = await request({ cmd: 'profiles' }, true);
+  if (!a || !a.ok) return;
+  const sel = document.getElementById('patient-select');
+  const keep = sel.value;
+  while (sel.options.length > 1) sel.remove(1);
+  for (const p of a.result) {
+    const o = document.createElement('option');
+    if (p.valid) {
+      o.value = p.patient;
+      o.textContent = p.patient + ' (' + p.device + ')';
+    } else {
+      o.value = '';
+      o.disabled = true;
+      o.textContent = p.file + ' — invalid';
+      o.title = p.error;
+    }
+    sel.append(o);
+  }
+  if ([...sel.options].some((o) => o.value === keep && !o.disabled)) sel.value = keep;
 }
 
 async function poll() {
@@ -183,7 +274,7 @@ async function poll() {
 }
 
 // Every control is one control-API request, validated by the daemon exactly as on its UNIX socket.
-async function request(body) {
+async function request(body, quiet) {
   try {
     const r = await fetch('api/request', {
       method: 'POST',
@@ -191,6 +282,7 @@ async function request(body) {
       body: JSON.stringify(body),
     });
     const a = await r.json();
+    if (quiet && a.ok) return a;
     if (a.ok) message(body.cmd + ': ok' + (a.result && a.result.record ? ' (' + a.result.record + ')' : ''), false);
     else message(body.cmd + ': ' + (a.error || 'refused'), true);
     return a;
@@ -202,13 +294,16 @@ async function request(body) {
 
 document.getElementById('stop').addEventListener('click', () => request({ cmd: 'stop' }));
 document.getElementById('reset').addEventListener('click', () => request({ cmd: 'reset' }));
+document.getElementById('exercise-select').addEventListener('change', () => { exercisePicked = true; });
+document.getElementById('patient-select').addEventListener('focus', loadProfiles);
 document.getElementById('change').addEventListener('click',
   () => request({ cmd: 'exercise', exercise: document.getElementById('exercise-select').value }));
 document.getElementById('start').addEventListener('click', () => {
   const body = { cmd: 'start', exercise: document.getElementById('exercise-select').value };
-  const p = document.getElementById('patient-input').value.trim();
+  const p = document.getElementById('patient-select').value;
   if (p) body.patient = p;
   request(body);
 });
 if (!TOKEN) message('no access token: open the URL phalanxd printed (…/#token=…)', true);
+else loadProfiles();
 poll();

@@ -51,7 +51,10 @@ class DashDaemon {
         // Chromium starting on a loaded 2-core machine can stall this non-real-time daemon past the default
         // 20 ms command timeout (the device then latches command-timeout and goes safe, as it must); the test is
         // about the dashboard, so the commands carry 200 ms.
-        "--command-timeout-ms", "200"});
+        "--command-timeout-ms", "200",
+        // The fault test below stops the daemon (SIGSTOP) for 600 ms: beyond the command timeout (the device
+        // latches command-timeout), inside this telemetry timeout (the session goes on).
+        "--telemetry-timeout-ms", "3000"});
     EXPECT_EQ(proc_->readStdoutLine(5000), "API " + socket_) << proc_->stderrText();
     const std::string line = proc_->readStdoutLine(5000);
     EXPECT_EQ(line.rfind("DASHBOARD http://127.0.0.1:", 0), 0u) << line << proc_->stderrText();
@@ -342,6 +345,9 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
                     "browser test of the dashboard did not run";
   }
   DashDaemon d;
+  // Profiles for the patient picker (issue #25): a valid one and one the daemon refuses.
+  std::ofstream(d.dir() + "/sea-001.yaml") << "version: 1\npatient: sea-001\ndevice: sea_finger\nlimits:\n  effort_max: 0.2\n";
+  std::ofstream(d.dir() + "/bad-01.yaml") << "version: 1\npatient: bad-01\ndevice: sea_finger\nlimits:\n  effort_max: 9\n";
   const nlohmann::json started = d.api({{"cmd", "start"}, {"exercise", "assessment"}});
   ASSERT_TRUE(started.value("ok", false)) << started.dump();
   const nlohmann::json st = d.waitRunning();
@@ -391,9 +397,11 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
   const nlohmann::json sig2 = chrome.eval(session, kPlotSignature);
   ASSERT_EQ(chrome.call("Page.captureScreenshot", {{"format", "png"}}, session, r), "");
   const std::string shot2 = base64Decode(r.value("data", ""));
-  std::ofstream(d.dir() + "/../phalanx-dashboard-1.png", std::ios::binary) << shot1;
-  std::ofstream(d.dir() + "/../phalanx-dashboard-2.png", std::ios::binary) << shot2;
-  std::printf("plot signatures %s → %s; screenshots %zu and %zu bytes (/tmp/phalanx-dashboard-[12].png)\n",
+  const std::string artefacts = binPath("") + "/../test-artefacts";
+  ::mkdir(artefacts.c_str(), 0755);
+  std::ofstream(artefacts + "/dashboard-1.png", std::ios::binary) << shot1;
+  std::ofstream(artefacts + "/dashboard-2.png", std::ios::binary) << shot2;
+  std::printf("plot signatures %s → %s; screenshots %zu and %zu bytes (build/host/test-artefacts/dashboard-[12].png)\n",
               sig1.dump().c_str(), sig2.dump().c_str(), shot1.size(), shot2.size());
   EXPECT_GT(sig1.value("ink", 0), 2000) << "the joint plot has lines on it";
   EXPECT_GT(sig2.value("ink", 0), 2000);
@@ -401,6 +409,55 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
   EXPECT_EQ(shot1.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
   EXPECT_GT(shot1.size(), 10000u);
   EXPECT_TRUE(shot1 != shot2) << "the screenshots differ";
+
+  // Issue #25: the patient picker lists the profiles (an invalid one disabled, its error as the tooltip).
+  const nlohmann::json options = chrome.eval(session,
+      "[...document.getElementById('patient-select').options].map(o => ({v: o.value, t: o.textContent, d: o.disabled}))");
+  std::printf("patient picker: %s\n", options.dump().c_str());
+  ASSERT_TRUE(options.is_array());
+  bool valid_listed = false, invalid_disabled = false;
+  for (const auto& o : options) {
+    valid_listed |= o.value("v", "") == "sea-001" && !o.value("d", true);
+    invalid_disabled |= o.value("t", "").find("bad-01.yaml") != std::string::npos && o.value("d", false);
+  }
+  EXPECT_TRUE(valid_listed) << options.dump();
+  EXPECT_TRUE(invalid_disabled) << options.dump();
+  // The exercise shown, in the status and in the list, is the one running (the list showed `assessment` while
+  // `assistance` ran).
+  ASSERT_TRUE(d.api({{"cmd", "exercise"}, {"exercise", "resistance"}}).value("ok", false));
+  nlohmann::json shown;
+  const std::string read_exercise = "({running: document.getElementById('exercise').textContent,"
+                                    " listed: document.getElementById('exercise-select').value})";
+  for (int i = 0; i < 50; ++i) {
+    shown = chrome.eval(session, read_exercise);
+    if (shown.value("running", "") == "resistance" && shown.value("listed", "") == "resistance") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(shown.value("running", ""), "resistance") << shown.dump();
+  EXPECT_EQ(shown.value("listed", ""), "resistance") << shown.dump();
+  // A fault appears with its guidance: the daemon stopped for 600 ms (a stalled computer), the device latches
+  // command-timeout; the page explains what happened, whether the patient is safe and what to do.
+  d.process().signal(SIGSTOP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  d.process().signal(SIGCONT);
+  const std::string read_guidance = "(() => { const g = document.getElementById('guidance');"
+                                    " return {shown: getComputedStyle(g).display !== 'none', text: g.innerText}; })()";
+  nlohmann::json guidance;
+  for (int i = 0; i < 100; ++i) {
+    guidance = chrome.eval(session, read_guidance);
+    if (guidance.value("shown", false)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::printf("fault guidance on the page: %s\n", guidance.dump().c_str());
+  EXPECT_TRUE(guidance.value("shown", false)) << guidance.dump();
+  const std::string gtext = guidance.value("text", "");
+  EXPECT_NE(gtext.find("command-timeout"), std::string::npos) << gtext;
+  EXPECT_NE(gtext.find("what happened"), std::string::npos) << gtext;
+  EXPECT_NE(gtext.find("is the patient safe"), std::string::npos) << gtext;
+  EXPECT_NE(gtext.find("what to do"), std::string::npos) << gtext;
+  ASSERT_EQ(chrome.call("Page.captureScreenshot", {{"format", "png"}}, session, r), "");
+  std::ofstream(artefacts + "/dashboard-fault.png", std::ios::binary) << base64Decode(r.value("data", ""));
+  d.api({{"cmd", "reset"}});
 
   // STOP on the page ends the session (through the control API's stop request).
   chrome.eval(session, "document.getElementById('stop').click(), true");

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <cstdio>
 #include <set>
+#include "phalanx/host/therapy/guidance.h"
 
 namespace phalanx::host::api {
 
@@ -472,21 +473,26 @@ void Dashboard::takeSample() {
   if (r.contains("session")) {
     const nlohmann::json& s = r["session"];
     for (const char* k : {"phase", "patient", "record", "device", "exercise", "t_s", "cycles", "device_mode", "faults",
-                          "estop", "limited_cycles", "effort_unit"}) {
+                          "estop", "limited_cycles", "effort_unit", "fault_guidance"}) {
       if (s.contains(k)) st[k] = s[k];
     }
     session = s.value("record", std::string()) + "|" + s.value("device", std::string());
     if (s.contains("channels") && s.contains("joints") && s["t_s"].is_number()) {
       meta = {{"session", session}, {"effort_unit", s.value("effort_unit", std::string())},
-              {"channels", nlohmann::json::array()}, {"joints", nlohmann::json::array()}};
+              {"channels", nlohmann::json::array()}, {"joints", nlohmann::json::array()},
+              {"joint_channels", nlohmann::json::array()}};
       sample = {{"t", s["t_s"]}, {"j", nlohmann::json::array()}, {"q", nlohmann::json::array()},
                 {"tg", nlohmann::json::array()}, {"em", nlohmann::json::array()}, {"ec", nlohmann::json::array()},
                 {"lim", nlohmann::json::array()}};
-      for (const auto& [name, v] : s["joints"].items()) {
+      // Fingers and joints in anatomical order (thumb → little, MCP → PIP → DIP), not the JSON's alphabetical one.
+      for (const std::string& name : therapy::anatomicalKeys(s["joints"])) {
+        const nlohmann::json& v = s["joints"][name];
         meta["joints"].push_back(name);
+        meta["joint_channels"].push_back(v.value("channel", std::string()));
         sample["j"].push_back(num(v["flexion_deg"]));
       }
-      for (const auto& [name, v] : s["channels"].items()) {
+      for (const std::string& name : therapy::anatomicalKeys(s["channels"])) {
+        const nlohmann::json& v = s["channels"][name];
         meta["channels"].push_back(name);
         sample["q"].push_back(num(v["q_deg"]));
         sample["tg"].push_back(num(v["target_deg"]));

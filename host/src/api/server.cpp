@@ -251,7 +251,17 @@ class Daemon {
     if (!std::regex_match(patient, std::regex("[A-Za-z0-9_-]{1,64}"))) {
       throw RequestError{"field 'patient': expected a patient id (1-64 letters, digits, '-' or '_')"};
     }
-    const std::string err = therapy::loadProfileFile(cfg_.profiles_dir + "/" + patient + ".yaml", p);
+    const std::string path = cfg_.profiles_dir + "/" + patient + ".yaml";
+    struct stat st {};
+    if (::lstat(path.c_str(), &st) != 0 && errno == ENOENT) {
+      std::string known;
+      for (const auto& f : listDir(cfg_.profiles_dir, ".yaml")) known += (known.empty() ? "" : ", ") + f.substr(0, f.size() - 5);
+      throw RequestError{"no profile for patient '" + patient + "': cannot read " + path + ": it does not exist (profiles are " +
+                         "<profiles-dir>/<patient>.yaml; " +
+                         (known.empty() ? "the profiles directory " + cfg_.profiles_dir + " has none"
+                                        : "profiles in " + cfg_.profiles_dir + ": " + known) + ")"};
+    }
+    const std::string err = therapy::loadProfileFile(path, p);
     if (!err.empty()) throw RequestError{"profile refused: " + err};
   }
 
@@ -600,7 +610,32 @@ std::function<nlohmann::json(const std::string&)> makeRequestHandler(const Serve
   return [daemon](const std::string& line) { return daemon->handle(line); };
 }
 
+/// The records directory is created (with its missing parents, mode 0750: patient data) when it does not exist,
+/// so `--records-dir records` works on a fresh machine; a directory that cannot be created ends the daemon with
+/// the reason before it serves anything, never a session that fails after `start` answered.
+static std::string prepareRecordsDirectory(const std::string& dir) {
+  if (dir.empty()) return "--records-dir: must not be empty";
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) == 0) {
+    return S_ISDIR(st.st_mode) ? std::string() : "--records-dir " + dir + ": exists and is not a directory";
+  }
+  for (std::size_t pos = 1;; ++pos) {
+    pos = dir.find('/', pos);
+    const std::string part = dir.substr(0, pos);
+    if (::mkdir(part.c_str(), 0750) != 0 && errno != EEXIST) {
+      return "--records-dir " + dir + ": cannot create " + part + ": " + std::strerror(errno);
+    }
+    if (pos == std::string::npos) break;
+  }
+  std::fprintf(stderr, "phalanxd: created the records directory %s\n", dir.c_str());
+  return {};
+}
+
 int serve(const ServerConfig& config) {
+  if (const std::string err = prepareRecordsDirectory(config.records_dir); !err.empty()) {
+    std::fprintf(stderr, "phalanxd: error: %s\n", err.c_str());
+    return 2;
+  }
   struct sigaction sa {};
   sa.sa_handler = onApiStop;
   sigemptyset(&sa.sa_mask);

@@ -11,7 +11,12 @@ namespace phalanx::host::glove {
 
 namespace {
 constexpr size_t kForceSample0 = 15;  // kGlove5Layout: samples 15..19 are pad forces
-constexpr const char* kFingerLetters = "TIMRL";
+/// v rounded to `decimals`, never -0 (a display of "-0.00 N" reads as a push that is not there).
+double shown(double v, int decimals) {
+  const double k = std::pow(10.0, decimals);
+  const double r = std::round(v * k) / k;
+  return r == 0.0 ? 0.0 : r;
+}
 }  // namespace
 
 GloveController::GloveController(const GloveControllerConfig& config) : config_(config), scene_(config.hand) {
@@ -112,17 +117,27 @@ void GloveController::summarize(nlohmann::json& out) const {
 }
 
 std::string GloveController::liveLine(const TelemetryFrame& tel) const {
-  std::string line;
-  char buf[64];
+  std::string lines;
+  char buf[96];
   for (size_t f = 0; f < kNumFingers; ++f) {
-    std::snprintf(buf, sizeof buf, " %c %4.0f/%4.0f/%4.0f° %5.2fN>%5.2fN%s", kFingerLetters[f],
-                  static_cast<double>(tel.value[3 * f]) * 57.29578, static_cast<double>(tel.value[3 * f + 1]) * 57.29578,
-                  static_cast<double>(tel.value[3 * f + 2]) * 57.29578,
-                  static_cast<double>(tel.value[kForceSample0 + f]), out_[f].force_setpoint_N,
-                  out_[f].in_contact ? "*" : " ");
-    line += buf;
+    const auto force = static_cast<double>(tel.value[kForceSample0 + f]);
+    std::snprintf(buf, sizeof buf, "  %-6s  a %4.0f %4.0f %4.0f deg   force %5.2f N   set %5.2f N  %s%s", kFingerNames[f],
+                  shown(static_cast<double>(tel.value[3 * f]) * 57.29578, 0),
+                  shown(static_cast<double>(tel.value[3 * f + 1]) * 57.29578, 0),
+                  shown(static_cast<double>(tel.value[3 * f + 2]) * 57.29578, 0), shown(force, 2),
+                  shown(out_[f].force_setpoint_N, 2), out_[f].in_contact ? "contact" : "",
+                  f + 1 < kNumFingers ? "\n" : "");
+    lines += buf;
   }
-  return line;
+  return lines;
+}
+
+std::string GloveController::liveLegend() const {
+  return "Live view, every 0.1 s, one line per finger:\n"
+         "  a = the glove linkage's three mechanism angles (deg, Hall sensors; not the\n"
+         "      finger's joint angles: the session record and report have those)\n"
+         "  force = measured fingertip pad force; set = force commanded (N; + resists\n"
+         "      flexion); contact = the finger touches the virtual object";
 }
 
 }  // namespace phalanx::host::glove

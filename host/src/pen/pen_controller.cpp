@@ -116,6 +116,12 @@ void PenController::summarize(nlohmann::json& out) const {
                                 {"home_z", config_.geometry.home_z_m}}}};
 }
 
+std::string PenController::liveLegend() const {
+  return "Live view, every 0.1 s: c = pen centre (cm, base frame); tip F = force\n"
+         "  rendered at the tip (N); pen = penetration into the virtual box (mm);\n"
+         "  clicks = button clicks rendered";
+}
+
 std::string PenController::liveLine(const TelemetryFrame&) const {
   char buf[160];
   const auto& c = kin_.B_p_centre;

@@ -99,11 +99,30 @@ void SeaFingerController::summarize(nlohmann::json& out) const {
 
 std::string SeaFingerController::liveLine(const TelemetryFrame&) const {
   const Data& d = estimator_.data();
-  char buf[160];
-  std::snprintf(buf, sizeof buf, " MCP %5.1f° PIP %5.1f° DIP %5.1f° | τj %6.3f %6.3f N·m | τf^ %6.3f %6.3f N·m",
-                d.theta4_rad * 57.29578, d.theta8_rad * 57.29578, d.theta_dip_rad * 57.29578,
-                map_.tau_j_d_Nm[0], map_.tau_j_d_Nm[1], map_.tau_f_hat_Nm[0], map_.tau_f_hat_Nm[1]);
+  const auto z = [](double v) {  // rounded to the 3 decimals shown, never "-0.000"
+    const double r = std::round(v * 1000.0) / 1000.0;
+    return r == 0.0 ? 0.0 : r;
+  };
+  const auto z1 = [](double v) {  // the same at the angles' 1 decimal
+    const double r = std::round(v * 10.0) / 10.0;
+    return r == 0.0 ? 0.0 : r;
+  };
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "  finger angle (deg)    MCP %6.1f   PIP %6.1f   DIP %6.1f\n"
+                "  exo torque set (N m)  MCP %6.3f   PIP %6.3f\n"
+                "  finger torque (N m)   MCP %6.3f   PIP %6.3f",
+                z1(d.theta4_rad * 57.29578), z1(d.theta8_rad * 57.29578), z1(d.theta_dip_rad * 57.29578), z(map_.tau_j_d_Nm[0]),
+                z(map_.tau_j_d_Nm[1]), z(map_.tau_f_hat_Nm[0]), z(map_.tau_f_hat_Nm[1]));
   return buf;
+}
+
+std::string SeaFingerController::liveLegend() const {
+  return "Live view, every 0.1 s:\n"
+         "  finger angle = the estimated finger joint angles (deg, theta4/theta8/DIP of\n"
+         "      the four-bar estimator; sensor sign convention)\n"
+         "  exo torque set = the exoskeleton joint torques commanded (N m)\n"
+         "  finger torque = the finger joint torques estimated from the springs (N m)";
 }
 
 }  // namespace phalanx::host::sea

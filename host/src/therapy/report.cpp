@@ -18,6 +18,7 @@
 #include "phalanx/host/session.h"
 #include "phalanx/host/therapy/device.h"
 #include "phalanx/host/therapy/exercise.h"
+#include "phalanx/host/therapy/guidance.h"
 
 namespace phalanx::host::therapy {
 namespace {
@@ -67,7 +68,14 @@ struct Series {
   std::vector<std::vector<double>> flex;           // [joint][cycle], NaN when not measured
   std::vector<std::vector<double>> q, target, effort, effort_cmd;  // [channel][cycle]
   std::vector<uint16_t> faults;
+  /// The device was locked or faulted this cycle (a latched fault, or still in safe/lock after one while the
+  /// session commanded it to move): not exercise, so excluded from every exercise metric.
+  std::vector<char> excluded;
 };
+
+bool holdingMode(uint8_t mode) {
+  return mode == static_cast<uint8_t>(protocol::Mode::kSafe) || mode == static_cast<uint8_t>(protocol::Mode::kLock);
+}
 
 struct Layout {
   std::unique_ptr<TherapyDevice> device;
@@ -101,6 +109,7 @@ Series extract(const record::SessionRecord& rec, TherapyDevice& dev) {
   TelemetryFrame tel;
   Observation obs{};
   const double nan = std::nan("");
+  bool after_fault = false;
   for (const auto& c : rec.cycles) {
     tel.device_time_us = c.device_time_us;
     tel.mode = static_cast<protocol::Mode>(c.tel_mode);
@@ -111,6 +120,10 @@ Series extract(const record::SessionRecord& rec, TherapyDevice& dev) {
     s.t.push_back(c.t_s);
     s.exercise.push_back(ex_idx >= 0 && ex_idx < c.aux_count ? static_cast<int>(c.aux[static_cast<std::size_t>(ex_idx)]) : -1);
     s.faults.push_back(c.fault_bits);
+    // Locked after a fault: from the fault until the device moves again (its cleared fault's lock included).
+    if (c.fault_bits != 0) after_fault = true;
+    else if (!holdingMode(c.tel_mode)) after_fault = false;
+    s.excluded.push_back(c.fault_bits != 0 || (after_fault && !holdingMode(c.cmd_mode)) ? 1 : 0);
     for (std::size_t j = 0; j < nj; ++j) s.flex[j].push_back(obs.joint_valid[j] ? obs.flexion_rad[j] : nan);
     for (std::size_t ch = 0; ch < nc; ++ch) {
       s.q[ch].push_back(obs.channel_valid[ch] ? obs.q_rad[ch] : nan);
@@ -208,7 +221,8 @@ std::string svgRom(const nlohmann::json& rom, const nlohmann::json& prev) {
       << "<text x='" << fmt(X(d), 1) << "' y='" << H - 2 << "' font-size='10' text-anchor='middle'>" << d << "°</text>";
   }
   int i = 0;
-  for (const auto& [j, r] : rom.items()) {
+  for (const std::string& j : anatomicalKeys(rom)) {
+    const nlohmann::json& r = rom[j];
     const double y = 12 + row * i++;
     o << "<text x='" << L - 6 << "' y='" << y + 13 << "' font-size='11' text-anchor='end'>" << esc(j) << "</text>";
     if (prev.is_object() && prev.contains(j)) {
@@ -242,7 +256,7 @@ nlohmann::json transparencyR(const TherapyDevice& dev, const Series& s, const Tr
     if (j < 0) continue;
     std::vector<double> with, without;
     for (std::size_t i = 0; i < s.t.size(); ++i) {
-      if (s.exercise[i] != kAssess || !std::isfinite(s.flex[static_cast<std::size_t>(j)][i])) continue;
+      if (s.exercise[i] != kAssess || s.excluded[i] || !std::isfinite(s.flex[static_cast<std::size_t>(j)][i])) continue;
       const double r = interpolate(ref.t_s, y, s.t[i]);
       if (!std::isfinite(r)) continue;
       with.push_back(s.flex[static_cast<std::size_t>(j)][i] * kDeg);
@@ -257,6 +271,32 @@ nlohmann::json transparencyR(const TherapyDevice& dev, const Series& s, const Tr
                  {"samples", with.size()}};
   }
   return out;
+}
+
+/// A therapist request of the record in words: (what, details), e.g. ("exercise changed to assistance",
+/// "period_s 3, deadband_deg 8").
+std::pair<std::string, std::string> describeRequest(const nlohmann::json& e, const std::string& unit) {
+  const std::string kind = e.value("kind", std::string());
+  auto list = [](const nlohmann::json& obj, const std::string& suffix) {
+    std::string out;
+    if (!obj.is_object()) return out;
+    for (const std::string& k : anatomicalKeys(obj)) {
+      const nlohmann::json& v = obj[k];
+      out += (out.empty() ? "" : ", ") + k + " " +
+             (v.is_number() ? humanNumber(v.get<double>(), 3) + suffix : v.is_string() ? v.get<std::string>() : v.dump());
+    }
+    return out;
+  };
+  if (kind == "api-exercise") {
+    const std::string p = list(e.value("params", nlohmann::json::object()), "");
+    return {"exercise changed to " + e.value("exercise", std::string("?")), p.empty() ? "default parameters" : p};
+  }
+  if (kind == "api-limits") return {"effort limit lowered", list(e.value("effort_max", nlohmann::json::object()), " " + unit)};
+  if (kind == "api-clear-faults") return {"reset faults (ClearFaults sent)", ""};
+  nlohmann::json rest = e;
+  rest.erase("t_s");
+  rest.erase("kind");
+  return {kind.substr(kind.rfind("api-", 0) == 0 ? 4 : 0), rest.empty() ? "" : rest.dump()};
 }
 
 nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, Series& s,
@@ -282,6 +322,18 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
     segs.back()["end_s"] = s.t[i];
   }
   m["exercises"] = segs;
+  // Locked / faulted periods: listed, and left out of every exercise metric below.
+  nlohmann::json excl = nlohmann::json::array();
+  double excluded_s = 0.0;
+  for (std::size_t i = 0; i < s.t.size(); ++i) {
+    if (!s.excluded[i]) continue;
+    if (i > 0) excluded_s += s.t[i] - s.t[i - 1];
+    if (i == 0 || !s.excluded[i - 1]) excl.push_back({{"start_s", s.t[i]}, {"end_s", s.t[i]}, {"faults", faultList(s.faults[i])}});
+    excl.back()["end_s"] = s.t[i];
+    if (s.faults[i] != 0 && excl.back()["faults"] == "none") excl.back()["faults"] = faultList(s.faults[i]);
+  }
+  m["excluded_periods"] = excl;
+  m["excluded_s"] = excluded_s;
   const int kAssess = static_cast<int>(ExerciseId::kAssessment);
   const bool has_assessment = std::find(s.exercise.begin(), s.exercise.end(), kAssess) != s.exercise.end();
   m["rom_source"] = has_assessment ? "assessment" : "whole session (no assessment in this session)";
@@ -296,7 +348,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
       const double a = dt / (dt + 1.0 / (2.0 * M_PI * kRomCutoffHz));
       lp = std::isfinite(lp) ? lp + a * (x - lp) : x;
       prev_t = s.t[i];
-      if (has_assessment && s.exercise[i] != kAssess) continue;
+      if ((has_assessment && s.exercise[i] != kAssess) || s.excluded[i]) continue;
       lo = std::min(lo, lp);
       hi = std::max(hi, lp);
     }
@@ -315,6 +367,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
       peak = std::max(peak, std::fabs(s.effort[c][i]));
       if (std::isfinite(s.effort_cmd[c][i])) peak_cmd = std::max(peak_cmd, std::fabs(s.effort_cmd[c][i]));
       const int ex = s.exercise[i];
+      if (s.excluded[i]) continue;  // peaks above include them: a force that latched a fault must show
       if ((ex == static_cast<int>(ExerciseId::kAssistance) || ex == static_cast<int>(ExerciseId::kPlayback)) &&
           std::isfinite(s.target[c][i]) && std::isfinite(s.q[c][i])) {
         tg.push_back(s.target[c][i]);
@@ -473,7 +526,9 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   h << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>Phalanx session report</title><style>"
        "body{font-family:sans-serif;max-width:800px;margin:1em auto;color:#222}table{border-collapse:collapse;margin:.5em 0}"
        "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}th{background:#f4f4f4}td:first-child,th:first-child"
-       "{text-align:left}.warn{color:#b00}.note{color:#555;font-size:90%}</style></head><body>";
+       "{text-align:left}.warn{color:#b00}.note{color:#555;font-size:90%}"
+       ".better{color:#176317}.worse{color:#b00}.same{color:#555}td.text{text-align:left;white-space:normal}"
+       ".excluded{background:#fff3f3;border:1px solid #e99;padding:.3em .6em}</style></head><body>";
   h << "<h1>Session report</h1><table><tr><th>patient</th><td>" << esc(m.value("patient", std::string("–")))
     << "</td></tr><tr><th>device</th><td>" << esc(m["device"].get<std::string>()) << "</td></tr><tr><th>start (UTC)</th><td>"
     << esc(m["start_utc"].get<std::string>()) << "</td></tr><tr><th>duration</th><td>" << fmt(m["duration_s"].get<double>(), 1)
@@ -490,6 +545,17 @@ std::string writeReport(const std::string& record_path, const std::string& previ
       << "</td><td>" << fmt(e["end_s"].get<double>(), 1) << "</td></tr>";
   }
   h << "</table>";
+  if (m["excluded_s"].get<double>() > 0.0) {
+    h << "<div class='excluded'><b>" << fmt(m["excluded_s"].get<double>(), 1)
+      << " s excluded from every exercise metric below</b> (range of motion, transparency, tracking): the device "
+         "was locked or faulted then, so the hand was not exercising. Peak efforts include these periods. "
+         "<table><tr><th>from (s)</th><th>to (s)</th><th>faults</th></tr>";
+    for (const auto& e : m["excluded_periods"]) {
+      h << "<tr><td>" << fmt(e["start_s"].get<double>(), 1) << "</td><td>" << fmt(e["end_s"].get<double>(), 1)
+        << "</td><td>" << esc(e["faults"].get<std::string>()) << "</td></tr>";
+    }
+    h << "</table></div>";
+  }
   // Range of motion.
   const nlohmann::json prom = prev.is_object() && prev.contains("rom_deg") ? prev["rom_deg"] : nlohmann::json();
   h << "<h2>Active range of motion</h2><p class='note'>Joint flexion in degrees (flexion positive), measured during "
@@ -497,13 +563,18 @@ std::string writeReport(const std::string& record_path, const std::string& previ
     << (prom.is_object() ? " Grey bars: previous session." : " No previous session to compare with.") << "</p>";
   h << svgRom(m["rom_deg"], prom);
   h << "<table><tr><th>joint</th><th>min</th><th>max</th><th>range</th><th>previous range</th><th>change</th></tr>";
-  for (const auto& [j, r] : m["rom_deg"].items()) {
+  for (const std::string& j : anatomicalKeys(m["rom_deg"])) {
+    const nlohmann::json& r = m["rom_deg"][j];
     const double range = r[1].get<double>() - r[0].get<double>();
     h << "<tr><td>" << esc(j) << "</td><td>" << fmt(r[0].get<double>(), 1) << "</td><td>" << fmt(r[1].get<double>(), 1)
       << "</td><td>" << fmt(range, 1) << "</td>";
     if (prom.is_object() && prom.contains(j)) {
       const double pr = prom[j][1].get<double>() - prom[j][0].get<double>();
-      h << "<td>" << fmt(pr, 1) << "</td><td>" << (range >= pr ? "+" : "") << fmt(range - pr, 1) << "</td>";
+      // A larger active range is the better one; a change under 0.5° is within the ROM's own noise (therapy.md).
+      const double d = range - pr;
+      const char* word = std::fabs(d) < 0.5 ? "same" : d > 0 ? "better" : "worse";
+      h << "<td>" << fmt(pr, 1) << "</td><td class='" << word << "'>" << (d >= 0 ? "+" : "−") << fmt(std::fabs(d), 1)
+        << "° " << (std::fabs(d) < 0.5 ? "(no change)" : d > 0 ? "▲ better" : "▼ worse") << "</td>";
     } else {
       h << "<td>–</td><td>–</td>";
     }
@@ -519,7 +590,8 @@ std::string writeReport(const std::string& record_path, const std::string& previ
       << " while the device followed the hand (assessment); the glove paper measured ≈ 0.1 N peak (000 §4.3), "
          "the exoskeleton paper 0.0029 / 0.0092 N·m RMS at MCP / PIP (001 §8.7).</p>";
     h << "<table><tr><th>channel</th><th>RMS (" << esc(unit) << ")</th><th>peak (" << esc(unit) << ")</th></tr>";
-    for (const auto& [c, v] : m["transparency"].items()) {
+    for (const std::string& c : anatomicalKeys(m["transparency"])) {
+      const nlohmann::json& v = m["transparency"][c];
       h << "<tr><td>" << esc(c) << "</td><td>" << fmt(v["interaction_rms"].get<double>(), 3) << "</td><td>"
         << fmt(v["interaction_peak"].get<double>(), 3) << "</td></tr>";
     }
@@ -530,7 +602,8 @@ std::string writeReport(const std::string& record_path, const std::string& previ
          "trajectory with the device (assessment) and a device-free recording of the same motion ("
       << esc(reference_path) << "). 001 Table 2, full flexion–extension (iii): MCP 0.894, PIP 0.985, DIP 0.989.</p>"
       << "<table><tr><th>joint</th><th>Pearson r</th><th>RMS difference (deg)</th><th>samples</th></tr>";
-    for (const auto& [j, v] : m["transparency_r"].items()) {
+    for (const std::string& j : anatomicalKeys(m["transparency_r"])) {
+      const nlohmann::json& v = m["transparency_r"][j];
       h << "<tr><td>" << esc(j) << "</td><td>"
         << (v["pearson_r"].is_number() ? fmt(v["pearson_r"].get<double>(), 4) : "–") << "</td><td>"
         << fmt(v["rms_difference_deg"].get<double>(), 2) << "</td><td>" << v["samples"].get<std::size_t>() << "</td></tr>";
@@ -548,7 +621,8 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   } else {
     h << "<p class='note'>Target vs measured finger flexion (sum of the finger's joints).</p><table><tr><th>channel</th>"
          "<th>RMS error (deg)</th><th>Pearson r</th><th>time (s)</th></tr>";
-    for (const auto& [c, v] : m["tracking"].items()) {
+    for (const std::string& c : anatomicalKeys(m["tracking"])) {
+      const nlohmann::json& v = m["tracking"][c];
       h << "<tr><td>" << esc(c) << "</td><td>" << fmt(v["rms_error_deg"].get<double>(), 1) << "</td><td>"
         << (v["pearson_r"].is_number() ? fmt(v["pearson_r"].get<double>(), 3) : "–") << "</td><td>"
         << fmt(v["seconds"].get<double>(), 1) << "</td></tr>";
@@ -594,18 +668,29 @@ std::string writeReport(const std::string& record_path, const std::string& previ
     }
     h << "</table>";
   }
+  uint16_t seen_bits = 0;
+  for (const uint16_t f : s.faults) seen_bits |= f;
+  if (seen_bits != 0) {
+    h << "<h3>What the faults mean</h3><table><tr><th>fault</th><th>what happened</th><th>was the patient safe</th>"
+         "<th>what to do</th></tr>";
+    for (const auto& g : faultGuidance(seen_bits)) {
+      h << "<tr><td>" << esc(g.fault) << "</td><td class='text'>" << esc(g.what) << "</td><td class='text'>"
+        << esc(g.safe) << "</td><td class='text'>" << esc(g.action) << "</td></tr>";
+    }
+    h << "</table>";
+  }
   if (!m["therapist_requests"].empty()) {
-    h << "<table><tr><th>time (s)</th><th>therapist request</th></tr>";
+    h << "<h3>Therapist requests</h3><table><tr><th>time (s)</th><th>request</th><th>details</th></tr>";
     for (const auto& e : m["therapist_requests"]) {
-      nlohmann::json rest = e;
-      rest.erase("t_s");
-      h << "<tr><td>" << fmt(e.value("t_s", 0.0), 1) << "</td><td>" << esc(rest.dump()) << "</td></tr>";
+      const auto [what, details] = describeRequest(e, unit);
+      h << "<tr><td>" << fmt(e.value("t_s", 0.0), 1) << "</td><td class='text'>" << esc(what)
+        << "</td><td class='text'>" << esc(details) << "</td></tr>";
     }
     h << "</table>";
   }
   h << "<script type='application/json' id='metrics'>" << esc(m.dump()) << "</script>";
   h << "<p class='note'>Generated by phalanx from the session record. Peak measured effort per channel: ";
-  for (const auto& [c, v] : m["effort"].items()) h << esc(c) << " " << fmt(v["peak_measured"].get<double>(), 2) << " ";
+  for (const std::string& c : anatomicalKeys(m["effort"])) h << esc(c) << " " << fmt(m["effort"][c]["peak_measured"].get<double>(), 2) << " ";
   h << esc(unit) << ".</p></body></html>\n";
   // A temporary file renamed into place: a failed write never leaves a half report over an existing one.
   record::AtomicOutputFile out;

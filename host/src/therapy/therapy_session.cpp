@@ -7,6 +7,7 @@
 #include <ctime>
 
 #include "phalanx/host/record/write_failure.h"
+#include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/records_dir.h"
 #include "phalanx/host/therapy/report.h"
 
@@ -275,6 +276,7 @@ nlohmann::json TherapySession::statusJson() const {
   j["cycles"] = s.cycles;
   j["device_mode"] = modeName(static_cast<protocol::Mode>(s.device_mode));
   j["faults"] = faultList(s.fault_bits);
+  if (s.fault_bits != 0) j["fault_guidance"] = faultGuidanceJson(s.fault_bits);
   j["estop"] = (s.state_flags & protocol::state::kEstopPressed) != 0;
   j["limited_cycles"] = s.limited_cycles;
   j["effort_unit"] = d.effortUnit();
@@ -294,7 +296,8 @@ nlohmann::json TherapySession::statusJson() const {
                                         {"effort_max", num(s.effort_max[ch])}};
   }
   for (std::size_t jt = 0; jt < d.jointCount(); ++jt) {
-    j["joints"][d.jointName(jt)] = {{"flexion_deg", num(s.flexion_rad[jt] * 180.0 / M_PI)},
+    j["joints"][d.jointName(jt)] = {{"channel", d.channelName(d.jointChannel(jt))},
+                                    {"flexion_deg", num(s.flexion_rad[jt] * 180.0 / M_PI)},
                                     {"rom_deg", {num(s.rom_min_rad[jt] * 180.0 / M_PI), num(s.rom_max_rad[jt] * 180.0 / M_PI)}}};
   }
   return j;

@@ -21,8 +21,12 @@ class Controller {
   virtual void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) = 0;
   /// Extra per-device numbers for the end-of-session summary.
   virtual void summarize(nlohmann::json& /*out*/) const {}
-  /// One line for the live terminal view (called at ~10 Hz, may allocate).
+  /// The live terminal view's device lines (called at ~10 Hz, may allocate): one or more lines separated by '\n',
+  /// each at most 78 columns, so the view fits an 80-column terminal (daemon.cpp adds its own status line).
   virtual std::string liveLine(const TelemetryFrame& tel) const;
+  /// The legend printed once above the live view: what every column and symbol of liveLine means (≤ 78 columns
+  /// a line).
+  virtual std::string liveLegend() const;
   /// Device parameters to set once after the handshake, before the first command (e.g. the glove's strain-gauge
   /// tare with the hand relaxed), and how long the device needs after them.
   virtual std::vector<std::pair<uint16_t, float>> startupParams() const { return {}; }

@@ -57,6 +57,7 @@ class GloveController : public Controller {
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
+  std::string liveLegend() const override;
   /// Tare every strain gauge (glove5 parameter 0x0110) with the hand relaxed before force control starts.
   std::vector<std::pair<uint16_t, float>> startupParams() const override { return {{apps::glove5_param::kTare, 1.0f}}; }
   double startupSettleS() const override { return 0.1; }

@@ -54,6 +54,7 @@ class PenController : public Controller {
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
+  std::string liveLegend() const override;
   std::vector<RequiredParam> requiredParams() const override;
 
   const phalanx::pen::Model<double>& model() const { return model_; }

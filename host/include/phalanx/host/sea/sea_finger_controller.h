@@ -55,6 +55,7 @@ class SeaFingerController : public Controller {
   void update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) override;
   void summarize(nlohmann::json& out) const override;
   std::string liveLine(const TelemetryFrame& tel) const override;
+  std::string liveLegend() const override;
 
   /// Desired finger torque and its rate at session time t_s (eq 18, with the ramp-in).
   void desired(double t_s, Vec2& y_d_Nm, Vec2& y_d_rate_Nm_s) const;

@@ -1,0 +1,420 @@
+// Issue #25 item 1 and 6: the stumbles a therapist hit following the README and docs/therapy.md, each as a
+// regression test against the real processes (phalanxd --api, the phalanx CLI, firmware-sim), and the FHIR export
+// validated by an independent implementation of the FHIR schema (fhir.resources, PyPI, tools/fhir-validate.py).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cctype>
+#include <chrono>
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "phalanx/host/api/client.h"
+#include "process.h"
+
+using phalanx::test::binPath;
+using phalanx::test::Process;
+
+namespace {
+
+std::string tempDir() {
+  char tmpl[] = "/tmp/phalanx-flow-XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  return d == nullptr ? std::string("/tmp") : std::string(d);
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string> linesOf(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  for (std::string l; std::getline(ss, l);) out.push_back(l);
+  return out;
+}
+
+/// A number printed as negative zero: "-0", "-0.0", "-0.00" … not followed by another digit.
+bool hasNegativeZero(const std::string& text) {
+  for (std::size_t p = text.find("-0"); p != std::string::npos; p = text.find("-0", p + 1)) {
+    // A number starts a word ("p-ok-0a…" in a path is none).
+    if (p > 0 && std::string(" \t(=[,:/").find(text[p - 1]) == std::string::npos) continue;
+    std::size_t q = p + 2;
+    if (q < text.size() && text[q] == '.') {
+      ++q;
+      while (q < text.size() && text[q] == '0') ++q;
+    }
+    if (q >= text.size() || !std::isalnum(static_cast<unsigned char>(text[q]))) return true;
+  }
+  return false;
+}
+
+/// Position of `needle` in `text` (npos → INT_MAX so an order check on a missing word fails).
+long at(const std::string& text, const std::string& needle) {
+  const auto p = text.find(needle);
+  return p == std::string::npos ? LONG_MAX : static_cast<long>(p);
+}
+
+const char* kGloveProfile =
+    "version: 1\npatient: p-ok\ndevice: glove5\n"
+    "rom_deg: {thumb_mcp: [0, 50], index_pip: [0, 90], index_mcp: [0, 70], little_dip: [0, 40]}\n"
+    "limits:\n  effort_max: {default: 3.0, thumb: 2.0}\n  range_deg: {index_pip: [0, 90]}\n";
+
+/// phalanxd --api on a simulated glove, profiles in its temporary directory, records where given.
+class Daemon {
+ public:
+  explicit Daemon(const std::string& records_sub = "records", std::vector<std::string> extra = {})
+      : dir_(tempDir()), socket_(dir_ + "/api.sock"), records_(dir_ + "/" + records_sub) {
+    std::ofstream(dir_ + "/p-ok.yaml") << kGloveProfile;
+    std::vector<std::string> argv = {binPath("phalanxd"), "--api", socket_, "--records-dir", records_,
+                                     "--profiles-dir", dir_, "--no-realtime", "--device", "sim:glove5",
+                                     "--scenario", "close-open",
+                                     // causeCommandTimeout() stops the daemon for 400 ms: the telemetry timeout
+                                     // (default 500 ms) gets a wide margin on a loaded machine.
+                                     "--telemetry-timeout-ms", "3000",
+                                     // and a 100 ms command timeout: a loaded machine's stalls do not latch
+                                     // faults of their own before the one the test causes.
+                                     "--command-timeout-ms", "100"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    proc_ = std::make_unique<Process>(argv);
+    EXPECT_EQ(proc_->readStdoutLine(10000), "API " + socket_) << proc_->stderrText();
+  }
+  ~Daemon() {
+    proc_->signal(SIGCONT);
+    proc_->signal(SIGTERM);
+    proc_->wait(15000);
+    std::system(("rm -rf " + dir_).c_str());
+  }
+  /// The phalanx CLI with PHALANX_SOCKET naming this daemon (no --socket needed); waits for its exit.
+  Process& cli(std::vector<std::string> args, int* rc) {
+    std::vector<std::string> argv = {"/usr/bin/env", "PHALANX_SOCKET=" + socket_, "PHALANX_CLIENT_CONFIG=/nonexistent-ok",
+                                     binPath("phalanx")};
+    argv.insert(argv.end(), args.begin(), args.end());
+    // PHALANX_SOCKET wins over the config file, so the config path above is never read.
+    clis_.push_back(std::make_unique<Process>(argv));
+    *rc = clis_.back()->wait(60000);
+    return *clis_.back();
+  }
+  nlohmann::json api(const nlohmann::json& req) {
+    nlohmann::json resp;
+    EXPECT_EQ(phalanx::host::api::call(socket_, req, resp), "") << req.dump();
+    return resp.value("result", nlohmann::json());
+  }
+  const std::string& dir() const { return dir_; }
+  const std::string& socket() const { return socket_; }
+  const std::string& records() const { return records_; }
+  Process& process() { return *proc_; }
+
+ private:
+  std::string dir_, socket_, records_;
+  std::unique_ptr<Process> proc_;
+  std::vector<std::unique_ptr<Process>> clis_;
+};
+
+/// Waits (bounded) until status satisfies pred; returns the last status.
+template <typename Pred>
+nlohmann::json waitFor(Daemon& d, Pred pred, int timeout_ms = 20000) {
+  nlohmann::json s;
+  for (int waited = 0; waited < timeout_ms; waited += 50) {
+    s = d.api({{"cmd", "status"}});
+    if (pred(s)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return s;
+}
+
+/// A real fault, caused the way a busy computer causes it: phalanxd stopped (SIGSTOP) for 400 ms, beyond the
+/// 100 ms command timeout and well inside the daemon's 3 s telemetry timeout: firmware-sim, a separate process, latches
+/// command-timeout and goes safe. Returns the status that shows it.
+nlohmann::json causeCommandTimeout(Daemon& d) {
+  d.process().signal(SIGSTOP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  d.process().signal(SIGCONT);
+  return waitFor(d, [](const nlohmann::json& s) {
+    return s.contains("session") && s["session"].value("faults", "none").find("command-timeout") != std::string::npos;
+  });
+}
+
+}  // namespace
+
+// Issue: `--records-dir records` with no records/ directory: `phalanx start` printed the paths and exited 0, the
+// session failed two seconds later, the cause only on the daemon's stderr.
+TEST(TherapistFlow, AMissingRecordsDirectoryIsCreatedAndAStartThatFailsExitsNonZero) {
+  Daemon d("new/records");
+  struct stat st {};
+  ASSERT_EQ(stat(d.records().c_str(), &st), 0) << "created at daemon start: " << d.process().stderrText();
+  EXPECT_TRUE(S_ISDIR(st.st_mode));
+  EXPECT_EQ(st.st_mode & 0777, 0750u) << "patient data: not world-readable";
+  int rc = 0;
+  Process& start = d.cli({"start", "--patient", "p-ok", "--seed", "2"}, &rc);
+  EXPECT_EQ(rc, 0) << start.stdoutText() << start.stderrText();
+  EXPECT_NE(start.stdoutText().find("record: " + d.records() + "/p-ok-"), std::string::npos) << start.stdoutText();
+  EXPECT_TRUE(d.api({{"cmd", "status"}})["session"].contains("t_s")) << "start returned once the session ran";
+  Process& stop = d.cli({"stop"}, &rc);
+  EXPECT_EQ(rc, 0) << stop.stderrText();
+
+  // A records directory that cannot be created: the daemon says which and why, before serving anything.
+  const std::string dir = tempDir();
+  std::ofstream(dir + "/afile") << "x";
+  Process bad({binPath("phalanxd"), "--api", dir + "/s.sock", "--records-dir", dir + "/afile/records",
+               "--profiles-dir", dir, "--no-realtime"});
+  EXPECT_EQ(bad.wait(10000), 2);
+  EXPECT_NE(bad.stderrText().find("--records-dir " + dir + "/afile/records: cannot create " + dir + "/afile/records: Not a directory"),
+            std::string::npos) << bad.stderrText();
+
+  // A session that fails after `start` answered (here: no firmware-sim to run): `phalanx start` says why, exit 4.
+  Daemon broken("records", {"--firmware-sim", "/nonexistent/firmware-sim"});
+  Process& failed = broken.cli({"start", "--patient", "p-ok"}, &rc);
+  EXPECT_EQ(rc, 4) << failed.stdoutText() << failed.stderrText();
+  EXPECT_NE(failed.stderrText().find("the session did not start: "), std::string::npos) << failed.stderrText();
+  std::printf("start of a failing session: %s", failed.stderrText().c_str());
+  std::system(("rm -rf " + dir).c_str());
+}
+
+// Issue: every client command needed --socket repeated.
+TEST(TherapistFlow, TheClientFindsTheSocketInPhalanxSocketOrItsConfigFile) {
+  Daemon d;
+  const std::string cfg = d.dir() + "/client.yaml";
+  std::ofstream(cfg) << "socket: " << d.socket() << "\n";
+  auto run = [&](std::vector<std::string> env, std::vector<std::string> args) {
+    std::vector<std::string> argv = {"/usr/bin/env", "-u", "PHALANX_SOCKET"};
+    argv.insert(argv.end(), env.begin(), env.end());
+    argv.push_back(binPath("phalanx"));
+    argv.insert(argv.end(), args.begin(), args.end());
+    auto p = std::make_unique<Process>(argv);
+    p->wait(20000);
+    return p;
+  };
+  auto viaConfig = run({"PHALANX_CLIENT_CONFIG=" + cfg}, {"profiles"});
+  EXPECT_EQ(viaConfig->wait(0), 0) << viaConfig->stderrText();
+  EXPECT_NE(viaConfig->stdoutText().find("p-ok.yaml"), std::string::npos) << viaConfig->stdoutText();
+  auto viaEnv = run({"PHALANX_SOCKET=" + d.socket(), "PHALANX_CLIENT_CONFIG=/nonexistent"}, {"profiles"});
+  EXPECT_EQ(viaEnv->wait(0), 0) << viaEnv->stderrText();
+  // --socket wins over both; PHALANX_SOCKET over the config.
+  auto flagWins = run({"PHALANX_SOCKET=/nonexistent.sock"}, {"profiles", "--socket", d.socket()});
+  EXPECT_EQ(flagWins->wait(0), 0) << flagWins->stderrText();
+  auto envWins = run({"PHALANX_SOCKET=" + d.dir() + "/nothing.sock", "PHALANX_CLIENT_CONFIG=" + cfg}, {"profiles"});
+  EXPECT_EQ(envWins->wait(0), 3);
+  EXPECT_NE(envWins->stderrText().find(d.dir() + "/nothing.sock"), std::string::npos) << envWins->stderrText();
+  // A config file with an unknown key is refused, naming the file and the key.
+  std::ofstream(d.dir() + "/bad.yaml") << "sockett: /x\n";
+  auto bad = run({"PHALANX_CLIENT_CONFIG=" + d.dir() + "/bad.yaml"}, {"status"});
+  EXPECT_EQ(bad->wait(0), 2);
+  EXPECT_NE(bad->stderrText().find(d.dir() + "/bad.yaml: sockett: unknown key"), std::string::npos) << bad->stderrText();
+}
+
+// Issue: profile, limits, reset and stop printed raw JSON (-29.999999999999996, -0.0, ~70 lines on stop); fingers
+// alphabetical; a missing profile said only "cannot read profile".
+TEST(TherapistFlow, ClientOutputIsForPeopleInAnatomicalOrderAndJsonOnlyWithJson) {
+  Daemon d;
+  int rc = 0;
+  auto noJsonNoise = [](const std::string& out) {
+    EXPECT_EQ(out.find('{'), std::string::npos) << out;
+    EXPECT_EQ(out.find("99999"), std::string::npos) << out;
+    EXPECT_EQ(out.find("00000"), std::string::npos) << out;
+    EXPECT_FALSE(hasNegativeZero(out)) << out;
+  };
+  const std::string profile = d.cli({"profile", "p-ok"}, &rc).stdoutText();
+  EXPECT_EQ(rc, 0);
+  noJsonNoise(profile);
+  std::printf("--- phalanx profile p-ok\n%s", profile.c_str());
+  EXPECT_LT(at(profile, "thumb_mcp"), at(profile, "index_mcp"));
+  EXPECT_LT(at(profile, "index_mcp"), at(profile, "index_pip"));
+  EXPECT_LT(at(profile, "index_pip"), at(profile, "little_dip"));
+  const std::string missing = d.cli({"profile", "nobody"}, &rc).stderrText();
+  EXPECT_EQ(rc, 1);
+  EXPECT_NE(missing.find("no profile for patient 'nobody': cannot read " + d.dir() + "/nobody.yaml: it does not exist"),
+            std::string::npos) << missing;
+  EXPECT_NE(missing.find("profiles in " + d.dir() + ": p-ok"), std::string::npos) << missing;
+  const std::string no_start = d.cli({"start", "--patient", "nobody"}, &rc).stderrText();
+  EXPECT_EQ(rc, 1);
+  EXPECT_NE(no_start.find(d.dir() + "/nobody.yaml: it does not exist"), std::string::npos) << no_start;
+
+  Process& start = d.cli({"start", "--patient", "p-ok", "--seed", "4"}, &rc);
+  ASSERT_EQ(rc, 0) << start.stderrText();
+  const std::string limits = d.cli({"limits", "--effort-max", "index=1.5"}, &rc).stdoutText();
+  EXPECT_EQ(rc, 0);
+  noJsonNoise(limits);
+  std::printf("--- phalanx limits --effort-max index=1.5\n%s", limits.c_str());
+  EXPECT_LT(at(limits, "thumb"), at(limits, "index"));
+  EXPECT_LT(at(limits, "index"), at(limits, "middle"));
+  EXPECT_LT(at(limits, "ring"), at(limits, "little"));
+  EXPECT_NE(limits.find("index    1.5\n"), std::string::npos) << limits;
+  EXPECT_LT(at(limits, "thumb_cmc"), at(limits, "index_mcp"));
+  EXPECT_LT(at(limits, "index_mcp"), at(limits, "index_pip"));
+  EXPECT_LT(at(limits, "index_pip"), at(limits, "index_dip"));
+  const std::string limits_json = d.cli({"limits", "--json"}, &rc).stdoutText();
+  EXPECT_FALSE(nlohmann::json::parse(limits_json, nullptr, false).is_discarded()) << "--json is JSON";
+  const std::string status = d.cli({"status"}, &rc).stdoutText();
+  noJsonNoise(status);
+  EXPECT_LT(at(status, "  thumb"), at(status, "  index"));
+  EXPECT_LT(at(status, "  ring"), at(status, "  little"));
+  const std::string reset = d.cli({"reset"}, &rc).stdoutText();
+  EXPECT_EQ(rc, 0);
+  EXPECT_NE(reset.find("reset sent"), std::string::npos) << reset;
+  const std::string stop = d.cli({"stop"}, &rc).stdoutText();
+  EXPECT_EQ(rc, 0);
+  std::printf("--- phalanx stop\n%s", stop.c_str());
+  noJsonNoise(stop);
+  EXPECT_LE(linesOf(stop).size(), 5u) << "a short summary: " << stop;
+  EXPECT_NE(stop.find("session ended: "), std::string::npos);
+  EXPECT_NE(stop.find("report: " + d.records() + "/p-ok-"), std::string::npos) << stop;
+}
+
+// Issue: the --live view was one ~186-column line that wrapped below ~190 columns, its symbols explained nowhere.
+TEST(TherapistFlow, TheLiveViewFitsEightyColumnsAndExplainsItself) {
+  for (const std::string device : {"sim:glove5", "sim:sea_finger"}) {
+    Process p({binPath("phalanxd"), "--device", device, "--scenario", "close-open", "--no-realtime", "--seconds",
+               "1.5", "--live"});
+    ASSERT_EQ(p.wait(30000), 0) << p.stderrText();
+    const std::string err = p.stderrText();
+    std::size_t widest = 0, drawn = 0;
+    for (std::string line : linesOf(err)) {
+      // What the terminal shows: escape sequences take no column; a carriage return starts the line again.
+      std::string shown;
+      for (std::size_t i = 0; i < line.size(); ++i) {
+        if (line[i] == '\033') {
+          while (i < line.size() && !std::isalpha(static_cast<unsigned char>(line[i]))) ++i;
+          continue;
+        }
+        if (line[i] == '\r') {
+          shown.clear();
+          continue;
+        }
+        shown += line[i];
+      }
+      // Only the live view's own lines (the legend and the redrawn block), not the daemon's messages.
+      if (shown.rfind("phalanxd", 0) == 0 || shown.rfind("firmware-sim", 0) == 0 || shown.rfind("WARNING", 0) == 0 ||
+          shown.empty()) {
+        continue;
+      }
+      std::size_t cols = 0;
+      for (unsigned char c : shown) cols += (c & 0xC0) != 0x80 ? 1 : 0;  // UTF-8: count code points
+      widest = std::max(widest, cols);
+      if (shown.find("  t ") == 0) ++drawn;
+    }
+    std::printf("%s: live view widest line %zu columns, %zu updates\n", device.c_str(), widest, drawn);
+    EXPECT_LE(widest, 80u) << err;
+    EXPECT_GE(drawn, 3u) << "the view was drawn: " << err;
+    EXPECT_NE(err.find("Live view, every 0.1 s"), std::string::npos) << "a legend: " << err;
+    EXPECT_NE(err.find("device = the mode the device reports"), std::string::npos);
+    if (device == "sim:glove5") {
+      EXPECT_NE(err.find("force = measured fingertip pad force"), std::string::npos);
+      EXPECT_NE(err.find("  thumb "), std::string::npos);
+      EXPECT_LT(at(err, "  thumb "), at(err, "  index "));
+      EXPECT_FALSE(hasNegativeZero(err)) << "no negative zero";
+    } else {
+      EXPECT_NE(err.find("finger torque = "), std::string::npos);
+      EXPECT_FALSE(hasNegativeZero(err)) << "no negative zero";
+    }
+  }
+}
+
+// Issue: a red command-timeout badge with no word on what it means or what to do; the report counted time the
+// glove was locked after a fault as exercise; its change column was not marked better or worse; the request
+// table was raw JSON.
+TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
+  Daemon d;
+  int rc = 0;
+  std::string first_record;
+  for (int run = 0; run < 2; ++run) {
+    ASSERT_EQ((d.cli({"start", "--patient", "p-ok", "--seed", std::to_string(run + 7)}, &rc), rc), 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    if (run == 1) {
+      d.cli({"exercise", "resistance", "--params", "{\"stiffness_per_rad\": 1.5}"}, &rc);
+      EXPECT_EQ(rc, 0);
+      d.cli({"limits", "--effort-max", "index=1.5"}, &rc);
+      const nlohmann::json faulted = causeCommandTimeout(d);
+      ASSERT_NE(faulted["session"].value("faults", ""), "none") << faulted.dump();
+      ASSERT_TRUE(faulted["session"].contains("fault_guidance")) << faulted.dump();
+      const std::string status = d.cli({"status"}, &rc).stdoutText();
+      std::printf("--- phalanx status with a fault\n%s", status.c_str());
+      EXPECT_NE(status.find("FAULT command-timeout"), std::string::npos) << status;
+      EXPECT_NE(status.find("what happened: The device stopped receiving commands"), std::string::npos) << status;
+      EXPECT_NE(status.find("patient safe:  Yes"), std::string::npos) << status;
+      EXPECT_NE(status.find("what to do:    Check the cable"), std::string::npos) << status;
+      std::this_thread::sleep_for(std::chrono::milliseconds(800));  // locked: not exercise
+      d.cli({"reset"}, &rc);
+      waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].value("faults", "") == "none"; });
+      std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+    }
+    const std::string stop = d.cli({"stop"}, &rc).stdoutText();
+    ASSERT_EQ(rc, 0) << stop;
+  }
+  const nlohmann::json recs = d.api({{"cmd", "recordings"}, {"patient", "p-ok"}});
+  ASSERT_EQ(recs.size(), 2u) << recs.dump();
+  const std::string html = slurp(d.records() + "/" + recs[1]["report"].get<std::string>());
+  ASSERT_FALSE(html.empty());
+  std::ofstream(binPath("") + "/../therapist-flow-report.html") << html;  // a test artefact under build/
+  const auto m0 = html.find("<script type='application/json' id='metrics'>");
+  ASSERT_NE(m0, std::string::npos);
+  std::string mj = html.substr(m0 + 45, html.find("</script>", m0) - m0 - 45);
+  for (auto [from, to] : {std::pair<std::string, std::string>{"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+    for (std::size_t p; (p = mj.find(from)) != std::string::npos;) mj.replace(p, from.size(), to);
+  }
+  const nlohmann::json m = nlohmann::json::parse(mj, nullptr, false);
+  ASSERT_TRUE(m.is_object()) << mj.substr(0, 200);
+  const double excluded = m["excluded_s"].get<double>();
+  std::printf("report: %.2f s excluded in %zu period(s): %s\n", excluded, m["excluded_periods"].size(),
+              m["excluded_periods"].dump().c_str());
+  EXPECT_GT(excluded, 0.5) << "the 0.8 s locked after the fault, at least";
+  EXPECT_LT(excluded, m["duration_s"].get<double>() - 2.0);
+  EXPECT_NE(m["excluded_periods"][0]["faults"].get<std::string>().find("command-timeout"), std::string::npos);
+  EXPECT_NE(html.find("excluded from every exercise metric below"), std::string::npos);
+  EXPECT_NE(html.find("<h3>What the faults mean</h3>"), std::string::npos);
+  EXPECT_NE(html.find("The device stopped receiving commands"), std::string::npos);
+  // Anatomical order in the range-of-motion table, and the change marked.
+  EXPECT_LT(at(html, "<tr><td>thumb_cmc</td>"), at(html, "<tr><td>thumb_mcp</td>"));
+  EXPECT_LT(at(html, "<tr><td>thumb_ip</td>"), at(html, "<tr><td>index_mcp</td>"));
+  EXPECT_LT(at(html, "<tr><td>index_mcp</td>"), at(html, "<tr><td>index_pip</td>"));
+  EXPECT_LT(at(html, "<tr><td>index_pip</td>"), at(html, "<tr><td>index_dip</td>"));
+  EXPECT_LT(at(html, "<tr><td>ring_dip</td>"), at(html, "<tr><td>little_mcp</td>"));
+  int marked = 0;
+  for (const char* w : {"▲ better", "▼ worse", "(no change)"}) {
+    for (std::size_t p = 0; (p = html.find(w, p)) != std::string::npos; ++p) ++marked;
+  }
+  EXPECT_EQ(marked, 15) << "every joint's change is marked better, worse or no change";
+  // The therapist's requests in words, not JSON.
+  EXPECT_NE(html.find("exercise changed to resistance</td><td class='text'>"), std::string::npos);
+  EXPECT_NE(html.find("stiffness_per_rad 1.5"), std::string::npos);
+  EXPECT_NE(html.find("effort limit lowered</td><td class='text'>index 1.5 N"), std::string::npos);
+  EXPECT_NE(html.find("reset faults (ClearFaults sent)"), std::string::npos);
+  EXPECT_GT(at(html, "{&quot;"), static_cast<long>(m0)) << "no raw JSON before the embedded metrics";
+
+  // FHIR export of the faulted session (item 6), validated by fhir.resources.
+  const std::string rec = d.records() + "/" + recs[1]["file"].get<std::string>();
+  const std::string fhir = d.dir() + "/session.fhir.json";
+  Process& ex = d.cli({"record", "fhir", rec, "--out", fhir}, &rc);
+  ASSERT_EQ(rc, 0) << ex.stderrText();
+  const nlohmann::json bundle = nlohmann::json::parse(slurp(fhir), nullptr, false);
+  ASSERT_TRUE(bundle.is_object());
+  EXPECT_EQ(bundle["type"], "collection");
+  EXPECT_EQ(bundle["entry"][0]["resource"]["subject"]["reference"], "Patient/p-ok");
+  EXPECT_EQ(bundle["entry"][0]["resource"]["bodySite"]["text"], "thumb CMC joint") << "anatomical order";
+  std::ofstream(binPath("") + "/../therapist-flow.fhir.json") << bundle.dump(2);  // artefact
+  Process validate({"/usr/bin/env", "python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", fhir});
+  const int vrc = validate.wait(60000);
+  if (vrc == 2 && std::getenv("CI") == nullptr) {
+    GTEST_SKIP() << "fhir.resources is not installed (tools/setup.sh --test installs it): " << validate.stderrText();
+  }
+  std::printf("%s", validate.stdoutText().c_str());
+  EXPECT_EQ(vrc, 0) << validate.stdoutText() << validate.stderrText();
+  // The validator can fail: the same bundle with an Observation missing its required status is refused.
+  nlohmann::json broken = bundle;
+  broken["entry"][1]["resource"].erase("status");
+  std::ofstream(d.dir() + "/broken.json") << broken.dump();
+  Process refuse({"/usr/bin/env", "python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", d.dir() + "/broken.json"});
+  EXPECT_EQ(refuse.wait(60000), 1) << refuse.stdoutText();
+  EXPECT_NE(refuse.stdoutText().find("status"), std::string::npos) << refuse.stdoutText();
+}
