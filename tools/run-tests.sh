@@ -7,6 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 tools/setup.sh
+tools/setup-records.sh  # pinned PyPI packages of the recordings' tests (mcap, numpy)
 
 echo "== host build =="
 cmake --preset host >/dev/null

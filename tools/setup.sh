@@ -15,6 +15,7 @@ PACKAGES=(
   qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils rt-tests
   linux-source-6.1 linux-headers-amd64
   libcpp-httplib-dev chromium
+  libzstd-dev
 )
 fi
 
