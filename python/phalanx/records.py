@@ -321,33 +321,43 @@ def load_mcap(path: str) -> Record:
     """Every topic of an MCAP file as named arrays (r.topics[topic][field], plus log_time_ns), and the columns of
     /phalanx/telemetry, /phalanx/command and /phalanx/therapy joined by cycle as r.columns (the CSV's names).
     A file that was never closed (the daemon killed) is read message by message up to its last whole chunk."""
-    from mcap.reader import NonSeekingReader  # the `mcap` package from PyPI
+    # The `mcap` package from PyPI: its StreamReader reads records in file order (CRCs validated), so a file the
+    # daemon never closed is read up to its end.
+    from mcap.exceptions import EndOfFile
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
 
     per_topic: Dict[str, List[Dict[str, Any]]] = {}
     events: List[Any] = []
     header = None
+    schemas: Dict[int, str] = {}
+    channels: Dict[int, Any] = {}
+    torn = False
     with open(path, "rb") as f:
-        reader = NonSeekingReader(f, validate_crcs=True)
         try:
-            for schema, channel, message in reader.iter_messages():
+            for rec in StreamReader(f, validate_crcs=True).records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec.name
+                    continue
+                if isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                    continue
+                if not isinstance(rec, Message):
+                    continue
+                channel = channels[rec.channel_id]
                 if channel.message_encoding == "json":
-                    msg = json.loads(message.data)
+                    msg = json.loads(rec.data)
                     if channel.topic == "/phalanx/events":
                         events.append(msg)
                         continue
                     row = {k: (math.nan if v is None else v) for k, v in msg.items()
                            if v is None or isinstance(v, (int, float))}
                 else:
-                    row = _flatten(_decode_ros2(schema.name if schema else "", message.data))
-                row["log_time_ns"] = message.log_time
+                    row = _flatten(_decode_ros2(schemas.get(channel.schema_id, ""), rec.data))
+                row["log_time_ns"] = rec.log_time
                 per_topic.setdefault(channel.topic, []).append(row)
-        except Exception as e:  # a file cut short: keep what was read, say so
-            if "EndOfFile" not in type(e).__name__ and "Unexpected" not in type(e).__name__ and \
-                    not isinstance(e, (EOFError, struct.error)):
-                raise
+        except EndOfFile:  # no footer: the recording was not closed (the daemon killed); keep what was read
             torn = True
-        else:
-            torn = False
     topics: Dict[str, Dict[str, np.ndarray]] = {}
     for topic, rows in per_topic.items():
         keys: List[str] = []

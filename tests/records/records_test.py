@@ -25,7 +25,10 @@ import tempfile
 import time
 
 import numpy as np
+from mcap.exceptions import EndOfFile
 from mcap.reader import NonSeekingReader, make_reader
+from mcap.records import Channel, Message
+from mcap.stream_reader import StreamReader
 
 from phalanx import records
 
@@ -87,6 +90,12 @@ def check_mcap_file(path, what):
     return summary, stream
 
 
+def same(a, b):
+    """float32 equality, NaN equal to NaN (JSON null)."""
+    a = np.float32(math.nan if a is None else a)
+    return a == b or (np.isnan(a) and np.isnan(b))
+
+
 def json_topic(stream, topic):
     return [json.loads(d) for t, _, d in stream if t == topic]
 
@@ -143,8 +152,9 @@ for j in joints:
     if row:
         check(abs(float(row.group(1)) - lo) <= 0.051 and abs(float(row.group(2)) - hi) <= 0.051,
               f"ROM {j}: table {row.group(1)}..{row.group(2)} = CSV {lo:.3f}..{hi:.3f}")
-check(worst < 1e-6, f"ROM recomputed from the CSV export equals the report's for all {len(joints)} joints "
-      f"(largest difference {worst:.2e} deg)")
+# The export prints t_s with 1 µs resolution (the report filters on the exact double), hence not bit-exact.
+check(worst < 1e-3, f"ROM recomputed from the CSV export equals the report's for all {len(joints)} joints "
+      f"(largest difference {worst:.2e} deg; the table shows 0.1 deg)")
 
 mcap_out = os.path.join(TMP, "glove.mcap")
 p = run([os.path.join(BIN, "phalanx"), "record", "export", phrec, "--mcap", "--out", mcap_out])
@@ -153,13 +163,12 @@ summary, stream = check_mcap_file(mcap_out, "export")
 tel = json_topic(stream, "/phalanx/telemetry")
 check(len(tel) == len(rec), f"export: one telemetry message per cycle ({len(tel)})")
 names = rec.header["samples"]
-same = all(np.float32(m[n]) == rec[n][i] for i, m in enumerate(tel) for n in names)
-check(same, "export: every decoded telemetry sample equals the .phrec's value")
+check(all(same(m[n], rec[n][i]) for i, m in enumerate(tel) for n in names), "export: every decoded telemetry sample equals the .phrec's value")
 cmd = json_topic(stream, "/phalanx/command")
-check(all(np.float32(m[n]) == rec[n][i] for i, m in enumerate(cmd) for n in rec.header["setpoints"]),
+check(all(same(m[n], rec[n][i]) for i, m in enumerate(cmd) for n in rec.header["setpoints"]),
       "export: every decoded setpoint equals the .phrec's value")
 ther = json_topic(stream, "/phalanx/therapy")
-check(all(np.float32(m[n]) == rec[n][i] for i, m in enumerate(ther) for n in rec.header["aux"]),
+check(all(same(m[n], rec[n][i]) for i, m in enumerate(ther) for n in rec.header["aux"]),
       "export: every therapy value equals the .phrec's value")
 mrec = records.load(mcap_out)
 js = mrec.topics["/phalanx/joint_states"]
@@ -206,18 +215,26 @@ for kind, flag, ext in (("--record", "--record", "mcap"), ("--session-record", "
         d.send_signal(signal.SIGKILL)
         d.wait()
         if ext == "mcap":
+            msgs, ended, topics = [], None, {}
             with open(out, "rb") as f:
-                msgs = [(c.topic, m.log_time, m.data) for _, c, m in
-                        NonSeekingReader(f, validate_crcs=True).iter_messages()]
+                try:  # the package's StreamReader: records in file order, chunks' CRCs validated
+                    for r in StreamReader(f, validate_crcs=True).records:
+                        if isinstance(r, Channel):
+                            topics[r.id] = r.topic
+                        elif isinstance(r, Message):
+                            msgs.append((topics[r.channel_id], r.log_time, r.data))
+                except EndOfFile as e:  # no summary or footer: the daemon never closed the file
+                    ended = e
+            check(ended is not None, f"killed .mcap {k}: ends without a footer, read up to its end")
             tel = json_topic(msgs, "/phalanx/telemetry")
-            check(len(tel) > 500, f"killed .mcap {k}: the mcap package reads {len(tel)} cycles (CRCs valid)")
+            check(len(tel) > 200, f"killed .mcap {k}: the mcap package reads {len(tel)} cycles (CRCs valid)")
             newest = max(lt for _, lt, _ in msgs)
             gap = (kill_wall_ns - newest) * 1e-9
             r = records.load(out)
             check(len(r) == len(tel), "killed .mcap: phalanx.records.load reads the same cycles")
         else:
             r = records.load(out)
-            check(r.integrity["bad_records"] == 0 and len(r) > 500,
+            check(r.integrity["bad_records"] == 0 and len(r) > 200,
                   f"killed .phrec {k}: {len(r)} cycles, no damaged record")
             # The .phrec has no wall clock per cycle: the gap is the run time minus the newest cycle's t_s, an
             # upper bound (the daemon's start-up before its first cycle counts as loss).

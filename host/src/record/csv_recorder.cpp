@@ -69,6 +69,12 @@ void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Com
     countLost(1);
     return;
   }
+  if (first_row_) {
+    first_row_ = false;
+    const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        std::chrono::system_clock::now().time_since_epoch()).count();
+    epoch_ns_ = static_cast<uint64_t>(now - std::llround(t_s * 1e9));
+  }
   Row r;
   r.t_s = t_s;
   r.device_time_us = tel.device_time_us;
@@ -203,6 +209,7 @@ void CsvRecorder::format(const Row& r) {
     c.sample = r.sample;
     c.setpoint = r.setpoint;
     if (pending_rows_ == 0) pending_t0_ = r.t_s;
+    if (written_.load() + pending_rows_ == 0) mcap_->setStartEpoch(epoch_ns_);
     mcap_->addCycle(c);
     ++pending_rows_;
     return;

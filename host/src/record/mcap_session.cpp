@@ -367,7 +367,7 @@ std::string exportMcap(const SessionRecord& rec, const std::string& path) {
     return f.write(b.data(), b.size());
   };
   put(s.start());
-  // Events in time order between the cycles; a chunk per 100 ms of session, as a live recording has.
+  // Events in time order between the cycles; a chunk per 50 ms of session, as a live recording has.
   std::size_t e = 0;
   double chunk_t = rec.cycles.empty() ? 0.0 : rec.cycles.front().t_s;
   auto eventT = [&](std::size_t i) {
@@ -377,7 +377,7 @@ std::string exportMcap(const SessionRecord& rec, const std::string& path) {
   for (const CycleRecord& c : rec.cycles) {
     while (e < rec.events.size() && eventT(e) <= c.t_s) s.addEvent(rec.events[e++]);
     s.addCycle(c);
-    if (c.t_s - chunk_t >= 0.1) {
+    if (c.t_s - chunk_t >= 0.05) {
       if (!put(s.takeChunk(offset))) break;
       chunk_t = c.t_s;
     }

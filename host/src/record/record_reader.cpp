@@ -231,7 +231,8 @@ std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
   char buf[160];
   auto put = [&](int n) { f.write(buf, static_cast<std::size_t>(std::min<int>(n, sizeof buf - 1))); };
   auto value = [&](uint8_t count, std::size_t k, float v) {
-    put(std::snprintf(buf, sizeof buf, ",%.7g", k < count ? static_cast<double>(v) : 0.0));
+    // 9 significant digits: a float32 round-trips exactly.
+    put(std::snprintf(buf, sizeof buf, ",%.9g", k < count ? static_cast<double>(v) : 0.0));
   };
   uint64_t i = 0;
   for (const CycleRecord& c : rec.cycles) {

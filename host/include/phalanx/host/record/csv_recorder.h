@@ -91,6 +91,10 @@ class CsvRecorder {
   uint64_t file_bytes_ = 0;    // whole rows (and the header) in the file
   // MCAP output (null for CSV): the encoder, the CRC of every byte in the file, the first pending row's time.
   std::unique_ptr<McapSession> mcap_;
+  // Wall clock of t_s = 0, taken by the loop at its first row (one vDSO clock read, no system call); the queue's
+  // release/acquire hands it to the writer with that row.
+  uint64_t epoch_ns_ = 0;
+  bool first_row_ = true;
   uint32_t file_crc_ = 0;
   double pending_t0_ = 0.0;
   void writeMcapChunk();

@@ -48,6 +48,8 @@ class McapSession {
   ~McapSession();
   /// The file's first bytes: magic, header, metadata, schemas and channels.
   std::vector<uint8_t> start();
+  /// Log time of t_s = 0 (before the first addCycle; else McapLayout::start_epoch_ns).
+  void setStartEpoch(uint64_t epoch_ns) { layout_.start_epoch_ns = epoch_ns; }
   /// Not real time (writer thread): one cycle → its messages in the open chunk.
   void addCycle(const CycleRecord& c);
   /// An event {"t_s", "kind", …}.
