@@ -45,7 +45,7 @@ struct WriterConfig {
   unsigned flush_period_ms = 20;
   /// fdatasync period: bounds the loss on power failure / kernel crash, at the cost of disk writes.
   unsigned sync_period_ms = 1000;
-  /// Cycles of each flush as one compressed cycle block (record type 5, format version 2: ≈ 4× smaller,
+  /// Cycles of each flush as one compressed cycle block (record type 5, format version 2: ≈ 2.3× smaller,
   /// docs/records.md "Storage"); a damaged block then costs its ≤ 20 ms of cycles instead of one. Session records
   /// of the daemon use it (TherapySessionConfig); false writes one plain cycle record per cycle (format 1).
   bool cycle_blocks = false;
