@@ -10,7 +10,7 @@ set -euo pipefail
 MAIN_PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libcli11-dev libyaml-cpp-dev zlib1g-dev nlohmann-json3-dev libceres-dev libusb-1.0-0-dev
-  libgpiod-dev libmodbus-dev libnlopt-dev libcpp-httplib-dev libaio-dev
+  libgpiod-dev libmodbus-dev libnlopt-dev libcpp-httplib-dev libaio-dev libzstd-dev
 )
 
 set_name=main
@@ -40,6 +40,7 @@ fi
 PIP_PACKAGES=(
   cyclonedds==11.0.1
   fhir.resources==8.1.0 fhir-core==1.1.12   # the FHIR export's validator (docs/fhir.md)
+  mcap==1.6.0 zstandard==0.25.0 lz4==4.4.5 numpy==2.4.6   # the MCAP files' reader; phalanx.records' arrays
 )
 
 if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi

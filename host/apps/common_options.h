@@ -22,7 +22,7 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--telemetry-timeout-ms", opt.telemetry_timeout_ms,
                  "no new telemetry for this long ends the session as a lost link (exit 6)")
       ->check(cli::inRange(10u, 10000u));
-  app.add_option("--record", opt.record_csv, "record every cycle to this CSV file");
+  app.add_option("--record", opt.record_csv, "record every cycle to this file: CSV with named columns, or MCAP for a name ending in .mcap (docs/records.md)");
   app.add_option("--cycle", opt.cycle, "what starts a host cycle: telemetry (a frame's arrival, locked to the device; "
                  "the timer as fallback) | timer (the period timer alone)")
       ->check(CLI::IsMember({"telemetry", "timer"}));

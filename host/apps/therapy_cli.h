@@ -1,7 +1,7 @@
 #pragma once
 // The `phalanx` CLI as a client of phalanxd's control API (docs/api.md), and the session-record tools.
 //   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
-//   phalanx record export FILE --csv [--out PATH] | record info FILE | record report FILE [--previous F] --out F
+//   phalanx record export FILE [--csv|--mcap] [--out PATH] | record info FILE | record report FILE [--previous F] --out F
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -21,6 +21,7 @@
 #include "cli_args.h"
 #include "phalanx/host/api/client.h"
 #include "phalanx/host/api/server.h"
+#include "phalanx/host/record/mcap_session.h"
 #include "phalanx/host/record/record_reader.h"
 #include "phalanx/host/therapy/fhir.h"
 #include "phalanx/host/therapy/guidance.h"
@@ -47,6 +48,7 @@ struct TherapyCli {
   CLI::App* rec_fhir = nullptr;
   std::string rec_file, rec_out, rec_previous, rec_reference;
   bool csv = false;
+  bool mcap = false;
 };
 
 inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
@@ -87,10 +89,13 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
 
   t.record = app.add_subcommand("record", "session records (.phrec)");
   t.record->require_subcommand(1);
-  t.rec_export = t.record->add_subcommand("export", "export a record to CSV");
+  t.rec_export = t.record->add_subcommand("export", "export a record to CSV (default) or MCAP");
   t.rec_export->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
-  t.rec_export->add_flag("--csv", t.csv, "CSV output (the only format)")->required();
-  t.rec_export->add_option("--out", t.rec_out, "output file (default: FILE with .csv; never the record itself)");
+  CLI::Option* csv = t.rec_export->add_flag("--csv", t.csv, "CSV output (the default)");
+  t.rec_export->add_flag("--mcap", t.mcap, "MCAP output (Foxglove, PlotJuggler, rosbag2; also for an --out ending .mcap)")
+      ->excludes(csv);
+  t.rec_export->add_option("--out", t.rec_out,
+                           "output file (default: FILE with .csv or .mcap; never the record itself)");
   t.rec_info = t.record->add_subcommand("info", "header, counts and integrity of a record");
   t.rec_info->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_report = t.record->add_subcommand("report", "write the HTML report of a record");
@@ -372,8 +377,10 @@ inline int runTherapyCommands(TherapyCli& t) {
       std::cout << j.dump(2) << std::endl;
       return 0;
     }
-    const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".csv") : t.rec_out;
-    if (const std::string err = record::exportCsv(rec, out, progress); !err.empty()) {
+    const bool to_mcap = t.mcap || (!t.csv && t.rec_out.size() > 5 && t.rec_out.compare(t.rec_out.size() - 5, 5, ".mcap") == 0);
+    const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, to_mcap ? ".mcap" : ".csv") : t.rec_out;
+    if (const std::string err = to_mcap ? record::exportMcap(rec, out) : record::exportCsv(rec, out, progress);
+        !err.empty()) {
       std::fprintf(stderr, "\nphalanx: error: %s\n", err.c_str());
       return 1;
     }

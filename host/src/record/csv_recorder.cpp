@@ -1,5 +1,7 @@
 #include "phalanx/host/record/csv_recorder.h"
 
+#include "phalanx/host/therapy/device.h"
+
 #include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
@@ -7,6 +9,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
@@ -19,12 +23,30 @@ std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLay
   sync_column_ = sync_column;
   samples_ = layout.sample_count;
   setpoints_ = layout.setpoint_count;
-  std::string header = "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits";
-  for (uint8_t i = 0; i < layout.sample_count; ++i) header += ",sample" + std::to_string(i);
-  for (uint8_t i = 0; i < layout.setpoint_count; ++i) header += ",setpoint" + std::to_string(i);
-  // Rising edges of the sync pulse emitted so far: the motion-capture frame index (docs/gpio.md).
-  if (sync_column) header += ",sync_pulses";
-  header += "\n";
+  const bool mcap = path.size() > 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
+  std::string header;
+  if (mcap) {
+    McapLayout l;
+    l.device = layout.name;
+    l.samples = sampleColumnNames(layout);
+    l.setpoints = setpointColumnNames(layout);
+    l.start_epoch_ns = static_cast<uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
+    l.header = {{"device", layout.name}, {"samples", l.samples}, {"setpoints", l.setpoints}};
+    std::string err;
+    mcap_ = std::make_unique<McapSession>(l, therapy::makeTherapyDevice(layout, {}, err));
+    const std::vector<uint8_t> start = mcap_->start();
+    header.assign(start.begin(), start.end());
+    file_crc_ = mcapCrc(0, start.data(), start.size());
+  } else {
+    // Named columns with their units (docs/records.md, "--record CSV columns").
+    header = "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits";
+    for (const auto& n : sampleColumnNames(layout)) header += "," + n;
+    for (const auto& n : setpointColumnNames(layout)) header += "," + n;
+    // Rising edges of the sync pulse emitted so far: the motion-capture frame index (docs/gpio.md).
+    if (sync_column) header += ",sync_pulses";
+    header += "\n";
+  }
   int err_no = 0;
   if (writeFully(fd_, header.data(), header.size(), err_no) != header.size()) {
     const std::string err = "cannot write recording " + path + ": " + std::strerror(err_no);
@@ -47,6 +69,12 @@ void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Com
     countLost(1);
     return;
   }
+  if (first_row_) {
+    first_row_ = false;
+    const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        std::chrono::system_clock::now().time_since_epoch()).count();
+    epoch_ns_ = static_cast<uint64_t>(now - std::llround(t_s * 1e9));
+  }
   Row r;
   r.t_s = t_s;
   r.device_time_us = tel.device_time_us;
@@ -55,6 +83,9 @@ void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Com
   r.cmd_seq_echo = tel.cmd_seq_echo;
   r.fault_bits = tel.fault_bits;
   r.mode = static_cast<uint8_t>(tel.mode);
+  r.cmd_mode = static_cast<uint8_t>(cmd.mode);
+  r.cmd_seq = cmd.seq;
+  r.state_flags = tel.state_flags;
   std::copy(tel.value.begin(), tel.value.begin() + samples_, r.sample.begin());
   std::copy(cmd.setpoint, cmd.setpoint + setpoints_, r.setpoint.begin());
   if (!queue_->push(r)) countLost(1);
@@ -67,6 +98,19 @@ void CsvRecorder::close() {
   }
   queue_.reset();
   if (fd_ < 0) return;
+  if (mcap_ && !failed()) {
+    // The summary: only for a file whose every chunk reached it (a failed file stays readable as it was cut).
+    const std::vector<uint8_t> tail = mcap_->finish(file_bytes_, file_crc_);
+    int err_no = 0;
+    const std::size_t done = writeFully(fd_, tail.data(), tail.size(), err_no);
+    if (err_no != 0) {
+      if (::ftruncate(fd_, static_cast<off_t>(file_bytes_)) != 0) file_bytes_ += done;
+      failure_.set("recording " + path_ + ": writing the MCAP summary failed: " + std::strerror(err_no) +
+                   " (every chunk is in the file; readers that need the summary must scan it)");
+    } else {
+      file_bytes_ += done;
+    }
+  }
   if (!failed()) {
     if (const int e = syncData(fd_); e != 0) failure_.set("recording " + path_ + ": fdatasync failed: " + std::strerror(e));
   }
@@ -86,7 +130,7 @@ void CsvRecorder::writerMain() {
     while (queue_->pop(r)) {
       format(r);
       ++n;
-      if (pending_rows_ >= kRowsPerWrite) writePending();
+      if (pending_rows_ >= kRowsPerWrite || (mcap_ && r.t_s - pending_t0_ >= kMcapChunkS)) writePending();
     }
     if (!more) break;
     if (n == 0) usleep(5000);
@@ -94,8 +138,35 @@ void CsvRecorder::writerMain() {
   writePending();
 }
 
+void CsvRecorder::writeMcapChunk() {
+  const uint64_t rows = pending_rows_;
+  pending_rows_ = 0;
+  const std::vector<uint8_t> chunk = mcap_->takeChunk(file_bytes_);
+  if (failed()) {
+    unwritten_.fetch_add(rows);
+    return;
+  }
+  int err_no = 0;
+  const std::size_t done = writeFully(fd_, chunk.data(), chunk.size(), err_no);
+  if (err_no == 0) {
+    written_.fetch_add(rows);
+    file_bytes_ += done;
+    file_crc_ = mcapCrc(file_crc_, chunk.data(), chunk.size());
+    return;
+  }
+  // A chunk counts only whole: cut the file back to the end of the previous one.
+  unwritten_.fetch_add(rows);
+  if (::ftruncate(fd_, static_cast<off_t>(file_bytes_)) != 0) file_bytes_ += done;
+  failure_.set("recording " + path_ + ": writing failed: " + std::strerror(err_no) + " (" +
+               std::to_string(written_.load()) + " rows written; nothing after them is recorded)");
+}
+
 void CsvRecorder::writePending() {
   if (pending_rows_ == 0) return;
+  if (mcap_) {
+    writeMcapChunk();
+    return;
+  }
   const uint64_t rows = pending_rows_;
   pending_rows_ = 0;
   if (failed()) {
@@ -121,6 +192,28 @@ void CsvRecorder::writePending() {
 }
 
 void CsvRecorder::format(const Row& r) {
+  if (mcap_) {
+    CycleRecord c;
+    c.host_ns = static_cast<uint64_t>(std::llround(r.t_s * 1e9)) + 1;  // the loop's wake-up, from t_s (never 0)
+    c.t_s = r.t_s;
+    c.device_time_us = r.device_time_us;
+    c.tel_seq = r.seq;
+    c.cmd_seq_echo = r.cmd_seq_echo;
+    c.fault_bits = r.fault_bits;
+    c.tel_mode = r.mode;
+    c.cmd_mode = r.cmd_mode;
+    c.cmd_seq = r.cmd_seq;
+    c.state_flags = r.state_flags;
+    c.sample_count = samples_;
+    c.setpoint_count = setpoints_;
+    c.sample = r.sample;
+    c.setpoint = r.setpoint;
+    if (pending_rows_ == 0) pending_t0_ = r.t_s;
+    if (written_.load() + pending_rows_ == 0) mcap_->setStartEpoch(epoch_ns_);
+    mcap_->addCycle(c);
+    ++pending_rows_;
+    return;
+  }
   char buf[64];
   auto put = [&](int n) { pending_.append(buf, static_cast<std::size_t>(std::min<int>(n, sizeof buf - 1))); };
   put(std::snprintf(buf, sizeof buf, "%.6f,%llu,%u,%u,%u,%u", r.t_s, static_cast<unsigned long long>(r.device_time_us),

@@ -110,4 +110,47 @@ bool decodeCycle(const uint8_t* payload, std::size_t length, CycleRecord& c) {
   return true;
 }
 
+std::vector<uint8_t> encodeCycleBlock(const uint8_t* cycles, uint16_t count, uint16_t length) {
+  const std::size_t n = static_cast<std::size_t>(count) * length;
+  std::vector<uint8_t> shuffled(n);
+  for (std::size_t i = 0; i < count; ++i) {
+    for (std::size_t k = 0; k < length; ++k) shuffled[k * count + i] = cycles[i * length + k];
+  }
+  uLongf out_len = compressBound(static_cast<uLong>(n));
+  std::vector<uint8_t> out(4 + out_len);
+  if (compress2(out.data() + 4, &out_len, shuffled.data(), static_cast<uLong>(n), 6) != Z_OK ||
+      4 + out_len > kMaxPayload) {
+    return {};
+  }
+  out.resize(4 + out_len);
+  uint8_t* p = out.data();
+  putLe<uint16_t>(p, count);
+  putLe<uint16_t>(p, length);
+  return out;
+}
+
+bool decodeCycleBlock(const uint8_t* payload, std::size_t length, std::vector<CycleRecord>& out) {
+  if (length < 4) return false;
+  const uint8_t* p = payload;
+  const uint16_t count = getLe<uint16_t>(p);
+  const uint16_t len = getLe<uint16_t>(p);
+  const std::size_t n = static_cast<std::size_t>(count) * len;
+  if (n == 0 || n > kMaxBlockBytes + kMaxCyclePayload) return false;
+  std::vector<uint8_t> shuffled(n);
+  uLongf got = static_cast<uLongf>(n);
+  if (uncompress(shuffled.data(), &got, p, static_cast<uLong>(length - 4)) != Z_OK || got != n) return false;
+  std::vector<uint8_t> cycle(len);
+  const std::size_t before = out.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    for (std::size_t k = 0; k < len; ++k) cycle[k] = shuffled[k * count + i];
+    CycleRecord c;
+    if (!decodeCycle(cycle.data(), len, c)) {
+      out.resize(before);
+      return false;
+    }
+    out.push_back(c);
+  }
+  return true;
+}
+
 }  // namespace phalanx::host::record

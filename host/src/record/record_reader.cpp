@@ -1,5 +1,7 @@
 #include "phalanx/host/record/record_reader.h"
 
+#include "phalanx/host/therapy/device.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -7,6 +9,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
+#include <memory>
 #include <cstdio>
 #include <cstring>
 #include <new>
@@ -24,6 +28,17 @@ nlohmann::json parseJson(const uint8_t* p, std::size_t n) {
 }
 
 }  // namespace
+
+therapy::KinematicParams kinematicsFromHeader(const nlohmann::json& h) {
+  therapy::KinematicParams k;
+  if (!h.is_object() || !h.contains("kinematics") || !h["kinematics"].is_object()) return k;
+  for (const auto& [ch, v] : h["kinematics"].items()) {
+    if (!v.is_object()) continue;
+    k.segment_lengths_mm.emplace_back(ch, std::array<double, 3>{v.value("p1_mm", 0.0), v.value("p2_mm", 0.0),
+                                                                v.value("p3_mm", 0.0)});
+  }
+  return k;
+}
 
 int SessionRecord::auxIndex(const std::string& name) const {
   if (!header.is_object() || !header.contains("aux") || !header["aux"].is_array()) return -1;
@@ -156,6 +171,9 @@ std::string parseRecord(const std::vector<uint8_t>& data, SessionRecord& out,
         else ++out.bad_records;
         break;
       }
+      case RecordType::kCycleBlock:
+        if (!decodeCycleBlock(payload, len, out.cycles)) ++out.bad_records;
+        break;
       case RecordType::kEvent: {
         nlohmann::json e = parseJson(payload, len);
         if (!e.is_discarded()) out.events.push_back(std::move(e));
@@ -199,12 +217,22 @@ std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
   for (const auto& n : names("samples", "sample", ns)) line += "," + n;
   for (const auto& n : names("setpoints", "setpoint", nc)) line += "," + n;
   for (const auto& n : names("aux", "aux", na)) line += "," + n;
+  // Joint flexion in degrees (flexion positive), through the device's kinematics with the patient's parameters
+  // from the header, as the report computes it: every report figure can be recomputed from the export.
+  std::string dev_err;
+  std::unique_ptr<therapy::TherapyDevice> dev;
+  if (rec.header.is_object() && rec.header.contains("device") && rec.header["device"].is_string()) {
+    dev = therapy::makeTherapyDevice(rec.header["device"].get<std::string>(), kinematicsFromHeader(rec.header), dev_err);
+  }
+  const std::size_t nj = dev ? dev->jointCount() : 0;
+  for (std::size_t j = 0; j < nj; ++j) line += "," + dev->jointName(j) + "_flexion_deg";
   line += "\n";
   f.write(line);
   char buf[160];
   auto put = [&](int n) { f.write(buf, static_cast<std::size_t>(std::min<int>(n, sizeof buf - 1))); };
   auto value = [&](uint8_t count, std::size_t k, float v) {
-    put(std::snprintf(buf, sizeof buf, ",%.7g", k < count ? static_cast<double>(v) : 0.0));
+    // 9 significant digits: a float32 round-trips exactly.
+    put(std::snprintf(buf, sizeof buf, ",%.9g", k < count ? static_cast<double>(v) : 0.0));
   };
   uint64_t i = 0;
   for (const CycleRecord& c : rec.cycles) {
@@ -218,6 +246,21 @@ std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,
     for (std::size_t k = 0; k < ns; ++k) value(c.sample_count, k, c.sample[k]);
     for (std::size_t k = 0; k < nc; ++k) value(c.setpoint_count, k, c.setpoint[k]);
     for (std::size_t k = 0; k < na; ++k) value(c.aux_count, k, c.aux[k]);
+    if (nj > 0) {
+      TelemetryFrame tel;
+      tel.device_time_us = c.device_time_us;
+      tel.mode = static_cast<protocol::Mode>(c.tel_mode);
+      tel.fault_bits = c.fault_bits;
+      tel.sample_count = c.sample_count;
+      for (std::size_t k = 0; k < c.sample_count; ++k) tel.value[k] = c.sample[k];
+      therapy::Observation obs{};
+      dev->observe(tel, obs);
+      for (std::size_t j = 0; j < nj; ++j) {
+        // Empty when the kinematics give no measurement of the joint (the report skips those cycles too).
+        if (obs.joint_valid[j]) put(std::snprintf(buf, sizeof buf, ",%.17g", obs.flexion_rad[j] * (180.0 / M_PI)));
+        else f.write(",", 1);
+      }
+    }
     if (!f.write("\n", 1)) break;
   }
   if (progress) progress(rec.cycles.size(), rec.cycles.size());

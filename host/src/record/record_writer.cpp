@@ -12,6 +12,7 @@ namespace phalanx::host::record {
 
 RecordWriter::RecordWriter(const WriterConfig& config) : config_(config), queue_(config.queue_cycles) {
   buffer_.reserve(1 << 20);
+  block_.reserve(kMaxBlockBytes + kMaxCyclePayload);
   record_ends_.reserve(config.queue_cycles + 512);
   cycle_ends_.reserve(config.queue_cycles);
 }
@@ -92,10 +93,24 @@ void RecordWriter::pushEvent(double t_s, const std::string& kind, nlohmann::json
   events_.push_back(std::move(rec));
 }
 
-void RecordWriter::add(RecordType type, const uint8_t* payload, std::size_t length, bool cycle) {
+void RecordWriter::add(RecordType type, const uint8_t* payload, std::size_t length, std::size_t cycles) {
   appendRecord(buffer_, type, payload, length);
   record_ends_.push_back(buffer_.size());
-  if (cycle) cycle_ends_.push_back(buffer_.size());
+  cycle_ends_.insert(cycle_ends_.end(), cycles, buffer_.size());
+}
+
+void RecordWriter::addBlock() {
+  if (block_count_ == 0) return;
+  const std::vector<uint8_t> b = encodeCycleBlock(block_.data(), block_count_, block_length_);
+  if (!b.empty()) {
+    add(RecordType::kCycleBlock, b.data(), b.size(), block_count_);
+  } else {
+    for (uint16_t i = 0; i < block_count_; ++i) {
+      add(RecordType::kCycle, block_.data() + static_cast<std::size_t>(i) * block_length_, block_length_, 1);
+    }
+  }
+  block_.clear();
+  block_count_ = 0;
 }
 
 void RecordWriter::fail(const std::string& what) { failure_.set(what); }
@@ -131,7 +146,18 @@ bool RecordWriter::drainOnce() {
   cycle_ends_.clear();
   CycleRecord c;
   uint8_t payload[kMaxCyclePayload];
-  while (queue_.pop(c)) add(RecordType::kCycle, payload, encodeCycle(c, payload), true);
+  while (queue_.pop(c)) {
+    const std::size_t n = encodeCycle(c, payload);
+    if (!config_.cycle_blocks) {
+      add(RecordType::kCycle, payload, n, 1);
+      continue;
+    }
+    if (block_count_ > 0 && (n != block_length_ || block_.size() + n > kMaxBlockBytes)) addBlock();
+    block_length_ = static_cast<uint16_t>(n);
+    block_.insert(block_.end(), payload, payload + n);
+    ++block_count_;
+  }
+  addBlock();
   LoopEvent le;
   while (loop_events_.pop(le)) {
     const std::string text = loopEventJson(le).dump();

@@ -384,18 +384,19 @@ std::string readCalibrationCsv(const std::string& path, std::vector<CalibrationS
       names.push_back(cell);
     }
   }
-  auto find = [&](const char* a, const char* b) -> int {
+  // Column names of phalanx run --record (named since issue 23; sample<i> before), or θ names.
+  auto find = [&](const char* a, const char* b, const char* named) -> int {
     for (std::size_t i = 0; i < names.size(); ++i) {
-      if (names[i] == a || names[i] == b) return static_cast<int>(i);
+      if (names[i] == a || names[i] == b || names[i] == named) return static_cast<int>(i);
     }
     return -1;
   };
-  const int c1 = find("sample0", "theta1r_rad");
-  const int c6 = find("sample1", "theta6r_rad");
-  const int c5 = find("sample2", "theta7r_rad");
+  const int c1 = find("sample0", "theta1r_rad", "sensor0_exo_mcp_rad");
+  const int c6 = find("sample1", "theta6r_rad", "sensor1_exo_pip_rad");
+  const int c5 = find("sample2", "theta7r_rad", "sensor2_rad");
   if (c1 < 0 || c6 < 0 || c5 < 0) {
-    return path + ": header needs columns sample0,sample1,sample2 (phalanx run --record of sea_finger) or "
-                  "theta1r_rad,theta6r_rad,theta7r_rad";
+    return path + ": header needs columns sensor0_exo_mcp_rad,sensor1_exo_pip_rad,sensor2_rad (phalanx run --record "
+                  "of sea_finger; sample0,sample1,sample2 in older recordings) or theta1r_rad,theta6r_rad,theta7r_rad";
   }
   std::size_t line_no = 1;
   std::vector<double> v(names.size());

@@ -105,7 +105,7 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
   if (config_.record_path.empty()) return {};
   nlohmann::json h;
   h["format"] = "phalanx-session-record";
-  h["format_version"] = 1;
+  h["format_version"] = config_.writer.cycle_blocks ? 2 : 1;  // 2: cycles in compressed blocks (docs/records.md)
   const auto now = std::chrono::system_clock::now();
   const std::time_t tt = std::chrono::system_clock::to_time_t(now);
   char buf[32];

@@ -17,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "phalanx/host/record/mcap_session.h"
 #include "phalanx/host/record/spsc_queue.h"
 #include "phalanx/host/record/write_failure.h"
 #include "phalanx/host/session.h"
@@ -25,6 +26,10 @@
 
 namespace phalanx::host::record {
 
+/// `--record FILE` recorder: CSV (named columns with units, the default) or, for a FILE ending in ".mcap", MCAP
+/// (mcap_session.h's channels; one zstd chunk per ≤ 50 ms, so a kill -9 loses at most that; the summary is
+/// written at close()). Both go through the same queue, writer thread and failure accounting; a "row" of an
+/// MCAP file is one cycle, written when its whole chunk reached the file.
 class CsvRecorder {
  public:
   ~CsvRecorder() { close(); }
@@ -55,11 +60,13 @@ class CsvRecorder {
   static constexpr size_t kQueueRows = 8192;
   /// Rows formatted before each write(2): ~100 ms of recording at 1 kHz (a crash loses at most that much).
   static constexpr size_t kRowsPerWrite = 100;
+  /// MCAP: a chunk is written when it holds this much session time (or kRowsPerWrite rows).
+  static constexpr double kMcapChunkS = 0.05;
   struct Row {
     double t_s = 0.0;
     uint64_t device_time_us = 0, sync_pulses = 0;
-    uint16_t seq = 0, cmd_seq_echo = 0, fault_bits = 0;
-    uint8_t mode = 0;
+    uint16_t seq = 0, cmd_seq_echo = 0, fault_bits = 0, cmd_seq = 0;
+    uint8_t mode = 0, cmd_mode = 0, state_flags = 0;
     std::array<float, protocol::kMaxSamples> sample{};
     std::array<float, protocol::kMaxSetpoints> setpoint{};
   };
@@ -82,6 +89,15 @@ class CsvRecorder {
   std::string pending_;        // formatted rows not yet written (writer thread)
   uint64_t pending_rows_ = 0;
   uint64_t file_bytes_ = 0;    // whole rows (and the header) in the file
+  // MCAP output (null for CSV): the encoder, the CRC of every byte in the file, the first pending row's time.
+  std::unique_ptr<McapSession> mcap_;
+  // Wall clock of t_s = 0, taken by the loop at its first row (one vDSO clock read, no system call); the queue's
+  // release/acquire hands it to the writer with that row.
+  uint64_t epoch_ns_ = 0;
+  bool first_row_ = true;
+  uint32_t file_crc_ = 0;
+  double pending_t0_ = 0.0;
+  void writeMcapChunk();
   std::unique_ptr<SpscQueue<Row>> queue_;
   std::atomic<bool> running_{false};
   std::thread writer_;

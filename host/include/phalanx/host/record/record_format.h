@@ -31,6 +31,10 @@ enum class RecordType : uint8_t {
   kCycle = 2,   ///< binary CycleRecord: one per host cycle
   kEvent = 3,   ///< JSON: {"t_s", "kind", ...} — device faults, mode/exercise changes, API requests, limits
   kFooter = 4,  ///< JSON: end-of-session summary (absent when the daemon died)
+  /// A block of cycles (format version 2): u16 count, u16 cycle payload length L (every cycle in a block has the
+  /// same), then zlib (deflate) of the count cycle payloads transposed byte-wise (byte 0 of every cycle, then byte
+  /// 1, …): slowly changing values then sit in long runs. One per writer flush (20 ms): a kill still loses ≤ 20 ms.
+  kCycleBlock = 5,
 };
 
 /// One host cycle: the telemetry it used and the command it sent.
@@ -61,5 +65,12 @@ inline constexpr std::size_t kMaxCyclePayload =
     8 + 8 + 8 + 2 * 4 + 6 + 4 * (protocol::kMaxSamples + protocol::kMaxSetpoints + kMaxAux);
 /// false when the payload is not a valid cycle record (lengths inconsistent).
 bool decodeCycle(const uint8_t* payload, std::size_t length, CycleRecord& c);
+/// Uncompressed bytes a cycle block may hold (its compressed payload stays below kMaxPayload).
+inline constexpr std::size_t kMaxBlockBytes = 48 * 1024;
+/// Cycle-block payload of `count` encoded cycles of `length` bytes each, back to back in `cycles`; empty when it
+/// cannot be compressed (the caller writes plain cycle records then).
+std::vector<uint8_t> encodeCycleBlock(const uint8_t* cycles, uint16_t count, uint16_t length);
+/// The cycles of a block payload, appended to out; false when the block is damaged (nothing appended).
+bool decodeCycleBlock(const uint8_t* payload, std::size_t length, std::vector<CycleRecord>& out);
 
 }  // namespace phalanx::host::record

@@ -11,7 +11,14 @@
 #include "phalanx/host/record/output_file.h"
 #include "phalanx/host/record/record_format.h"
 
+namespace phalanx::host::therapy {
+struct KinematicParams;
+}
+
 namespace phalanx::host::record {
+
+/// The patient's kinematic parameters a record's header carries ("kinematics"), as the report reads them.
+therapy::KinematicParams kinematicsFromHeader(const nlohmann::json& header);
 
 struct SessionRecord {
   nlohmann::json header;                 ///< null when the header record is missing/damaged
@@ -39,8 +46,9 @@ std::string readRecord(const std::string& path, SessionRecord& out,
 std::string parseRecord(const std::vector<uint8_t>& data, SessionRecord& out,
                         const std::function<void(uint64_t, uint64_t)>& progress = nullptr);
 
-/// CSV with one row per cycle: t_s, host_ns, device_time_us, seqs, modes, faults, samples by channel name,
-/// setpoints, aux. Written to a temporary file renamed into place when complete, so a failed export leaves an
+/// CSV with one row per cycle: t_s, host_ns, device_time_us, seqs, modes, faults, samples by channel name
+/// (mechanism angles in rad, …), setpoints, aux, then each joint's flexion in degrees (<joint>_flexion_deg, empty
+/// when not measured). Written to a temporary file renamed into place when complete, so a failed export leaves an
 /// existing csv_path untouched; refused when csv_path is the record's own file (rec.source_id: the same path, a
 /// symlink or a hard link to it). Returns "" or an error.
 std::string exportCsv(const SessionRecord& rec, const std::string& csv_path,

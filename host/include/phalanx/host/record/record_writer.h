@@ -45,6 +45,10 @@ struct WriterConfig {
   unsigned flush_period_ms = 20;
   /// fdatasync period: bounds the loss on power failure / kernel crash, at the cost of disk writes.
   unsigned sync_period_ms = 1000;
+  /// Cycles of each flush as one compressed cycle block (record type 5, format version 2: ≈ 2.3× smaller,
+  /// docs/records.md "Storage"); a damaged block then costs its ≤ 20 ms of cycles instead of one. Session records
+  /// of the daemon use it (TherapySessionConfig); false writes one plain cycle record per cycle (format 1).
+  bool cycle_blocks = false;
 };
 
 class RecordWriter {
@@ -93,7 +97,9 @@ class RecordWriter {
   void run();
   bool drainOnce();  // true if anything was written
   /// Frames one record into buffer_ and notes where it ends.
-  void add(RecordType type, const uint8_t* payload, std::size_t length, bool cycle = false);
+  void add(RecordType type, const uint8_t* payload, std::size_t length, std::size_t cycles = 0);
+  /// The cycles gathered in block_ as one compressed cycle block (plain cycle records if it does not compress).
+  void addBlock();
   /// Writes buffer_ (nothing after a failure); counts its whole cycles as written or unwritten; on an error
   /// latches it and cuts the file back to the last whole record.
   void writeBuffer();
@@ -119,7 +125,9 @@ class RecordWriter {
   WriteFailure failure_;
   std::vector<uint8_t> buffer_;
   std::vector<std::size_t> record_ends_;  // end offset in buffer_ of each record
-  std::vector<std::size_t> cycle_ends_;   // … of each cycle record
+  std::vector<std::size_t> cycle_ends_;   // … of each cycle (a block's cycles all end where it ends)
+  std::vector<uint8_t> block_;            // encoded cycles of the block being gathered (writer thread)
+  uint16_t block_count_ = 0, block_length_ = 0;
 };
 
 }  // namespace phalanx::host::record

@@ -32,7 +32,12 @@ struct TherapySessionConfig {
   std::string report_path;      ///< "" = no report; written at session end from the record
   std::string previous_record;  ///< earlier session of the same patient, for the report's comparison
   std::string transparency_reference;  ///< "" or a device-free recording for the report's transparency r
-  record::WriterConfig writer;
+  record::WriterConfig writer = compressedWriter();
+  static record::WriterConfig compressedWriter() {
+    record::WriterConfig w;
+    w.cycle_blocks = true;  // format version 2 (docs/records.md, "Storage")
+    return w;
+  }
 };
 
 class TherapySession : public SessionHooks {
