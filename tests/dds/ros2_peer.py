@@ -101,7 +101,8 @@ def check(a):
     data = pickle.load(open(a.peer, "rb"))
     got, matched, device = data["got"], data["matched"], data["device"]
     summary = json.load(open(a.summary))
-    rows = list(csv.DictReader(open(a.csv)))
+    reader = csv.DictReader(open(a.csv))
+    rows = list(reader)
     if not rows:
         fail("the daemon's recording is empty")
     tops = topics(device, data["ns"])
@@ -128,7 +129,10 @@ def check(a):
 
     # 2. values against the daemon's recording. Telemetry rows by their raw samples (the CSV keeps 5 digits).
     nsamp = 25 if device == "glove5" else 12
-    table = [(r, [float(r["sample%d" % i]) for i in range(nsamp)]) for r in rows]
+    # The samples are the named columns right after fault_bits (docs/records.md, the --record CSV).
+    first = reader.fieldnames.index("fault_bits") + 1
+    sample_cols = reader.fieldnames[first:first + nsamp]
+    table = [(r, [float(r[c]) for c in sample_cols]) for r in rows]
 
     def rel_close(x, y):
         return abs(x - y) <= 1e-4 * max(abs(y), 1e-3) + 1e-9

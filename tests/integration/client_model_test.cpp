@@ -28,6 +28,7 @@
 #include "phalanx/pen/kinematics.h"
 #include "phalanx/sea/kinematics.h"
 #include "process.h"
+#include "record_csv.h"
 
 using phalanx::test::binPath;
 using phalanx::test::Process;
@@ -53,17 +54,9 @@ struct Csv {
 };
 
 Csv readCsv(const std::string& path) {
+  const phalanx::test::RecordCsv r = phalanx::test::readRecordCsv(path);
   Csv csv;
-  std::ifstream f(path);
-  std::string line, cell;
-  std::getline(f, line);
-  std::vector<std::string> names;
-  std::stringstream hs(line);
-  while (std::getline(hs, cell, ',')) names.push_back(cell);
-  while (std::getline(f, line)) {
-    std::stringstream rs(line);
-    for (size_t i = 0; std::getline(rs, cell, ',') && i < names.size(); ++i) csv.col[names[i]].push_back(std::stod(cell));
-  }
+  csv.col = r.col;
   return csv;
 }
 

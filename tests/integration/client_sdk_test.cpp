@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "process.h"
+#include "record_csv.h"
 
 using phalanx::test::binPath;
 using phalanx::test::Process;
@@ -47,17 +48,9 @@ struct Csv {
 };
 
 Csv readCsv(const std::string& path) {
+  const phalanx::test::RecordCsv r = phalanx::test::readRecordCsv(path);
   Csv csv;
-  std::ifstream f(path);
-  std::string line, cell;
-  std::getline(f, line);
-  std::vector<std::string> names;
-  std::stringstream hs(line);
-  while (std::getline(hs, cell, ',')) names.push_back(cell);
-  while (std::getline(f, line)) {
-    std::stringstream rs(line);
-    for (size_t i = 0; std::getline(rs, cell, ',') && i < names.size(); ++i) csv.col[names[i]].push_back(std::stod(cell));
-  }
+  csv.col = r.col;
   return csv;
 }
 
@@ -135,7 +128,10 @@ bool springForcesMatch(int attempt) {
   EXPECT_GT(computed.size(), 1000u);
   size_t commanded = 0, matched = 0;
   double peak = 0.0;
-  for (size_t i = kDeadlineCycles; i + 1 < rec.rows(); ++i) {
+  // Rows after the client's last command are the built-in controller's again (the client released): the mode
+  // the firmware reports lags the command by one or two cycles, so those rows are cut by telemetry sequence.
+  const int last_seq = computed.empty() ? 0 : computed.rbegin()->first;
+  for (size_t i = kDeadlineCycles; i + 1 < rec.rows() && rec.at("seq", i) <= last_seq + 1; ++i) {
     // A row holds the telemetry the cycle read (the firmware's mode, answering earlier commands) and the command
     // it sent: the client commanded row i when the firmware still tracked setpoints after it.
     if (rec.at("mode", i) != 2 || rec.at("mode", i + 1) != 2) continue;

@@ -105,7 +105,7 @@ TEST(CommandPath, AModbusWriteIsHeldToTheActivePatientsLimit) {
   ASSERT_FALSE(j.is_discarded()) << daemon.stdoutText();
   EXPECT_GT(j["command_sources"]["modbus"].get<int>(), 100) << j.dump(2);
   EXPECT_GT(j["commands"]["limited_by_patient_limits"].get<int>(), 100) << j.dump(2);
-  const std::vector<double> sp = csvColumn(csv, "setpoint1");
+  const std::vector<double> sp = csvColumn(csv, "setpoint_index");
   ASSERT_GT(sp.size(), 100u);
   double peak = 0.0;
   for (double v : sp) peak = std::fmax(peak, std::fabs(v));

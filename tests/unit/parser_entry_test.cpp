@@ -114,7 +114,7 @@ TEST(ParserEntry, ConnectRequestChecks) {
   EXPECT_EQ(client::checkConnectRequest(r, sizeof r, 1000, false, why), client_wire::ConnectStatus::kBadRequest);
   EXPECT_NE(why.find("fallback"), std::string::npos);
   r.fallback = client_wire::Fallback::kSafe;
-  r.version = 2;
+  r.version = client_wire::kVersion + 1;
   EXPECT_EQ(client::checkConnectRequest(r, sizeof r, 1000, false, why), client_wire::ConnectStatus::kVersionMismatch);
 }
 

@@ -439,9 +439,10 @@ std::string loadGloveGeometryText(const std::string& yaml_text, const std::strin
   const YAML::Node g = root.IsMap() ? root["glove_finger_geometry"] : YAML::Node();
   if (!g) return path + ": missing 'glove_finger_geometry'";
   if (!g.IsMap()) return path + ": 'glove_finger_geometry' must be a mapping";
-  for (const char* section : {"finger", "mechanism"}) {
-    if (!g[section] || !g[section].IsMap()) return path + ": 'glove_finger_geometry." + section + "' must be a mapping";
-  }
+  auto requireMapping = [&](const char* section) -> std::string {
+    if (g[section] && g[section].IsMap()) return "";
+    return path + ": 'glove_finger_geometry." + section + "' must be a mapping";
+  };
   auto vec = [&](const YAML::Node& n, std::size_t size, const char* name, std::vector<double>& v) -> std::string {
     if (!n || !n.IsSequence() || n.size() != size) return path + ": '" + name + "' must be a list of " + std::to_string(size);
     v.clear();
@@ -459,9 +460,11 @@ std::string loadGloveGeometryText(const std::string& yaml_text, const std::strin
   };
   std::vector<double> p, tmin, tmax, l, b0, amin, amax;
   std::string err;
+  if (!(err = requireMapping("finger")).empty()) return err;
   if (!(err = vec(g["finger"]["p_mm"], 3, "finger.p_mm", p)).empty()) return err;
   if (!(err = vec(g["finger"]["theta_min_deg"], 3, "finger.theta_min_deg", tmin)).empty()) return err;
   if (!(err = vec(g["finger"]["theta_max_deg"], 3, "finger.theta_max_deg", tmax)).empty()) return err;
+  if (!(err = requireMapping("mechanism")).empty()) return err;
   if (!(err = vec(g["mechanism"]["l_mm"], 3, "mechanism.l_mm", l)).empty()) return err;
   if (!(err = vec(g["mechanism"]["B0_mm"], 2, "mechanism.B0_mm", b0)).empty()) return err;
   if (!(err = vec(g["mechanism"]["alpha_min_deg"], 3, "mechanism.alpha_min_deg", amin)).empty()) return err;

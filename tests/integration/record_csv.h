@@ -1,0 +1,50 @@
+#pragma once
+// The --record CSV (docs/records.md) as columns by name, for the integration tests. Besides the named columns
+// (force_index_N, setpoint_torque0_Nm, ...), each telemetry sample is also under `sample<i>` and each setpoint
+// under `setpoint<i>`, by position: the samples follow `fault_bits`, the setpoints are the columns whose name
+// starts with "setpoint".
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace phalanx::test {
+
+struct RecordCsv {
+  std::map<std::string, std::vector<double>> col;
+  size_t rows() const { return col.count("t_s") != 0 ? col.at("t_s").size() : 0; }
+  double at(const std::string& c, size_t i) const { return col.at(c)[i]; }
+};
+
+inline RecordCsv readRecordCsv(const std::string& path) {
+  RecordCsv csv;
+  std::ifstream f(path);
+  std::string line, cell;
+  std::getline(f, line);
+  std::vector<std::string> names;
+  std::stringstream hs(line);
+  while (std::getline(hs, cell, ',')) names.push_back(cell);
+  std::vector<std::string> alias(names.size());
+  bool after_faults = false;
+  int samples = 0, setpoints = 0;
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (names[i].rfind("setpoint", 0) == 0) {
+      alias[i] = "setpoint" + std::to_string(setpoints++);
+    } else if (after_faults) {
+      alias[i] = "sample" + std::to_string(samples++);
+    }
+    if (names[i] == "fault_bits") after_faults = true;
+  }
+  while (std::getline(f, line)) {
+    std::stringstream rs(line);
+    for (size_t i = 0; std::getline(rs, cell, ',') && i < names.size(); ++i) {
+      const double v = std::stod(cell);
+      csv.col[names[i]].push_back(v);
+      if (!alias[i].empty() && alias[i] != names[i]) csv.col[alias[i]].push_back(v);
+    }
+  }
+  return csv;
+}
+
+}  // namespace phalanx::test
