@@ -151,7 +151,7 @@ TEST(CommandPath, ASessionShorterThanOnePeriodIsRefused) {
 // ends the session as a lost link.
 TEST(CommandPath, WhenFramesStopTheLockedCycleFallsBackToTheTimerAndTheTelemetryTimeoutStillEndsIt) {
   Process daemon({binPath("phalanxd"), "--device", "sim:glove5", "--seconds", "30", "--no-realtime", "--json",
-                  "--telemetry-timeout-ms", "300"});
+                  "--telemetry-timeout-ms", "300", "--cycle", "telemetry"});
   pid_t sim = 0;
   for (int i = 0; i < 200 && sim == 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
