@@ -55,10 +55,11 @@ Csv readCsv(const std::string& path) {
 }
 
 /// phalanxd on sim:glove5 with the client channel and a transparent built-in controller. The simulated hand
-/// "grasp"s (moves, gently) or keeps "still" (a 10 N press against a closing hand trips the motor's current limit:
-/// a device fault, which forces the client off - not what those tests are about).
+/// keeps "still" (a pull against a closing hand - the "grasp" scenario - saturates the motor and trips its current
+/// limit when the machine is loaded and the simulated firmware starved: a device fault, which forces the client off,
+/// not what these tests are about).
 std::unique_ptr<Process> startDaemon(const std::string& sock, const std::string& csv, const std::string& seconds,
-                                     const std::string& scenario = "grasp") {
+                                     const std::string& scenario = "still") {
   auto d = std::make_unique<Process>(std::vector<std::string>{
       binPath("phalanxd"), "--device", "sim:glove5", "--seconds", seconds, "--no-realtime", "--mode", "transparent",
       "--scene", "none", "--scenario", scenario, "--client-socket", sock, "--record", csv, "--json"});
@@ -117,7 +118,7 @@ bool springForcesMatch(int attempt) {
   const std::string sock = tmpPath("spring" + n + ".sock"), csv = tmpPath("spring" + n + ".csv"),
                     log = tmpPath("spring" + n + ".log");
   auto daemon = startDaemon(sock, csv, "4");
-  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "100", "--offset", "0,-3",
+  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "300", "--offset", "0,-10",
                   "--seconds", "2", "--deadline-ms", kDeadlineMs, "--log", log});
   const int spring_rc = spring.wait(20000);
   const nlohmann::json j = finish(*daemon);
@@ -166,7 +167,7 @@ bool killedClientGoesSafe(int attempt) {
   const std::string n = std::to_string(attempt);
   const std::string sock = tmpPath("kill" + n + ".sock"), csv = tmpPath("kill" + n + ".csv");
   auto daemon = startDaemon(sock, csv, "4");
-  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "100", "--offset", "0,-3",
+  Process spring({binPath("glove_spring"), "--socket", sock, "--finger", "1", "--k", "300", "--offset", "0,-10",
                   "--deadline-ms", kDeadlineMs});
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   spring.signal(SIGKILL);
