@@ -184,7 +184,14 @@ sizes = {}
 for dev in ("glove5", "sea_finger", "pantograph"):
     for ext in ("mcap", "csv"):
         out = os.path.join(TMP, f"live-{dev}.{ext}")
-        p = run(daemon("--device", f"sim:{dev}", "--record", out, "--seconds", "2", "--seed", "1"))
+        # A --no-realtime session on a loaded machine can be starved past the device's command timeout or the
+        # telemetry timeout (the session then ends with exit 6): that is the machine, not the recording; such a
+        # session is run again (at most 3 times), and said so.
+        for attempt in range(3):
+            p = run(daemon("--device", f"sim:{dev}", "--record", out, "--seconds", "2", "--seed", "1"))
+            if p.returncode == 0 or "command-timeout" not in p.stderr:
+                break
+            print(f"note {dev} .{ext}: attempt {attempt}: the starved session latched command-timeout; once more")
         check(p.returncode == 0, f"{dev}: --record .{ext}")
         r = records.load(out)
         # Bytes per cycle x 1000 Hz: the nominal rate (a loaded machine stretches --no-realtime sessions in time).
