@@ -66,7 +66,7 @@ size_t refCobsDecode(const uint8_t* src, size_t len, uint8_t* dst, size_t dst_ca
 std::vector<uint8_t> refEncodeFrame(uint8_t id, const uint8_t* payload, size_t len) {
   uint8_t body[kMaxFrameBody];
   body[0] = id;
-  std::memcpy(body + 1, payload, len);
+  if (len > 0) std::memcpy(body + 1, payload, len);  // an empty payload may come with a null pointer
   const uint16_t crc = refCrc16(body, 1 + len);
   body[1 + len] = static_cast<uint8_t>(crc);
   body[2 + len] = static_cast<uint8_t>(crc >> 8);

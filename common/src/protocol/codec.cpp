@@ -402,7 +402,7 @@ size_t finishFrame(uint8_t* out, size_t len) {
 size_t encodeFrameRaw(uint8_t id, const uint8_t* payload, size_t len, uint8_t* out) {
   if (len > kMaxPayload) return 0;
   out[1] = id;
-  std::memcpy(out + 2, payload, len);
+  if (len > 0) std::memcpy(out + 2, payload, len);  // an empty payload may come as a null pointer
   return finishFrame(out, len);
 }
 
