@@ -6,7 +6,7 @@
 #                    the group's real-time limits; postinst creates the `phalanx` system group and user
 #   libphalanx-dev   the client library with its headers, CMake package and pkg-config file: the install
 #                    component `sdk` of sdk/CMakeLists.txt (which `cmake --install --component sdk` also installs)
-#   python3-phalanx  the Python module's pure-Python files (python/phalanx)
+#   python3-phalanx  the Python module (python/phalanx: the record reader and the compiled client bindings)
 #   phalanx-firmware the MCU images, when tools/mcu has built them before this configure (build/mcu-*)
 include(GNUInstallDirs)
 
@@ -153,8 +153,8 @@ set(CPACK_DEBIAN_SDK_PACKAGE_CONTROL_EXTRA ${CMAKE_CURRENT_BINARY_DIR}/packaging
 set(CPACK_COMPONENT_PYTHON_DESCRIPTION "Phalanx Python module
 The phalanx package for Python 3: client bindings and session record reader.")
 set(CPACK_DEBIAN_PYTHON_PACKAGE_SECTION python)
-set(CPACK_DEBIAN_PYTHON_PACKAGE_ARCHITECTURE all)
-set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS "python3")
+# Architecture-dependent: it carries the compiled extension (sdk/CMakeLists.txt installs it into this component).
+set(CPACK_DEBIAN_PYTHON_PACKAGE_DEPENDS "python3, python3-numpy")
 set(CPACK_COMPONENT_FIRMWARE_DESCRIPTION "Phalanx firmware images for Cortex-M4F boards
 ELF, binary and Intel HEX images of every device app for the STM32G474 board
 and the emulated mps2-an386 and ast1030-evb boards.")
