@@ -155,7 +155,8 @@ bool springForcesMatch(int attempt) {
   }
   EXPECT_GT(commanded, 1000u) << j.dump(2);
   EXPECT_EQ(matched, commanded) << "rows whose sent force is no force the example computed";
-  EXPECT_GT(peak, 0.5) << "the spring never pulled (the comparison would be vacuous)";
+  // The pad-normal part of a 3 N pull is 0.4-1 N here, depending on the still finger's posture: 200x the 1e-3 N match.
+  EXPECT_GT(peak, 0.2) << "the spring never pulled (the comparison would be vacuous)";
   EXPECT_EQ(j["client"]["cycles_commanded"].get<uint64_t>(), j["command_sources"]["client"].get<uint64_t>());
   EXPECT_EQ(j["client"]["releases"], 1) << j.dump(2);
   return true;
