@@ -47,18 +47,8 @@ std::string tmpDir() {
 }
 std::string tmpPath(const std::string& name) { return tmpDir() + "/" + name; }
 
-struct Csv {
-  std::map<std::string, std::vector<double>> col;
-  size_t rows() const { return col.count("t_s") != 0 ? col.at("t_s").size() : 0; }
-  double at(const std::string& c, size_t i) const { return col.at(c)[i]; }
-};
-
-Csv readCsv(const std::string& path) {
-  const phalanx::test::RecordCsv r = phalanx::test::readRecordCsv(path);
-  Csv csv;
-  csv.col = r.col;
-  return csv;
-}
+using Csv = phalanx::test::RecordCsv;  // the --record CSV by column name (record_csv.h)
+Csv readCsv(const std::string& path) { return phalanx::test::readRecordCsv(path); }
 
 std::unique_ptr<Process> startDaemon(const std::string& device, const std::string& sock, const std::string& csv,
                                      const std::string& seconds, const std::string& scenario,

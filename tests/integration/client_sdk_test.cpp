@@ -31,28 +31,8 @@ std::string tmpDir() {
 }
 std::string tmpPath(const std::string& name) { return tmpDir() + "/" + name; }
 
-/// The recorded CSV as columns by name.
-struct Csv {
-  std::map<std::string, std::vector<double>> col;
-  size_t rows() const { return col.count("t_s") != 0 ? col.at("t_s").size() : 0; }
-  double at(const std::string& c, size_t i) const { return col.at(c)[i]; }
-  /// The row whose t_s is nearest t (the summary's times are the same wake times, %.6f in the CSV).
-  size_t rowAt(double t) const {
-    const std::vector<double>& ts = col.at("t_s");
-    size_t best = 0;
-    for (size_t i = 0; i < ts.size(); ++i) {
-      if (std::fabs(ts[i] - t) < std::fabs(ts[best] - t)) best = i;
-    }
-    return best;
-  }
-};
-
-Csv readCsv(const std::string& path) {
-  const phalanx::test::RecordCsv r = phalanx::test::readRecordCsv(path);
-  Csv csv;
-  csv.col = r.col;
-  return csv;
-}
+using Csv = phalanx::test::RecordCsv;  // the --record CSV by column name (record_csv.h)
+Csv readCsv(const std::string& path) { return phalanx::test::readRecordCsv(path); }
 
 /// phalanxd on sim:glove5 with the client channel and a transparent built-in controller. The simulated hand
 /// keeps "still" (a pull against a closing hand - the "grasp" scenario - saturates the motor and trips its current

@@ -3,6 +3,7 @@
 // (force_index_N, setpoint_torque0_Nm, ...), each telemetry sample is also under `sample<i>` and each setpoint
 // under `setpoint<i>`, by position: the samples follow `fault_bits`, the setpoints are the columns whose name
 // starts with "setpoint".
+#include <cmath>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -15,6 +16,15 @@ struct RecordCsv {
   std::map<std::string, std::vector<double>> col;
   size_t rows() const { return col.count("t_s") != 0 ? col.at("t_s").size() : 0; }
   double at(const std::string& c, size_t i) const { return col.at(c)[i]; }
+  /// The row whose t_s is nearest t (the summary's times are the same wake times as the CSV's).
+  size_t rowAt(double t) const {
+    const std::vector<double>& ts = col.at("t_s");
+    size_t best = 0;
+    for (size_t i = 0; i < ts.size(); ++i) {
+      if (std::fabs(ts[i] - t) < std::fabs(ts[best] - t)) best = i;
+    }
+    return best;
+  }
 };
 
 inline RecordCsv readRecordCsv(const std::string& path) {
