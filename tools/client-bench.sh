@@ -23,14 +23,27 @@ run() {  # what, seconds, client command...
 import json, sys
 j = json.load(open(sys.argv[1]))
 c = j.get("client", {})
-print("  daemon: cycles commanded %s, held cycles without a fresh command (missed) %s, fallback cycles %s, force-offs %s"
-      % (c.get("cycles_commanded"), c.get("cycles_without_fresh_command"), c.get("fallback_cycles"), c.get("force_offs")))
+print("  daemon: cycles commanded %s, held cycles without a fresh command (missed) %s: %s on the daemon's schedule (the "
+      "client's own), %s off it (the daemon itself late or catching up); fallback cycles %s, force-offs %s"
+      % (c.get("cycles_commanded"), c.get("cycles_without_fresh_command"), c.get("missed_on_schedule"),
+         c.get("missed_off_schedule"), c.get("fallback_cycles"), c.get("force_offs")))
 PY
 }
 # The C++ client at SCHED_FIFO 70 (below the daemon's loop) when allowed: the documented real-time set-up.
 rt=()
 if [ "$(id -u)" -eq 0 ] && command -v chrt > /dev/null; then rt=(chrt -f 70); fi
 echo "== C++ callback client, ${cpp_s} s ${rt[*]}"
+# The machine's own baseline in the same interval: cyclictest (rt-tests) at a priority below the client's counts the
+# 1 ms periods in which this machine woke a real-time thread more than half a period late.
+if [ ${#rt[@]} -gt 0 ] && command -v cyclictest > /dev/null; then
+  cyclictest -q -m -p 60 -t1 -i 1000 -D "${cpp_s}s" -h 2000 > "$dir/cyclictest.txt" 2>&1 &
+fi
 run cpp "$cpp_s" "${rt[@]}" "$build/bin/phalanx_client_latency"
+wait
+if [ -s "$dir/cyclictest.txt" ]; then
+  awk '/^[0-9]/ { if ($1 + 0 > 500) late += $2 } /Max Latencies/ { max = $4 } /Histogram Overflows/ { late += $4 }
+       END { printf "  machine (cyclictest -p 60, same %s s): %d periods woke > 500 us late; max %d us\n", secs, late, max }' \
+      secs="$cpp_s" "$dir/cyclictest.txt"
+fi
 echo "== Python client, ${py_s} s"
 run py "$py_s" env PYTHONPATH="$root/python" python3 "$root/tools/client_latency.py"

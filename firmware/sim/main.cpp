@@ -11,8 +11,12 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
 
 #include "phalanx/fw/core.h"
 #include "phalanx/fw_sim/sim_device.h"
@@ -68,6 +72,44 @@ class TickTimes {
 };
 void onSignal(int) { g_stop = 1; }
 
+/// --truth FILE: the plant's ground truth after every plant step, one CSV row per tick, keyed by the device clock
+/// that the tick's telemetry carries (device_time_us), so a test joins it with the daemon's --record CSV.
+class TruthLog {
+ public:
+  ~TruthLog() {
+    if (f_ != nullptr) std::fclose(f_);
+  }
+  std::string open(const std::string& path, const phalanx::fw_sim::SimDevice& dev) {
+    f_ = std::fopen(path.c_str(), "w");
+    if (f_ == nullptr) return "--truth " + path + ": " + std::strerror(errno);
+    std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
+    std::fputs("device_time_us", f_);
+    const std::vector<std::string> columns = dev.truthColumns();
+    for (const std::string& c : columns) std::fprintf(f_, ",truth_%s", c.c_str());
+    std::fputc('\n', f_);
+    values_.assign(columns.size(), 0.0);
+    return {};
+  }
+  void write(uint64_t device_time_us, const phalanx::fw_sim::SimDevice& dev) {
+    if (f_ == nullptr) return;
+    dev.truthValues(values_.data());
+    std::fprintf(f_, "%llu", static_cast<unsigned long long>(device_time_us));
+    for (double v : values_) std::fprintf(f_, ",%.9g", v);
+    std::fputc('\n', f_);
+  }
+  /// false when a write failed (disk full): reported at exit, the truth file is then incomplete.
+  bool close() {
+    if (f_ == nullptr) return true;
+    const bool ok = std::ferror(f_) == 0 && std::fclose(f_) == 0;
+    f_ = nullptr;
+    return ok;
+  }
+
+ private:
+  std::FILE* f_ = nullptr;
+  std::vector<double> values_;
+};
+
 class LogObserver : public phalanx::fw::CoreObserver {
  public:
   void onEvent(const phalanx::protocol::Event& e) override {
@@ -106,6 +148,8 @@ int main(int argc, char** argv) {
   std::string tty_path;
   cli.add_option("--ffs", ffs_dir, "be a USB device: a mounted FunctionFS instance (e.g. /dev/ffs-phalanx)");
   cli.add_option("--tty", tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
+  std::string truth_path;
+  cli.add_option("--truth", truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
   try {
     cli.parse(argc, argv);
@@ -123,6 +167,13 @@ int main(int argc, char** argv) {
   if (!dev) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", error.c_str());
     return 2;
+  }
+  TruthLog truth;
+  if (!truth_path.empty()) {
+    if (const std::string err = truth.open(truth_path, *dev); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 2;
+    }
   }
   linux_hal::PtyMaster link;  // stays closed when the link is CAN, USB or a tty
   linux_hal::SerialLink tty;
@@ -199,6 +250,7 @@ int main(int argc, char** argv) {
     const uint64_t woke_ns = linux_hal::monotonicNs();
     for (unsigned i = 0; i < substeps; ++i) dev->plant().step(sub_dt_s, board.io());
     board.clock().advanceUs(period_us);
+    truth.write(board.clock().nowUs(), *dev);
     const uint64_t deadline_us = core.commandDeadlineUs();
     if (use_ffs) {
       ffs.service();
@@ -251,6 +303,7 @@ int main(int argc, char** argv) {
                core.rxStats().crc_errors, core.rxStats().framing_errors, core.counters().frames_invalid,
                core.counters().frames_wrong_direction, core.counters().tx_dropped, core.faultBits());
   tick_times.print();
+  if (!truth.close()) std::fprintf(stderr, "firmware-sim: error: --truth %s: a write failed; the file is incomplete\n", truth_path.c_str());
   if (use_ffs) {
     const auto& f = ffs.stats();
     const auto& r = ffs.rxStats();

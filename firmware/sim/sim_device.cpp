@@ -81,3 +81,74 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
 }
 
 }  // namespace phalanx::fw_sim
+
+namespace phalanx::fw_sim {
+namespace {
+
+const char* const kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};
+static_assert(sizeof kFingerNames / sizeof kFingerNames[0] == glove::board::kFingerCount, "one name per finger");
+
+}  // namespace
+
+// Per finger: the true pad-normal force, the planar wrench on the fingertip and the fingertip pose in {O}.
+std::vector<std::string> Glove5SimDevice::truthColumns() const {
+  std::vector<std::string> c;
+  for (const char* f : kFingerNames) {
+    const std::string n(f);
+    for (const char* q : {"pad_force_", "tip_fx_", "tip_fy_"}) c.push_back(q + n + "_N");
+    for (const char* q : {"tip_x_", "tip_y_"}) c.push_back(q + n + "_m");
+    c.push_back("tip_phi_" + n + "_rad");
+  }
+  return c;
+}
+
+void Glove5SimDevice::truthValues(double* out) const {
+  for (int i = 0; i < glove::board::kFingerCount; ++i) {
+    const sim::GloveFingerTruth& t = plant_.truth(i);
+    *out++ = t.pad_force_N;
+    *out++ = t.O_F_tip[0];
+    *out++ = t.O_F_tip[1];
+    for (int k = 0; k < 3; ++k) *out++ = t.O_u_tip[k];
+  }
+}
+
+// Per SEA (MCP, PIP): the torque it applies to its exoskeleton joint and what the rig's load cell reads; on the
+// finger the finger joint torques (J_n^-T tau_j, 001 eq 9) and the finger's joint angles.
+std::vector<std::string> SeaFingerSimDevice::truthColumns() const {
+  std::vector<std::string> c;
+  for (const char* j : {"mcp", "pip"}) {
+    c.push_back(std::string("sea_torque_") + j + "_Nm");
+    c.push_back(std::string("load_cell_") + j + "_Nm");
+    c.push_back(std::string("finger_torque_") + j + "_Nm");
+  }
+  for (const char* j : {"mcp", "pip", "dip"}) c.push_back(std::string("finger_angle_") + j + "_rad");
+  return c;
+}
+
+void SeaFingerSimDevice::truthValues(double* out) const {
+  for (int s = 0; s < 2; ++s) {
+    *out++ = plant_.truth(s).joint_torque_Nm;
+    *out++ = plant_.truth(s).load_cell_torque_Nm;
+    *out++ = plant_.finger().applied_Nm[static_cast<size_t>(s)];
+  }
+  for (double a : plant_.finger().theta_rad) *out++ = a;
+}
+
+// The six motor torques after the amplifier (what the joints receive), the pen pose x = (c, theta_x, theta_z) and the
+// hand's grip force on the pen centre.
+std::vector<std::string> PantographSimDevice::truthColumns() const {
+  std::vector<std::string> c;
+  for (int j = 0; j < 6; ++j) c.push_back("motor_torque" + std::to_string(j) + "_Nm");
+  for (const char* q : {"x_m", "y_m", "z_m", "theta_x_rad", "theta_z_rad"}) c.push_back(std::string("pen_") + q);
+  for (const char* q : {"x", "y", "z"}) c.push_back(std::string("hand_force_") + q + "_N");
+  return c;
+}
+
+void PantographSimDevice::truthValues(double* out) const {
+  const sim::PenTruth& t = plant_.truth();
+  for (double v : t.motor_torque_Nm) *out++ = v;
+  for (double v : t.x) *out++ = v;
+  for (double v : t.hand_force_N) *out++ = v;
+}
+
+}  // namespace phalanx::fw_sim

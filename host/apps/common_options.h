@@ -55,6 +55,8 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--seed", opt.seed, "simulation seed");
   app.add_option("--firmware-sim", opt.firmware_sim, "path of the firmware-sim executable");
+  app.add_option("--sim-truth", opt.sim_truth,
+                 "sim: devices: the simulated plant's ground truth, one CSV row per device tick (docs/sdk.md \"Plant truth\")");
   app.add_option("--estop", opt.gpio.estop,
                  "e-stop input CHIP:LINE[:active-low] (a press, a lost line or a read error stops the daemon until a reset)");
   app.add_option("--enable", opt.gpio.enable, "drive-enable output CHIP:LINE[:active-low] (dropped on an e-stop)");

@@ -217,6 +217,9 @@ std::string validate(const RunOptions& opt) {
     return "scene: '" + opt.scene + "' is not one of none, rigid-ball, soft-ball, wall";
   }
   if (opt.mode != "render" && opt.mode != "transparent") return "mode: '" + opt.mode + "' is not one of render, transparent";
+  if (!opt.sim_truth.empty() && opt.device.rfind("sim:", 0) != 0) {
+    return "sim_truth: the plant's truth exists for sim: devices only, not '" + opt.device + "'";
+  }
   // Geometry files are read and validated here, so a bad file is refused before any device is opened.
   for (const auto& [finger, path] : opt.glove_geometry) {
     if (finger != "thumb" && finger != "index" && finger != "middle" && finger != "ring" && finger != "little") {

@@ -61,6 +61,7 @@ class SimChild {
     const std::string hz = std::to_string(std::max(opt.rate_hz, kSimDeviceTickHz));
     std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
                                      "--scenario", opt.scenario, "--exit-with-parent"};
+    if (!opt.sim_truth.empty()) args.insert(args.end(), {"--truth", opt.sim_truth});
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

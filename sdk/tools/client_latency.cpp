@@ -3,10 +3,13 @@
 //  - client: telemetry arrival (state.telemetry_rx_ns of the state a command was computed from) → the wake-up of
 //    the daemon cycle that sent that command (the state whose command_seq_used is it);
 //  - built-in: the same daemon cycle's wake-up minus the arrival of the telemetry it computed from (what the
-//    built-in controller's command waits on the same clock), over the same run.
+//    built-in controller's command waits on the same clock), over the same run;
+//  - reaction: the daemon cycle's wake-up → this callback running on that cycle's state (CLOCK_MONOTONIC, the
+//    daemon's clock); a reaction later than one period is a cycle the client could not answer in time.
 // Both exclude the few µs from the wake-up to the send, equal for both.
 //   phalanx_client_latency SOCKET SECONDS [DEADLINE_MS=250]
 #include <algorithm>
+#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
@@ -39,14 +42,20 @@ int main(int argc, char** argv) {
     const unsigned rate = client.device().rate_hz;
     const size_t n = static_cast<size_t>(seconds * rate) + 16;
     std::vector<uint64_t> rx_of_seq(n + 2, 0);  // preallocated: command k (seq k) was computed from this arrival
-    std::vector<double> client_us, builtin_us;
+    std::vector<double> client_us, builtin_us, reaction_us;
     client_us.reserve(n);
     builtin_us.reserve(n);
+    reaction_us.reserve(n);
     uint32_t seq = 0;
-    uint64_t first_cycle = 0, last_cycle = 0;
+    uint64_t first_cycle = 0, last_cycle = 0, skipped = 0;
     float c0[3] = {0, 0, 0};
     bool have_c0 = false;
     const int rc = client.runServo([&](const phalanx::State& s, phalanx::Command& cmd) {
+      timespec now{};
+      clock_gettime(CLOCK_MONOTONIC, &now);
+      const uint64_t now_ns = static_cast<uint64_t>(now.tv_sec) * 1000000000ull + static_cast<uint64_t>(now.tv_nsec);
+      if (now_ns >= s.daemon_time_ns) reaction_us.push_back(static_cast<double>(now_ns - s.daemon_time_ns) * 1e-3);
+      if (first_cycle != 0 && s.cycle > last_cycle + 1) skipped += s.cycle - last_cycle - 1;
       if (first_cycle == 0) first_cycle = s.cycle;
       last_cycle = s.cycle;
       if (s.command_seq_used != 0 && s.command_seq_used <= seq && rx_of_seq[s.command_seq_used] != 0) {
@@ -72,6 +81,11 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(last_cycle - first_cycle + 1), static_cast<double>(last.achieved_rate_hz), rc);
     print("client (telemetry arrival -> the daemon cycle that sent its command)", client_us);
     print("built-in (telemetry arrival -> the daemon cycle that computed from it)", builtin_us);
+    const double period_us = 1e6 / rate;
+    const auto late = std::count_if(reaction_us.begin(), reaction_us.end(), [&](double r) { return r > period_us; });
+    print("reaction (daemon cycle wake-up -> this callback on its state)", reaction_us);
+    std::printf("reactions later than one period: %lld; states never seen (the client woke after the next one was "
+                "written): %llu\n", static_cast<long long>(late), static_cast<unsigned long long>(skipped));
     return 0;
   } catch (const phalanx::Error& e) {
     std::fprintf(stderr, "phalanx_client_latency: %s\n", e.what());

@@ -57,4 +57,29 @@ inline RecordCsv readRecordCsv(const std::string& path) {
   return csv;
 }
 
+/// firmware-sim's --truth CSV (phalanxd --sim-truth; docs/sdk.md "Plant truth"): the plant's ground truth per device
+/// tick, found by the device clock that the tick's telemetry carries (the --record CSV's device_time_us).
+struct TruthCsv {
+  RecordCsv csv;
+  std::map<long long, size_t> row_of_time;
+  size_t rows() const { return row_of_time.size(); }
+  double at(const std::string& c, size_t i) const { return csv.at(c, i); }
+  /// The truth row for a telemetry row's device time; false when the plant wrote none for it.
+  bool find(double device_time_us, size_t& row) const {
+    const auto it = row_of_time.find(std::llround(device_time_us));
+    if (it == row_of_time.end()) return false;
+    row = it->second;
+    return true;
+  }
+};
+
+inline TruthCsv readTruthCsv(const std::string& path) {
+  TruthCsv t;
+  t.csv = readRecordCsv(path);
+  const auto c = t.csv.col.find("device_time_us");
+  if (c == t.csv.col.end()) return t;
+  for (size_t i = 0; i < c->second.size(); ++i) t.row_of_time[std::llround(c->second[i])] = i;
+  return t;
+}
+
 }  // namespace phalanx::test

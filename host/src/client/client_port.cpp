@@ -9,6 +9,7 @@
 #include "phalanx/host/client/client_port.h"
 #include "phalanx/host/client/device_model.h"
 #include "phalanx/host/modbus/server.h"
+#include "phalanx/linux/realtime.h"
 
 namespace phalanx::host::client {
 
@@ -38,6 +39,12 @@ void ClientPort::observeOnce(const TelemetryFrame& tel) {
 }
 
 bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& cmd, uint64_t now_ns) {
+  const bool handled = overrideCommandAt(tel, cmd, now_ns);
+  previous_cycle_ns_ = now_ns;
+  return handled;
+}
+
+bool ClientPort::overrideCommandAt(const TelemetryFrame& tel, protocol::Command& cmd, uint64_t now_ns) {
   offered_this_cycle_ = true;
   commanded_this_cycle_ = false;
   invalid_this_cycle_ = false;
@@ -69,7 +76,7 @@ bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& c
     fallbackCommand(cmd);
     return true;
   }
-  if (!fresh) ++cycles_without_fresh_;
+  if (!fresh) countMissed(now_ns);
   if (!fresh && command_.fallback.kind == client_wire::FallbackKind::kSpring) {
     springFallback(cmd);  // a missed cycle: the client's spring-damper at this cycle's state, not a stale force
   } else {
@@ -79,6 +86,13 @@ bool ClientPort::overrideCommand(const TelemetryFrame& tel, protocol::Command& c
   commanded_this_cycle_ = true;
   ++cycles_commanded_;
   return true;
+}
+
+void ClientPort::countMissed(uint64_t now_ns) {
+  ++cycles_without_fresh_;
+  const uint64_t window = now_ns > woken_ns_ ? now_ns - woken_ns_ : 0;  // the client's time to answer the last state
+  const uint64_t gap = now_ns - previous_cycle_ns_;
+  if (2 * window < period_ns_ || 2 * gap > 3 * period_ns_) ++missed_off_schedule_;
 }
 
 void ClientPort::followAttachment() {
@@ -276,6 +290,7 @@ void ClientPort::writeState() {
   client_wire::seqlockWrite(block.seq, block.payload, state_);
   // Non-blocking: wakes a client waiting for this cycle (libphalanx's servo thread), returns at once otherwise.
   syscall(SYS_futex, reinterpret_cast<uint32_t*>(&block.seq), FUTEX_WAKE, INT_MAX, nullptr, nullptr, 0);
+  woken_ns_ = linux_hal::monotonicNs();
 }
 
 void ClientPort::finish(ForceOffCause cause) {
@@ -315,6 +330,8 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
           {"model_saturated", model_saturated_},
           {"fallback_cycles", fallback_cycles_},
           {"cycles_without_fresh_command", cycles_without_fresh_},
+          {"missed_on_schedule", cycles_without_fresh_ - missed_off_schedule_},
+          {"missed_off_schedule", missed_off_schedule_},
           {"force_offs", force_offs_},
           {"force_off_records", list}};
 }

@@ -91,6 +91,7 @@ struct RunOptions {
   bool live_view = false;             ///< per-finger terminal view at 10 Hz on stderr
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
+  std::string sim_truth;              ///< sim: devices: firmware-sim writes the plant's ground truth here (--truth)
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default

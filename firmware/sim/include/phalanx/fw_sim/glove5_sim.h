@@ -15,6 +15,8 @@ class Glove5SimDevice : public SimDevice {
                   const apps::Glove5Config& config = apps::glove5DefaultConfig())
       : app_(calibration, config), plant_(plant_config) {}
   fw::DeviceApp& app() override { return app_; }
+  std::vector<std::string> truthColumns() const override;
+  void truthValues(double* out) const override;
   sim::Plant& plant() override { return plant_; }
   uint8_t pwmCount() const override { return glove::board::kPwmChannelCount; }
   uint8_t adcCount() const override { return glove::board::kAdcChannelCount; }

@@ -14,6 +14,8 @@ class PantographSimDevice : public SimDevice {
                                const apps::PantographConfig& config = apps::pantographDefaultConfig())
       : app_(config), plant_(plant_config) {}
   fw::DeviceApp& app() override { return app_; }
+  std::vector<std::string> truthColumns() const override;
+  void truthValues(double* out) const override;
   sim::Plant& plant() override { return plant_; }
   uint8_t pwmCount() const override { return pen::board::kPwmChannelCount; }
   uint8_t adcCount() const override { return pen::board::kAdcChannelCount; }

@@ -17,6 +17,8 @@ class SeaFingerSimDevice : public SimDevice {
                               const apps::SeaFingerConfig& config = apps::seaFingerDefaultConfig())
       : app_(calibration, config), plant_(plant_config) {}
   fw::DeviceApp& app() override { return app_; }
+  std::vector<std::string> truthColumns() const override;
+  void truthValues(double* out) const override;
   sim::Plant& plant() override { return plant_; }
   uint8_t pwmCount() const override { return sea::board::kPwmChannelCount; }
   uint8_t adcCount() const override { return sea::board::kAdcChannelCount; }

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "phalanx/fw/app.h"
 #include "phalanx/protocol/devices.h"
@@ -27,6 +28,10 @@ class SimDevice {
   virtual uint8_t encoderCount() const = 0;
   /// protocol::variant::* the firmware reports (core parameter kDeviceVariant): what the app is mounted on.
   virtual uint8_t variant() const { return protocol::variant::kStandard; }
+  /// The plant's ground truth (firmware-sim --truth, docs/sdk.md "Plant truth"): the column names with their
+  /// units, then after each plant step the values in the same order (truthValues writes truthColumns().size()).
+  virtual std::vector<std::string> truthColumns() const = 0;
+  virtual void truthValues(double* out) const = 0;
 };
 
 /// name: glove5 | sea_finger | sea_rig | pantograph. Returns nullptr and sets error for an unknown or unbuilt device.

@@ -127,6 +127,8 @@ class ClientPort {
 
  private:
   enum class Phase : uint8_t { kIdle, kConnected, kHolding, kForcedOff };
+  bool overrideCommandAt(const TelemetryFrame& tel, protocol::Command& cmd, uint64_t now_ns);
+  void countMissed(uint64_t now_ns);
   void followAttachment();
   void attach(uint32_t generation);
   void detach();
@@ -161,6 +163,13 @@ class ClientPort {
   float model_scale_ = 1.0f;
   uint64_t model_saturated_ = 0, fallback_cycles_ = 0;
   uint64_t cycles_without_fresh_ = 0;  ///< held cycles without a fresh command (fallback or repeat): missed cycles
+  /// Of those, the ones off the daemon's schedule: the client was woken for the last state less than half a period
+  /// before this cycle read its command (the daemon's cycle ran late or is catching up), or this cycle woke more
+  /// than one and a half periods after the one before (the machine kept the daemon, and the client, off the CPU).
+  /// Either way the client had no ordinary period to answer in; the rest are the client's own misses.
+  uint64_t missed_off_schedule_ = 0;
+  uint64_t previous_cycle_ns_ = 0;  ///< the last cycle's wake time
+  uint64_t woken_ns_ = 0;           ///< when the last state was written and the client woken
   uint32_t last_command_seq_ = 0;
   uint64_t last_fresh_ns_ = 0;
   bool commanded_this_cycle_ = false, offered_this_cycle_ = false, invalid_this_cycle_ = false;
