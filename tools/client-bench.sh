@@ -23,8 +23,8 @@ run() {  # what, seconds, client command...
 import json, sys
 j = json.load(open(sys.argv[1]))
 c = j.get("client", {})
-print("  daemon: cycles commanded %s, held cycles without a fresh command (missed) %s: %s on the daemon's schedule (the "
-      "client's own), %s off it (the daemon itself late or catching up); fallback cycles %s, force-offs %s"
+print("  daemon: cycles commanded %s, held cycles without a fresh command (missed) %s: %s on the daemon's schedule, "
+      "%s off it (the daemon itself late or catching up); fallback cycles %s, force-offs %s"
       % (c.get("cycles_commanded"), c.get("cycles_without_fresh_command"), c.get("missed_on_schedule"),
          c.get("missed_off_schedule"), c.get("fallback_cycles"), c.get("force_offs")))
 PY

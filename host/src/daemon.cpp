@@ -218,7 +218,7 @@ std::string validate(const RunOptions& opt) {
   }
   if (opt.mode != "render" && opt.mode != "transparent") return "mode: '" + opt.mode + "' is not one of render, transparent";
   if (!opt.sim_truth.empty() && opt.device.rfind("sim:", 0) != 0) {
-    return "sim_truth: the plant's truth exists for sim: devices only, not '" + opt.device + "'";
+    return "--sim-truth: the plant's truth exists for sim: devices only, not '" + opt.device + "'";
   }
   // Geometry files are read and validated here, so a bad file is refused before any device is opened.
   for (const auto& [finger, path] : opt.glove_geometry) {

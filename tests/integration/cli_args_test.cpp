@@ -70,7 +70,7 @@ TEST(CliArgs, PhalanxdRefusesAnEmptyPathOrAddressNamingTheOption) {
   std::vector<Case> cases;
   for (const char* opt : {"--api", "--records-dir", "--profiles-dir", "--dashboard", "--record", "--config",
                           "--session-record", "--profile", "--report", "--previous-record", "--device",
-                          "--pen-geometry", "--sea-subject", "--firmware-sim", "--estop", "--exercise-params"}) {
+                          "--pen-geometry", "--sea-subject", "--firmware-sim", "--sim-truth", "--estop", "--exercise-params"}) {
     cases.push_back({with({opt, ""}, kShort), std::string(opt) + ": must not be empty"});
   }
   expectRefused("phalanxd", cases);
@@ -88,6 +88,8 @@ TEST(CliArgs, PhalanxdRangeConversionAndUnknownOptionErrorsExitTwoNamingTheOptio
       {{"--rate", "500"}, "unknown option --rate; did you mean --rate-hz?"},
       {{"--device"}, "--device"},
       {{"stray"}, "unexpected argument 'stray'"},
+      {{"--device", "serial:/dev/null", "--sim-truth", "/tmp/t.csv"},
+       "--sim-truth: the plant's truth exists for sim: devices only, not 'serial:/dev/null'"},
   });
 }
 

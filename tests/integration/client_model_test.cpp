@@ -173,6 +173,30 @@ double measurementBound(const pp::Data<double>& kin) {
   return bound;
 }
 
+// The plant's truth (phalanxd --sim-truth): the motor torques the simulated amplifiers put on the joints in one of the
+// three device ticks after row i's telemetry (the command sent in row i lands in the firmware's next tick, or the one
+// after), mapped through the same statics at row i's pose, are a force the example rendered from one of the states
+// before, within 2 mN (float torques; the pen firmware applies setpoint x nominal gain as duty, with no quantisation
+// in the simulated bridge; the truth CSV has 9 significant digits).
+bool exertedByThePlant(const phalanx::test::TruthCsv& truth, const Csv& rec, size_t i, const pp::Data<double>& kin,
+                       const std::multimap<int, std::array<double, 3>>& rendered) {
+  size_t t = 0;
+  if (!truth.find(rec.at("device_time_us", i), t)) return false;
+  for (size_t tick = t + 1; tick <= t + 3 && tick < truth.rows(); ++tick) {
+    std::array<double, 6> tau{};
+    for (size_t j = 0; j < 6; ++j) tau[j] = truth.at("truth_motor_torque" + std::to_string(j) + "_Nm", tick);
+    std::array<double, 3> exerted{};
+    if (!penForce(kin, tau, exerted)) continue;
+    for (size_t back = 0; back <= 250 && back < i; ++back) {
+      const auto range = rendered.equal_range(static_cast<int>(rec.at("seq", i - back)));
+      for (auto it = range.first; it != range.second; ++it) {
+        if (dist(it->second, exerted) <= 2e-3) return true;
+      }
+    }
+  }
+  return false;
+}
+
 /// A starved firmware-sim can still latch a fault (current limit, command timeout) that forces the client off
 /// with cause device-fault - correct, but not what these tests are about: such a run is repeated (at most 3).
 bool deviceFaulted(const nlohmann::json& j) {
@@ -203,8 +227,9 @@ TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
   if (!havePython()) GTEST_SKIP() << "no Python bindings built (pybind11-dev, python3-numpy: tools/setup.sh)";
   withoutDeviceFault([&](int attempt) {
     const std::string n = std::to_string(attempt);
-    const std::string sock = tmpPath("pen" + n + ".sock"), csv = tmpPath("pen" + n + ".csv"), log = tmpPath("pen" + n + ".log");
-    auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "still");
+    const std::string sock = tmpPath("pen" + n + ".sock"), csv = tmpPath("pen" + n + ".csv"), log = tmpPath("pen" + n + ".log"),
+                      truth_path = tmpPath("pen" + n + ".truth.csv");
+    auto daemon = startDaemon("sim:pantograph", sock, csv, "4", "still", {"--sim-truth", truth_path});
     Process field(python({std::string(PHALANX_SOURCE_DIR) + "/examples/pen_field.py", "--socket", sock, "--seconds", "2.5",
                           "--damping", "0", "--k-fallback", "0", "--log", log}));
     const int rc = field.wait(30000);
@@ -218,7 +243,8 @@ TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
     EXPECT_GT(rendered.size(), 500u) << field.stderrText();
     const Csv rec = readCsv(csv);
     const pp::Model<double> m = penModel();
-    size_t commanded = 0, sent_matched = 0, measured = 0, measured_matched = 0;
+    const phalanx::test::TruthCsv truth = phalanx::test::readTruthCsv(truth_path);
+    size_t commanded = 0, sent_matched = 0, measured = 0, measured_matched = 0, truth_matched = 0;
     double peak = 0.0, worst_bound = 0.0;
     for (size_t i = 10; i + 1 < rec.rows(); ++i) {
       if (rec.at("mode", i) != 2 || rec.at("mode", i + 1) != 2) continue;
@@ -245,9 +271,13 @@ TEST(ClientModel, ThePythonPenFieldIsTheForceTheDeviceExerts) {
         for (auto it = range.first; it != range.second && !near; ++it) near = dist(it->second, meas) <= bound;
       }
       measured_matched += near ? 1 : 0;
+      truth_matched += exertedByThePlant(truth, rec, i, kin, rendered) ? 1 : 0;
     }
     std::printf("pen field: %zu commanded rows, sent = rendered in %zu; measured within bound (<= %.3f N) in %zu of %zu; "
-                "peak %.2f N\n", commanded, sent_matched, worst_bound, measured_matched, measured, peak);
+                "exerted by the plant (truth) in %zu; peak %.2f N\n", commanded, sent_matched, worst_bound, measured_matched,
+                measured, truth_matched, peak);
+    EXPECT_GE(static_cast<double>(truth_matched), 0.99 * static_cast<double>(commanded)) << "the plant's motors exerted "
+        "a force the example did not render";
     EXPECT_GT(commanded, 1000u);
     EXPECT_EQ(sent_matched, commanded) << "a force was sent that the example never rendered";
     EXPECT_GE(static_cast<double>(measured_matched), 0.99 * static_cast<double>(measured));
