@@ -23,8 +23,8 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
                  "no new telemetry for this long ends the session as a lost link (exit 6)")
       ->check(cli::inRange(10u, 10000u));
   app.add_option("--record", opt.record_csv, "record every cycle to this file: CSV with named columns, or MCAP for a name ending in .mcap (docs/records.md)");
-  app.add_option("--cycle", opt.cycle, "what starts a host cycle: timer (the period timer alone; the default) | telemetry (a "
-                 "frame's arrival, locked to the device, the timer as fallback; docs/session-runner.md)")
+  app.add_option("--cycle", opt.cycle, "what starts a host cycle: telemetry (a frame's arrival, locked to the device, the timer as "
+                 "fallback; the default) | timer (the period timer alone; docs/session-runner.md)")
       ->check(CLI::IsMember({"telemetry", "timer"}));
   app.add_option("--pen-wall-stiffness", opt.pen_wall_stiffness_N_per_cm,
                  "pantograph: stiffness of every box wall and the floor, N/cm (0: the scene's, 3 and 2.1 N/cm)")

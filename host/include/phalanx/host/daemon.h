@@ -69,8 +69,8 @@ struct RunOptions {
   bool realtime = true;               ///< try SCHED_FIFO + mlockall
   int rt_priority = 80;
   /// What starts a host cycle: "telemetry" (a frame's arrival, the timer as fallback: locked to the device) or
-  /// "timer" (the period timer alone, the default). docs/session-runner.md "The cycle's clock".
-  std::string cycle = "timer";
+  /// "timer" (the period timer alone). docs/session-runner.md "The cycle's clock".
+  std::string cycle = "telemetry";
   std::string record_csv;             ///< one row per cycle; empty: no recording
   std::string scenario = "grasp";     ///< simulated hand (sim:glove5): still|close-open|grasp|random
   std::string scene = "rigid-ball";   ///< glove virtual scene: none|rigid-ball|soft-ball|wall
