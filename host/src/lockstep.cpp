@@ -41,7 +41,7 @@ std::string LockstepRig::handshake() {
 void LockstepRig::step() {
   const uint64_t period_us = 1000000u / opt_.tick_hz;
   const double sub_dt_s = static_cast<double>(period_us) * 1e-6 / opt_.substeps;
-  for (unsigned i = 0; i < opt_.substeps; ++i) device_.plant().step(sub_dt_s, board_.io());
+  device_.plant().advance(sub_dt_s, opt_.substeps, board_.io());
   if (io_hook_) io_hook_(board_.io());
   board_.clock().advanceUs(period_us);
   core_.tick();
