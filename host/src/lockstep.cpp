@@ -1,7 +1,11 @@
 #include "phalanx/host/lockstep.h"
 
+#include <atomic>
+
 namespace phalanx::host {
 namespace {
+std::atomic<uint64_t> g_rigs{0}, g_simulated_us{0}, g_wall_ns{0};
+
 fw::CoreConfig coreConfig(const fw_sim::SimDevice& device, const LockstepOptions& options) {
   fw::CoreConfig cfg{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame};
   cfg.device_variant = device.variant();
@@ -20,6 +24,15 @@ LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, cons
   cmd_.timeout_ms = opt_.command_timeout_ms;
   cmd_.channel_count = device.app().layout().setpoint_count;
   for (auto& g : cmd_.gain_scale_permille) g = 1000;
+}
+
+LockstepTally lockstepTally() { return {g_rigs.load(), g_simulated_us.load(), g_wall_ns.load()}; }
+
+LockstepRig::~LockstepRig() {
+  const auto wall = std::chrono::steady_clock::now() - born_;
+  g_rigs.fetch_add(1);
+  g_simulated_us.fetch_add(board_.clock().nowUs());
+  g_wall_ns.fetch_add(static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(wall).count()));
 }
 
 std::string LockstepRig::handshake() {
