@@ -97,6 +97,9 @@ TEST(GloveGrasp, AHundredHertzHostRendersTheRigidBallWithoutOscillating) {
   slow_host.host_every_ticks = 10;
   slow_host.command_timeout_ms = 200;
   GloveRig g(plantConfig(sim::HandScenario::kStill), false, slow_host);
+  // A 70 mm ball the relaxed middle fingertip rests in (the demo ball is placed for the grasp, docs/glove-model.md).
+  g.controller.scene().clearObjects();
+  ASSERT_TRUE(g.controller.scene().addObject(host::glove::rigidBall({0.034, -0.067, 0.0}, 0.035)));
   ASSERT_EQ(g.rig.handshake(), "");
   constexpr int kTicks = 10000;  // 10 s
   double i2[5] = {};

@@ -67,6 +67,8 @@ class GloveController : public Controller {
   bool usesGainScale() const override { return !config_.transparent && config_.contact_gain_ref_N_per_m > 0.0; }
   std::string startupWarning(uint16_t id, float value) const override;
   const HandModel& hand() const { return scene_.hand(); }
+  /// The rendered scene (for tests and studies: objects may be replaced between cycles, not during update()).
+  GloveScene& scene() { return scene_; }
 
   const RenderOutput& lastRender() const { return out_; }
   const FingerStats& stats(int finger) const { return stats_[static_cast<size_t>(finger)]; }
