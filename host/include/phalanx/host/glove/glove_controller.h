@@ -41,6 +41,7 @@ struct FingerStats {
   double peak_setpoint_N = 0.0;
   double contact_s = 0.0;             ///< time with a rendered contact
   double sq_error_contact = 0.0;      ///< Σ (measured − setpoint)² during contact
+  double sq_setpoint_contact = 0.0;   ///< Σ setpoint² during contact (the rendered force's RMS, for the % figure)
   double sq_force_free = 0.0;         ///< Σ measured² while free (no contact)
   long contact_cycles = 0;
   long free_cycles = 0;
