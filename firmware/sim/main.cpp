@@ -248,7 +248,7 @@ int main(int argc, char** argv) {
   for (uint64_t n = 0; g_stop == 0 && (max_ticks == 0 || n < max_ticks); ++n) {
     overruns += timer.wait();
     const uint64_t woke_ns = linux_hal::monotonicNs();
-    for (unsigned i = 0; i < substeps; ++i) dev->plant().step(sub_dt_s, board.io());
+    dev->plant().advance(sub_dt_s, substeps, board.io());
     board.clock().advanceUs(period_us);
     truth.write(board.clock().nowUs(), *dev);
     const uint64_t deadline_us = core.commandDeadlineUs();

@@ -94,6 +94,14 @@ inline void printSummary(const nlohmann::json& s, bool json) {
   std::printf("loop: period jitter p50 %.0f us, p99 %.0f us; faults seen: %s; final mode: %s\n",
               num("period_jitter", "p50_us"), num("period_jitter", "p99_us"),
               s["faults_seen"].get<std::string>().c_str(), s["final_mode"].get<std::string>().c_str());
+  if (s.contains("glove5") && s["glove5"].contains("fingers")) {
+    // The grasp's figures per finger (docs/session-runner.md "Glove main job").
+    for (const auto& [name, f] : s["glove5"]["fingers"].items()) {
+      std::printf("%-6s contact %.2f s; in contact force RMS error %.3f N (%.1f %% of the rendered); free force RMS %.3f N\n",
+                  name.c_str(), f.value("contact_s", 0.0), f.value("force_rms_error_in_contact_N", 0.0),
+                  f.value("force_rms_error_in_contact_percent", 0.0), f.value("force_rms_free_N", 0.0));
+    }
+  }
   if (s.contains("recording")) {
     const auto& r = s["recording"];
     std::printf("recorded %llu rows to %s", r["rows"].get<unsigned long long>(), r["path"].get<std::string>().c_str());

@@ -2,7 +2,9 @@
 //   phalanx run     start a session (the simulated firmware too, for sim:* devices) and print a summary
 //   phalanx version protocol and build information
 //   phalanx sea-calibrate  SEA finger subject parameters from a recording (001 eq 12)
+#include <chrono>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 
 #include "cli_args.h"
@@ -12,6 +14,7 @@
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/glove/glove_bench.h"
+#include "phalanx/host/lockstep.h"
 #include "phalanx/host/mcu_diag.h"
 #include "phalanx/host/sea/sea_bench.h"
 #include "phalanx/host/pen/pen_bench.h"
@@ -21,6 +24,24 @@
 
 namespace {
 constexpr double kBenchStep_s = 1e-3;  // the glove and SEA benches step their lockstep loop at 1 kHz
+
+/// Runs a lockstep bench and adds how fast its simulation ran (docs/bench-runner.md "Lockstep speed"):
+/// virtual time stepped by its rigs over their wall-clock lifetime. Printed, never judged.
+nlohmann::json withLockstepSpeed(const std::function<nlohmann::json()>& bench) {
+  const phalanx::host::LockstepTally before = phalanx::host::lockstepTally();
+  const auto t0 = std::chrono::steady_clock::now();
+  nlohmann::json out = bench();
+  const double bench_wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const phalanx::host::LockstepTally after = phalanx::host::lockstepTally();
+  const double sim_s = static_cast<double>(after.simulated_us - before.simulated_us) * 1e-6;
+  const double wall_s = static_cast<double>(after.wall_ns - before.wall_ns) * 1e-9;
+  out["lockstep_speed"] = {{"rigs", after.rigs - before.rigs},
+                           {"simulated_s", sim_s},
+                           {"rig_wall_s", wall_s},
+                           {"x_real_time", wall_s > 0.0 ? sim_s / wall_s : 0.0},
+                           {"bench_wall_s", bench_wall_s}};
+  return out;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -160,10 +181,12 @@ int main(int argc, char** argv) {
   if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {
     sea_opt.noise = !bench_no_noise;
     namespace hs = phalanx::host::sea;
-    const nlohmann::json result = sea_sine->parsed()            ? hs::benchRigSine(sea_opt)
-                                  : sea_chirp->parsed()         ? hs::benchRigChirp(sea_opt)
-                                  : sea_finger_torque->parsed() ? hs::benchFingerTorque(sea_opt)
-                                                                : hs::benchTransparency(sea_opt);
+    const nlohmann::json result = withLockstepSpeed([&] {
+      return sea_sine->parsed()            ? hs::benchRigSine(sea_opt)
+             : sea_chirp->parsed()         ? hs::benchRigChirp(sea_opt)
+             : sea_finger_torque->parsed() ? hs::benchFingerTorque(sea_opt)
+                                           : hs::benchTransparency(sea_opt);
+    });
     std::cout << result.dump(2) << std::endl;
     return 0;
   }
@@ -171,7 +194,7 @@ int main(int argc, char** argv) {
     pen_wall_opt.braking = !pen_wall_no_braking;
     pen_wall_opt.noise = !pen_wall_no_noise;
     pen_wall_opt.brake_momentum_cap = !pen_wall_no_cap;
-    std::cout << phalanx::host::pen::benchWall(pen_wall_opt).dump(2) << std::endl;
+    std::cout << withLockstepSpeed([&] { return phalanx::host::pen::benchWall(pen_wall_opt); }).dump(2) << std::endl;
     return 0;
   }
   if (pen_split->parsed()) {
@@ -192,8 +215,10 @@ int main(int argc, char** argv) {
   if (bench->parsed()) {
     bench_opt.noise = !bench_no_noise;
     bench_opt.drift = !bench_no_drift;
-    const nlohmann::json result = free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
-                                                        : phalanx::host::glove::benchGrasp(bench_opt);
+    const nlohmann::json result = withLockstepSpeed([&] {
+      return free_motion->parsed() ? phalanx::host::glove::benchFreeMotion(bench_opt)
+                                   : phalanx::host::glove::benchGrasp(bench_opt);
+    });
     std::cout << result.dump(2) << std::endl;
     return 0;
   }

@@ -1,7 +1,11 @@
 #include "phalanx/host/lockstep.h"
 
+#include <atomic>
+
 namespace phalanx::host {
 namespace {
+std::atomic<uint64_t> g_rigs{0}, g_simulated_us{0}, g_wall_ns{0};
+
 fw::CoreConfig coreConfig(const fw_sim::SimDevice& device, const LockstepOptions& options) {
   fw::CoreConfig cfg{options.tick_hz, 0, 4 * protocol::kMaxEncodedFrame};
   cfg.device_variant = device.variant();
@@ -20,6 +24,15 @@ LockstepRig::LockstepRig(fw_sim::SimDevice& device, Controller& controller, cons
   cmd_.timeout_ms = opt_.command_timeout_ms;
   cmd_.channel_count = device.app().layout().setpoint_count;
   for (auto& g : cmd_.gain_scale_permille) g = 1000;
+}
+
+LockstepTally lockstepTally() { return {g_rigs.load(), g_simulated_us.load(), g_wall_ns.load()}; }
+
+LockstepRig::~LockstepRig() {
+  const auto wall = std::chrono::steady_clock::now() - born_;
+  g_rigs.fetch_add(1);
+  g_simulated_us.fetch_add(board_.clock().nowUs());
+  g_wall_ns.fetch_add(static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(wall).count()));
 }
 
 std::string LockstepRig::handshake() {
@@ -41,7 +54,7 @@ std::string LockstepRig::handshake() {
 void LockstepRig::step() {
   const uint64_t period_us = 1000000u / opt_.tick_hz;
   const double sub_dt_s = static_cast<double>(period_us) * 1e-6 / opt_.substeps;
-  for (unsigned i = 0; i < opt_.substeps; ++i) device_.plant().step(sub_dt_s, board_.io());
+  device_.plant().advance(sub_dt_s, opt_.substeps, board_.io());
   if (io_hook_) io_hook_(board_.io());
   board_.clock().advanceUs(period_us);
   core_.tick();

@@ -2,7 +2,10 @@
 // host's glove controller, on a virtual clock with the plant's sensor noise.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 
 #include "phalanx/fw_sim/glove5_sim.h"
 #include "phalanx/glove/board.h"
@@ -88,6 +91,51 @@ TEST(GloveGrasp, RenderedForceIsWithinTenPercentOfKxAtSteadyContact) {
   }
 }
 
+// The main job (`phalanx run --device sim:glove5`: 10 s, grasp, rigid ball) in lockstep, so the counts do not depend on
+// the machine's load: every finger, thumb included, reaches the ball pad first and holds it to the end. Before the
+// ball was moved (docs/glove-model.md) the little finger never touched it and the thumb's pad met it nail side first
+// and was pulled through it (contact 0.08 s). The force figures are printed, not judged (see the report of issue 20:
+// the RMS targets are not met yet).
+TEST(GloveGrasp, TheMainJobGraspsWithEveryFingerAndHoldsTheBallToTheEnd) {
+  GloveRig g(plantConfig(sim::HandScenario::kGrasp), false);
+  ASSERT_EQ(g.rig.handshake(), "");
+  constexpr int kTicks = 10000;  // 10 s at 1 kHz
+  std::array<int, 5> first{-1, -1, -1, -1, -1}, losses_after_onset{}, contact{};
+  std::array<double, 5> setpoint_sum{}, force_sum{};
+  std::array<int, 5> late{};
+  for (int i = 0; i < kTicks; ++i) {
+    g.rig.step();
+    for (int f = 0; f < 5; ++f) {
+      const bool in = g.controller.lastRender()[static_cast<size_t>(f)].in_contact;
+      if (in && first[f] < 0) first[f] = i;
+      if (in) ++contact[f];
+      // Held: once the onset is over (0.5 s after first contact) the finger never leaves the ball.
+      if (!in && first[f] >= 0 && i > first[f] + 500) ++losses_after_onset[f];
+      if (i >= kTicks / 2) {
+        setpoint_sum[f] += static_cast<double>(g.rig.lastCommand().setpoint[f]);
+        force_sum[f] += static_cast<double>(g.rig.session().latest().value[15 + f]);
+        ++late[f];
+      }
+    }
+  }
+  EXPECT_EQ(g.rig.core().faultBits(), 0u);
+  for (int f = 0; f < 5; ++f) {
+    const auto& st = g.controller.stats(f);
+    std::printf("%-6s first contact %.3f s, contact %d cycles; RMS error in contact %.3f N, free RMS %.3f N\n",
+                host::glove::kFingerNames[f], first[f] * 1e-3, contact[f],
+                std::sqrt(st.sq_error_contact / static_cast<double>(std::max(1L, st.contact_cycles))),
+                std::sqrt(st.sq_force_free / static_cast<double>(std::max(1L, st.free_cycles))));
+    EXPECT_GE(first[f], 0) << host::glove::kFingerNames[f] << " never touched the ball";
+    EXPECT_LT(first[f], 1500) << host::glove::kFingerNames[f] << ": the reach ends at 1.2 s";
+    EXPECT_GT(contact[f], 8000) << host::glove::kFingerNames[f];
+    EXPECT_EQ(losses_after_onset[f], 0) << host::glove::kFingerNames[f] << " let go of the ball";
+    // Pad first: the rendered pad-normal force resists the closing (a nail-side contact renders it negative),
+    // and the gauge reads the finger's squeeze (5 N effort) within 20 %.
+    EXPECT_GT(setpoint_sum[f] / late[f], 4.0) << host::glove::kFingerNames[f];
+    EXPECT_NEAR(force_sum[f] / late[f], 5.0, 1.0) << host::glove::kFingerNames[f];
+  }
+}
+
 // A 100 Hz host (the emulated boards' sessions, a loaded PC) with the 1 kHz firmware, the hand still and resting in
 // the rigid ball: rendered at 2000 N/m the setpoint k·x jumped between 0 and 7–10 N from one host period to the
 // next and the loop latched current-limit (6 of 6 daemon sessions). The controller limits k·T
@@ -97,6 +145,9 @@ TEST(GloveGrasp, AHundredHertzHostRendersTheRigidBallWithoutOscillating) {
   slow_host.host_every_ticks = 10;
   slow_host.command_timeout_ms = 200;
   GloveRig g(plantConfig(sim::HandScenario::kStill), false, slow_host);
+  // A 70 mm ball the relaxed middle fingertip rests in (the demo ball is placed for the grasp, docs/glove-model.md).
+  g.controller.scene().clearObjects();
+  ASSERT_TRUE(g.controller.scene().addObject(host::glove::rigidBall({0.034, -0.067, 0.0}, 0.035)));
   ASSERT_EQ(g.rig.handshake(), "");
   constexpr int kTicks = 10000;  // 10 s
   double i2[5] = {};

@@ -56,6 +56,9 @@ double normal(std::mt19937& rng) {
   const double u2 = uniform01(rng);
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
 }
+// Words of the noise stream one sample() of an enabled finger takes: 3 Hall + 1 strain + 1 current normal,
+// 2 words each (normal()).
+constexpr unsigned long long kNoiseWordsPerSample = 10;
 double clippedNormal(std::mt19937& rng, double sigma) { return sigma * std::clamp(normal(rng), -3.0, 3.0); }
 
 bool finitePositive(double x) { return std::isfinite(x) && x > 0.0; }
@@ -110,7 +113,8 @@ std::int32_t toCounts(double value) {
 // Everything one evaluation of a finger produces: forces and accelerations from the state at one instant.
 struct GlovePlant::Eval {
   Vec3<double> theta_d{}, theta_d_dot{};
-  Vec3<double> alpha{}, u{}, F{}, tau_alpha{}, tau{};
+  Vec3<double> alpha{}, u{}, n{}, tau{};
+  Vec3<double> F{}, tau_alpha{};  // truth only: filled by truthWrench(), not on the integration path
   bool kin_ok = true;
   double pad_N = 0;
   double q_m_dot = 0;  // release-path shortening rate (m/s)
@@ -281,6 +285,7 @@ void GlovePlant::initFinger(Finger& f, int index, std::mt19937& calib_rng, std::
   }
   Eval e{};
   evaluate(f, 0.0, 0.0, false, e);
+  truthWrench(f, e);
   fillTruth(f, e, false);
 }
 
@@ -365,11 +370,13 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
   intent(f, t, e.theta_d, e.theta_d_dot);
 
   // Kinematics: the massless glove follows the finger through the closure α = f(θ) (eq 6–8).
-  e.kin_ok = glove::isUsable(glove::alphaFromTheta(k.model, f.theta, e.alpha));
+  // The sines and cosines of θ are computed once for α, J_θ^u and u.
+  const glove::ThetaTrig<double> trig = glove::thetaTrig(f.theta);
+  e.kin_ok = glove::allFinite(f.theta) && glove::isUsable(glove::alphaFromTheta(k.model, trig, e.alpha));
   if (!e.kin_ok) e.alpha = f.alpha_last;
-  const Mat3<double> Jt = glove::jacobianThetaU(k.model.finger, f.theta);
-  e.u = glove::tipPoseFromTheta(k.model.finger, f.theta);
-  const Vec3<double> n = glove::padNormal(e.u[2]);
+  const Mat3<double> Jt = glove::jacobianThetaU(k.model.finger, trig);
+  e.u = glove::tipPoseFromTheta(k.model.finger, trig);
+  const Vec3<double>& n = e.n = glove::padNormal(e.u[2]);
   // The tendon acts on the fingertip as a pad-normal force c·T (§3.4's model: only f_y, eq 18), so the
   // tendon path changes with the pad-normal motion of the fingertip: q̇_m = c·n·u̇, and the finger feels
   // a = ∂q_m/∂θ = c·(J_θ^u)ᵀ n per newton of net tension. The mechanism joint torques are
@@ -409,8 +416,6 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
   }
   const double net_tip = e.tr_tip - e.tg_tip;
   e.pad_N = c * net_tip;
-  e.F = {e.pad_N * n[0], e.pad_N * n[1], 0.0};
-  e.tau_alpha = glove::mechanismTorqueFromWrench(glove::jacobianAlphaU(k.model.mech, e.alpha), e.F);
 
   // Finger: muscle impedance towards θ_d (with the passive torque at θ_d fed forward, as the CNS does),
   // passive stiffness/damping, soft range limits, and the glove.
@@ -479,6 +484,11 @@ void GlovePlant::evaluate(const Finger& f, double t, double duty, bool bridge_on
     // motor fast enough to forward-bias the bridge's body diodes.
     e.current_A = 0.0;
   }
+}
+
+void GlovePlant::truthWrench(const Finger& f, Eval& e) {
+  e.F = {e.pad_N * e.n[0], e.pad_N * e.n[1], 0.0};
+  e.tau_alpha = glove::mechanismTorqueFromWrench(glove::jacobianAlphaU(f.k.model.mech, e.alpha), e.F);
 }
 
 void GlovePlant::integrate(Finger& f, const Eval& e, double h) {
@@ -671,27 +681,45 @@ void GlovePlant::sample(Finger& f, SimIo& io) {
   io.adc[board::currentAdcChannel(i)] = toCounts(cur);
 }
 
-void GlovePlant::step(double dt_s, SimIo& io) {
-  // 1 s bounds the work of one call (10^4 substeps per finger); a lockstep rig steps at 1 ms.
+void GlovePlant::step(double dt_s, SimIo& io) { advance(dt_s, 1, io); }
+
+void GlovePlant::advance(double dt_s, unsigned steps, SimIo& io) {
+  // 1 s bounds the work of one step (10^4 substeps per finger); a lockstep rig steps at 1 ms.
   if (!std::isfinite(dt_s) || !(dt_s > 0.0) || dt_s > 1.0) {
     throw std::invalid_argument("GlovePlant::step: dt_s must be finite and in (0, 1] s");
   }
+  if (steps == 0) return;
   const int n = std::max(1, static_cast<int>(std::ceil(dt_s / config_.params.max_substep_s - 1e-9)));
   const double h = dt_s / n;
   const bool bridge_on = io.pwm_enabled && io.drive_enable && !io.estop_pressed;
   Eval e{};
+  int enabled = 0;
   for (Finger& f : fingers_) {
     if (!f.enabled) continue;
+    ++enabled;
     const double raw = asDouble(io.pwm_duty[static_cast<std::size_t>(board::motorPwmChannel(f.index))]);
     const double duty = std::isfinite(raw) ? std::clamp(raw, -1.0, 1.0) : 0.0;
-    for (int k = 0; k < n; ++k) {
-      evaluate(f, time_s_ + k * h, duty, bridge_on, e);
-      integrate(f, e, h);
+    // The same clock as `steps` calls of step(): time_s_ advanced by dt_s after each.
+    double t = time_s_;
+    for (unsigned s = 0; s < steps; ++s) {
+      for (int k = 0; k < n; ++k) {
+        evaluate(f, t + k * h, duty, bridge_on, e);
+        integrate(f, e, h);
+      }
+      t += dt_s;
     }
-    evaluate(f, time_s_ + dt_s, duty, bridge_on, e);
+    // Truth after the last step only: nothing reads it in between.
+    evaluate(f, t, duty, bridge_on, e);
+    truthWrench(f, e);
     fillTruth(f, e, bridge_on);
   }
-  time_s_ += dt_s;
+  for (unsigned s = 0; s < steps; ++s) time_s_ += dt_s;
+  // The sensors of the steps before the last are overwritten unread; their noise draws are skipped in the
+  // stream (sample() takes 5 normals per enabled finger, 2 words each) so the last sample is the same.
+  if (config_.noise && steps > 1) {
+    noise_rng_.discard(static_cast<unsigned long long>(steps - 1) * static_cast<unsigned long long>(enabled) *
+                       kNoiseWordsPerSample);
+  }
   for (Finger& f : fingers_) sample(f, io);
 }
 

@@ -109,6 +109,7 @@ SeaPlant::SeaPlant(const SeaPlantConfig& config) : config_(config), rng_(config.
         total += random_.amp[j][static_cast<size_t>(k)];
       }
       for (auto& a : random_.amp[j]) a *= f.random_amplitude_rad[j] / total;  // peak ≤ the configured amplitude
+      for (size_t k = 0; k < random_.phase[j].size(); ++k) random_.sin_phase[j][k] = std::sin(random_.phase[j][k]);
     }
     fingerDynamics(0.0);
     fingerSensors();
@@ -136,7 +137,7 @@ void SeaPlant::intent(double t, std::array<double, 2>& theta_d, std::array<doubl
         // Faded in over the first second, so the motion starts from rest.
         const double fade = std::min(1.0, t);
         theta_d[j] += fade * random_.amp[j][kk] * std::sin(w * t + random_.phase[j][kk]) -
-                      fade * random_.amp[j][kk] * std::sin(random_.phase[j][kk]);
+                      fade * random_.amp[j][kk] * random_.sin_phase[j][kk];
         theta_d_dot[j] += fade * random_.amp[j][kk] * w * std::cos(w * t + random_.phase[j][kk]);
       }
     } else if (config_.motion == SeaUserMotion::kCloseOpen) {
@@ -348,18 +349,31 @@ void SeaPlant::motorMechanics(Channel& c, double h) {
   t.cable_load_torque_Nm = cable_load;
 }
 
-void SeaPlant::step(double dt_s, SimIo& io) {
+void SeaPlant::step(double dt_s, SimIo& io) { advance(dt_s, 1, io); }
+
+void SeaPlant::advance(double dt_s, unsigned steps, SimIo& io) {
   if (!(std::isfinite(dt_s) && dt_s > 0.0 && dt_s <= 1.0)) {
     throw std::invalid_argument("SeaPlant::step: dt_s must be finite and in (0, 1]");
   }
+  if (steps == 0) return;
   const bool bridge_on = io.pwm_enabled && io.drive_enable && !io.estop_pressed;
-  const auto n = static_cast<long>(std::ceil(dt_s / config_.params.max_substep_s - 1e-9));
-  const double h = dt_s / static_cast<double>(n);
   std::array<double, 2> duty{};
   for (size_t i = 0; i < ch_.size(); ++i) {
     duty[i] = asDouble(io.pwm_duty[i]);
     if (!std::isfinite(duty[i])) duty[i] = 0.0;
   }
+  for (unsigned s = 0; s < steps; ++s) stepPhysics(dt_s, bridge_on, duty);
+  // The samples of the steps before the last are overwritten unread: skip their draws in the noise stream
+  // (sample() takes a normal for each joint sensor and current, and each load cell on the rig; 2 words each).
+  const bool rig = config_.variant == SeaVariant::kRig;
+  const unsigned long long normals = board::kJointSensorCount + ch_.size() * (rig ? 2u : 1u);
+  if (steps > 1) rng_.discard(2ull * normals * (steps - 1));
+  sample(io);
+}
+
+void SeaPlant::stepPhysics(double dt_s, bool bridge_on, const std::array<double, 2>& duty) {
+  const auto n = static_cast<long>(std::ceil(dt_s / config_.params.max_substep_s - 1e-9));
+  const double h = dt_s / static_cast<double>(n);
   const bool rig = config_.variant == SeaVariant::kRig;
   for (long k = 0; k < n; ++k) {
     for (size_t i = 0; i < ch_.size(); ++i) {
@@ -377,10 +391,10 @@ void SeaPlant::step(double dt_s, SimIo& io) {
     time_s_ += h;
   }
   if (!rig) {
-    fingerDynamics(0.0);  // truth at the end of the step
+    // Truth at the end of the step; the DIP sensor angle it leaves is the next step's kinematics input.
+    fingerDynamics(0.0);
     fingerSensors();
   }
-  sample(io);
 }
 
 double SeaPlant::gaussian() {

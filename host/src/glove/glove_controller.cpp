@@ -94,6 +94,7 @@ void GloveController::update(const TelemetryFrame& tel, double, double dt_s, pro
     if (!config_.transparent && out_[f].in_contact) {
       s.contact_s += dt_s;
       s.sq_error_contact += (measured - setpoint) * (measured - setpoint);
+      s.sq_setpoint_contact += setpoint * setpoint;
       ++s.contact_cycles;
     } else {
       s.sq_force_free += measured * measured;
@@ -111,7 +112,11 @@ void GloveController::summarize(nlohmann::json& out) const {
         {"peak_force_N", s.peak_force_N},
         {"peak_setpoint_N", s.peak_setpoint_N},
         {"contact_s", s.contact_s},
+        {"contact_cycles", s.contact_cycles},
+        {"free_cycles", s.free_cycles},
         {"force_rms_error_in_contact_N", s.contact_cycles ? std::sqrt(s.sq_error_contact / static_cast<double>(s.contact_cycles)) : 0.0},
+        // RMS error as a share of the rendered force's RMS over the same cycles (issue 20: ≤ 5 %).
+        {"force_rms_error_in_contact_percent", s.sq_setpoint_contact > 0.0 ? 100.0 * std::sqrt(s.sq_error_contact / s.sq_setpoint_contact) : 0.0},
         {"force_rms_free_N", s.free_cycles ? std::sqrt(s.sq_force_free / static_cast<double>(s.free_cycles)) : 0.0}};
   }
 }

@@ -228,17 +228,18 @@ double GloveScene::renderedStiffness(std::size_t i) const {
 }
 
 void loadDemoScene(GloveScene& scene, DemoScene which) {
-  // Contact is rendered at the fingertips only (the phalanges pass through objects), so the ball must meet the
-  // fingertip pads: its centre is one radius palmar of the middle fingertip pad (tip − R·n(φ)) at 35 % of the
-  // close synergy, where index and ring pads meet it too. docs/glove-model.md.
-  const Vec3d ball_center_m{0.034, -0.067, 0.0};
+  // Contact is rendered at the fingertips only (the phalanges pass through objects), so the ball must meet all five
+  // fingertip pads, each with the pad facing it: a 90 mm ball resting against the palm, placed by a search for the
+  // largest worst-finger pad-normal share of the contact force (0.64, the little finger). docs/glove-model.md.
+  const Vec3d ball_center_m{-0.004, -0.060, -0.008};
+  const double radius_m = 0.045;
   scene.clearObjects();
   switch (which) {
     case DemoScene::kRigidBall:
-      scene.addObject(rigidBall(ball_center_m));
+      scene.addObject(rigidBall(ball_center_m, radius_m));
       break;
     case DemoScene::kSoftBall:
-      scene.addObject(softBall(ball_center_m));
+      scene.addObject(softBall(ball_center_m, radius_m));
       break;
     case DemoScene::kWall:
       scene.addObject(plane({0.0, -0.040, 0.0}, {0.0, 1.0, 0.0}));

@@ -124,7 +124,15 @@ struct Data {
 /// Wraps an angle to [-π, π] (rad).
 template <class T>
 inline T wrapToPi(T a) {
-  return std::remainder(a, T(2) * kPi<T>);
+  // Same result as std::remainder(a, 2π), without its cost on the simulation's inner loop: |a| ≤ π is
+  // returned as it is (remainder's quotient rounds to 0, the tie included), and π < |a| < 3π, except
+  // |a| = 2π (remainder gives a zero with a's sign), loses one period exactly (a and 2π are within a factor
+  // of 2, so the subtraction is exact: Sterbenz).
+  const T two_pi = T(2) * kPi<T>;
+  const T mag = std::fabs(a);
+  if (mag <= kPi<T>) return a;
+  if (mag < T(3) * kPi<T> && mag != two_pi) return a > T(0) ? a - two_pi : a + two_pi;
+  return std::remainder(a, two_pi);
 }
 
 template <class T>
@@ -225,13 +233,39 @@ inline Model<T> defaultIndexModel() {
 // ---------------------------------------------------------------------------------------------------------
 
 /// Fingertip pose u = (x_m, y_m, φ_rad) in {O} from the finger angles θ (eq 3–5, right-hand side).
+/// Sines and cosines of the finger's cumulative angles θ1, θ1+θ2, θ1+θ2+θ3: what tipPoseFromTheta,
+/// jacobianThetaU and alphaFromTheta share, so that a caller needing all three computes them once.
 template <class T>
-inline Vec3<T> tipPoseFromTheta(const FingerGeometry<T>& f, const Vec3<T>& theta_rad) {
+struct ThetaTrig {
+  T t123 = T(0);  ///< θ1+θ2+θ3 (rad), not wrapped
+  T s1 = T(0), c1 = T(0), s12 = T(0), c12 = T(0), s123 = T(0), c123 = T(0);
+};
+
+template <class T>
+inline ThetaTrig<T> thetaTrig(const Vec3<T>& theta_rad) {
   const T t1 = theta_rad[0];
   const T t12 = t1 + theta_rad[1];
-  const T t123 = t12 + theta_rad[2];
-  return {f.p1_m * std::cos(t1) + f.p2_m * std::cos(t12) + f.p3_m * std::cos(t123),
-          f.p1_m * std::sin(t1) + f.p2_m * std::sin(t12) + f.p3_m * std::sin(t123), wrapToPi(t123)};
+  ThetaTrig<T> tr;
+  tr.t123 = t12 + theta_rad[2];
+  tr.s1 = std::sin(t1);
+  tr.c1 = std::cos(t1);
+  tr.s12 = std::sin(t12);
+  tr.c12 = std::cos(t12);
+  tr.s123 = std::sin(tr.t123);
+  tr.c123 = std::cos(tr.t123);
+  return tr;
+}
+
+/// tipPoseFromTheta from precomputed thetaTrig(θ).
+template <class T>
+inline Vec3<T> tipPoseFromTheta(const FingerGeometry<T>& f, const ThetaTrig<T>& tr) {
+  return {f.p1_m * tr.c1 + f.p2_m * tr.c12 + f.p3_m * tr.c123, f.p1_m * tr.s1 + f.p2_m * tr.s12 + f.p3_m * tr.s123,
+          wrapToPi(tr.t123)};
+}
+
+template <class T>
+inline Vec3<T> tipPoseFromTheta(const FingerGeometry<T>& f, const Vec3<T>& theta_rad) {
+  return tipPoseFromTheta(f, thetaTrig(theta_rad));
 }
 
 /// Fingertip pose u = (x_m, y_m, φ_rad) in {O} from the mechanism angles α (eq 3–5, left-hand side):
@@ -289,21 +323,17 @@ inline bool elbowDownwardAngle(T a, T b, T r2, T reach_tol_m, T& elbow_rad, bool
 ///        equivalent form atan2(N, M) − atan2(l2 sin α2, l1 + l2 cos α2)
 ///   α3 = θ1 + θ2 + θ3 − α1 − α2                                           (eq 8), wrapped to [-π, π]
 /// Returns kUnreachable when B2 is out of the mechanism's reach (α is then set to 0).
+/// alphaFromTheta with precomputed thetaTrig(θ) (θ must be finite; the overload below checks).
 template <class T>
-inline Status alphaFromTheta(const Model<T>& model, const Vec3<T>& theta_rad, Vec3<T>& alpha_rad) {
+inline Status alphaFromTheta(const Model<T>& model, const ThetaTrig<T>& tr, Vec3<T>& alpha_rad) {
   alpha_rad = {T(0), T(0), T(0)};
-  if (!allFinite(theta_rad)) return Status::kNonFiniteInput;
   const FingerGeometry<T>& f = model.finger;
   const MechanismGeometry<T>& m = model.mech;
-  const T t1 = theta_rad[0];
-  const T t12 = t1 + theta_rad[1];
-  const T phi = t12 + theta_rad[2];
-  const T c_phi = std::cos(phi);
-  const T s_phi = std::sin(phi);
-  const T M = -m.x_B0_m + f.p1_m * std::cos(t1) + f.p2_m * std::cos(t12) + (f.p3_m - m.l3_m) * c_phi +
-              m.l_p_m * s_phi;
-  const T N = -m.y_B0_m + f.p1_m * std::sin(t1) + f.p2_m * std::sin(t12) + (f.p3_m - m.l3_m) * s_phi -
-              m.l_p_m * c_phi;
+  const T phi = tr.t123;
+  const T c_phi = tr.c123;
+  const T s_phi = tr.s123;
+  const T M = -m.x_B0_m + f.p1_m * tr.c1 + f.p2_m * tr.c12 + (f.p3_m - m.l3_m) * c_phi + m.l_p_m * s_phi;
+  const T N = -m.y_B0_m + f.p1_m * tr.s1 + f.p2_m * tr.s12 + (f.p3_m - m.l3_m) * s_phi - m.l_p_m * c_phi;
   T a2 = T(0);
   bool clamped = false;
   // The mechanism has no reach tolerance: the finger pose is exact, so only rounding is accepted.
@@ -313,6 +343,13 @@ inline Status alphaFromTheta(const Model<T>& model, const Vec3<T>& theta_rad, Ve
   const T a1 = wrapToPi(std::atan2(N, M) - std::atan2(m.l2_m * std::sin(a2), m.l1_m + m.l2_m * std::cos(a2)));
   alpha_rad = {a1, a2, wrapToPi(phi - a1 - a2)};
   return Status::kOk;
+}
+
+template <class T>
+inline Status alphaFromTheta(const Model<T>& model, const Vec3<T>& theta_rad, Vec3<T>& alpha_rad) {
+  alpha_rad = {T(0), T(0), T(0)};
+  if (!allFinite(theta_rad)) return Status::kNonFiniteInput;
+  return alphaFromTheta(model, thetaTrig(theta_rad), alpha_rad);
 }
 
 /// Finger angles θ from mechanism angles α (what the host needs: the Hall sensors measure α).
@@ -353,17 +390,19 @@ inline Status thetaFromAlpha(const Model<T>& model, const Vec3<T>& alpha_rad, Ve
 
 /// Finger Jacobian J_θ^u = ∂u/∂θ (eq 9, entries b_ij), 3×3; rows (x m, y m, φ rad), columns θ1..θ3.
 template <class T>
-inline Mat3<T> jacobianThetaU(const FingerGeometry<T>& f, const Vec3<T>& theta_rad) {
-  const T t1 = theta_rad[0];
-  const T t12 = t1 + theta_rad[1];
-  const T t123 = t12 + theta_rad[2];
-  const T s1 = f.p1_m * std::sin(t1), s2 = f.p2_m * std::sin(t12), s3 = f.p3_m * std::sin(t123);
-  const T c1 = f.p1_m * std::cos(t1), c2 = f.p2_m * std::cos(t12), c3 = f.p3_m * std::cos(t123);
+inline Mat3<T> jacobianThetaU(const FingerGeometry<T>& f, const ThetaTrig<T>& tr) {
+  const T s1 = f.p1_m * tr.s1, s2 = f.p2_m * tr.s12, s3 = f.p3_m * tr.s123;
+  const T c1 = f.p1_m * tr.c1, c2 = f.p2_m * tr.c12, c3 = f.p3_m * tr.c123;
   Mat3<T> J{};
   J[0] = {-s1 - s2 - s3, -s2 - s3, -s3};
   J[1] = {c1 + c2 + c3, c2 + c3, c3};
   J[2] = {T(1), T(1), T(1)};
   return J;
+}
+
+template <class T>
+inline Mat3<T> jacobianThetaU(const FingerGeometry<T>& f, const Vec3<T>& theta_rad) {
+  return jacobianThetaU(f, thetaTrig(theta_rad));
 }
 
 /// Mechanism Jacobian J_α^u = ∂u/∂α (eq 9, entries a_ij), 3×3. Derived from eq 3–5; the paper's

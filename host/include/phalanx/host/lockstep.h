@@ -2,6 +2,7 @@
 /// Lockstep simulation: firmware core + device app + plant + host session + host controller in one process on a
 /// virtual clock. Deterministic for a seed and far faster than real time; the link is an in-memory byte pipe
 /// carrying the same COBS frames as the real link, so the protocol path is exercised too.
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -24,10 +25,23 @@ struct LockstepOptions {
   uint16_t command_timeout_ms = 20;
 };
 
+/// Every lockstep rig of this process so far, counted when each is destroyed: the virtual time it stepped
+/// and the wall-clock time it lived (construction to destruction). Benches print the ratio, the simulation's
+/// speed in multiples of real time (docs/bench-runner.md "Lockstep speed").
+struct LockstepTally {
+  uint64_t rigs = 0;
+  uint64_t simulated_us = 0;
+  uint64_t wall_ns = 0;
+};
+LockstepTally lockstepTally();
+
 class LockstepRig {
  public:
   /// The rig does not own device or controller; both must outlive it.
   LockstepRig(fw_sim::SimDevice& device, Controller& controller, const LockstepOptions& options = {});
+  ~LockstepRig();
+  LockstepRig(const LockstepRig&) = delete;
+  LockstepRig& operator=(const LockstepRig&) = delete;
 
   /// Open the session (Hello/HelloAck over the pipe), set the controller's start-up parameters and wait its
   /// settle time; only then does step() send commands. Returns an error text or "".
@@ -62,6 +76,7 @@ class LockstepRig {
   uint64_t ticks_ = 0;
   bool started_ = false;  ///< commands flow only once handshake() finished the start-up sequence
   std::function<void(sim::SimIo&)> io_hook_;
+  std::chrono::steady_clock::time_point born_ = std::chrono::steady_clock::now();
 };
 
 }  // namespace phalanx::host

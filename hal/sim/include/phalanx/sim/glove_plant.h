@@ -199,6 +199,9 @@ class GlovePlant final : public Plant {
   /// using the duty cycles in io, then samples all sensors into io.adc. Throws std::invalid_argument on a
   /// bad dt_s. Does not allocate.
   void step(double dt_s, SimIo& io) override;
+  /// `steps` calls of step(dt_s, io) (Plant::advance): the same physics, truth, noise stream and final sensor
+  /// counts bit for bit; the sensors and truth of the steps before the last are not computed.
+  void advance(double dt_s, unsigned steps, SimIo& io) override;
 
   /// Simulated time since construction (s).
   double time_s() const { return time_s_; }
@@ -278,6 +281,7 @@ class GlovePlant final : public Plant {
   void intent(const Finger& f, double t, glove::Vec3<double>& theta_d, glove::Vec3<double>& theta_d_dot) const;
   void evaluate(const Finger& f, double t, double duty, bool bridge_on, Eval& e) const;
   void integrate(Finger& f, const Eval& e, double h);
+  static void truthWrench(const Finger& f, Eval& e);  ///< e.F and e.tau_alpha, which only the truth reports
   static void fillTruth(Finger& f, const Eval& e, bool bridge_on);
   void sample(Finger& f, SimIo& io);
   double thermalDrift_N(const Finger& f) const;  ///< the gauge's zero shift at the pad's temperature now

@@ -26,6 +26,12 @@ class Plant {
  public:
   virtual ~Plant() = default;
   virtual void step(double dt_s, SimIo& io) = 0;
+  /// `steps` consecutive steps of dt_s with io's actuator outputs unchanged in between, as that many step()
+  /// calls would do them; io's sensor readings are those of the last step. A plant may override it to skip
+  /// the sensor readings nothing can see (the lockstep rig and firmware-sim read them once per tick).
+  virtual void advance(double dt_s, unsigned steps, SimIo& io) {
+    for (unsigned i = 0; i < steps; ++i) step(dt_s, io);
+  }
 };
 
 }  // namespace phalanx::sim

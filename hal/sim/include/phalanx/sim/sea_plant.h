@@ -173,6 +173,9 @@ class SeaPlant final : public Plant {
   /// Advances the physics by dt_s (finite, in (0, 1]; subdivided into steps ≤ max_substep_s), then samples the
   /// sensors into io. Throws std::invalid_argument on a bad dt_s. Does not allocate.
   void step(double dt_s, SimIo& io) override;
+  /// `steps` calls of step(dt_s, io) (Plant::advance), bit for bit; the sensor samples before the last are not
+  /// computed (their noise draws are skipped in the stream).
+  void advance(double dt_s, unsigned steps, SimIo& io) override;
 
   double time_s() const { return time_s_; }
   const SeaPlantConfig& config() const { return config_; }
@@ -200,6 +203,7 @@ class SeaPlant final : public Plant {
   struct RandomMotion {
     static constexpr int kTerms = 4;
     std::array<std::array<double, kTerms>, 2> amp{}, freq_hz{}, phase{};
+    std::array<std::array<double, kTerms>, 2> sin_phase{};  ///< sin(phase), the fade-in's offset
   };
   static int idx(int sea);
   void electrical(Channel& c, double duty, bool bridge_on, double h);
@@ -210,6 +214,7 @@ class SeaPlant final : public Plant {
   void fingerDynamics(double h);
   void intent(double t, std::array<double, 2>& theta_d, std::array<double, 2>& theta_d_dot) const;
   void fingerSensors();
+  void stepPhysics(double dt_s, bool bridge_on, const std::array<double, 2>& duty);
   void sample(SimIo& io);
   double gaussian();
 

@@ -41,6 +41,7 @@ struct FingerStats {
   double peak_setpoint_N = 0.0;
   double contact_s = 0.0;             ///< time with a rendered contact
   double sq_error_contact = 0.0;      ///< Σ (measured − setpoint)² during contact
+  double sq_setpoint_contact = 0.0;   ///< Σ setpoint² during contact (the rendered force's RMS, for the % figure)
   double sq_force_free = 0.0;         ///< Σ measured² while free (no contact)
   long contact_cycles = 0;
   long free_cycles = 0;
@@ -67,6 +68,8 @@ class GloveController : public Controller {
   bool usesGainScale() const override { return !config_.transparent && config_.contact_gain_ref_N_per_m > 0.0; }
   std::string startupWarning(uint16_t id, float value) const override;
   const HandModel& hand() const { return scene_.hand(); }
+  /// The rendered scene (for tests and studies: objects may be replaced between cycles, not during update()).
+  GloveScene& scene() { return scene_; }
 
   const RenderOutput& lastRender() const { return out_; }
   const FingerStats& stats(int finger) const { return stats_[static_cast<size_t>(finger)]; }
