@@ -437,8 +437,9 @@ int DesignCommands::Impl::runPenGiiPlot() {
                "paper Table VIII (force)");
   plot.addLine({{15, 0.105}, {20, 0.186}, {25, 0.232}, {30, 0.269}, {35, 0.285}, {40, 0.303}}, "#cccccc",
                "paper Table IX (velocity)");
-  if (!force.empty()) plot.addLine(force, "#1f5fbf", "this model, force (eq 19)");
-  if (!velocity.empty()) plot.addLine(velocity, "#d9541e", "this model, velocity (eq 26-27)");
+  // Dots as well as a line: one finished run is one point, which a polyline alone does not show.
+  if (!force.empty()) plot.addLine(force, "#1f5fbf", "this model, force (eq 19)", true);
+  if (!velocity.empty()) plot.addLine(velocity, "#d9541e", "this model, velocity (eq 26-27)", true);
   if (const std::string err = plot.write(svg_path); !err.empty()) {
     std::fprintf(stderr, "phalanx design: error: %s\n", err.c_str());
     return 1;

@@ -48,13 +48,16 @@ class ProgressLine {
 
   /// The report line (without a newline). The time left is elapsed · (1 − f) / f: the rate so far continued.
   static std::string format(const std::string& what, double elapsed_s, double fraction, const std::string& detail) {
-    char b[256];
+    char b[64];
     std::string s = what + ": ";
     if (fraction >= 0.0) {
-      std::snprintf(b, sizeof b, "%.0f %% ", 100.0 * std::min(fraction, 1.0));
+      std::snprintf(b, sizeof b, "%.0f %%", 100.0 * std::min(fraction, 1.0));
       s += b;
+      if (!detail.empty()) s += " (" + detail + ")";
+      s += ", ";
+    } else if (!detail.empty()) {
+      s += detail + ", ";
     }
-    if (!detail.empty()) s += (fraction >= 0.0 ? "(" + detail + ")" : detail) + ", ";
     std::snprintf(b, sizeof b, "%.1f s elapsed", elapsed_s);
     s += b;
     if (fraction > 0.0 && fraction < 1.0) s += ", ~" + duration(elapsed_s * (1.0 - fraction) / fraction) + " left";
