@@ -9,7 +9,7 @@ phalanx=${1:-build/host/bin/phalanx}
 printf '%-11s %-18s %6s %12s %11s %11s %12s\n' device bench rigs simulated_s rig_wall_s x_real_time bench_wall_s
 run() {
   local device=$1 bench=$2
-  "$phalanx" bench "$bench" | python3 -c '
+  "$phalanx" bench "$bench" --json | python3 -c '
 import json, sys
 s = json.load(sys.stdin)["lockstep_speed"]
 print("%-11s %-18s %6d %12.2f %11.3f %11.0f %12.3f" % (sys.argv[1], sys.argv[2], s["rigs"], s["simulated_s"],

@@ -58,6 +58,17 @@ inline void refuseEmptyValues(CLI::App& app) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuseEmptyValues(*sub);
 }
 
+/// Help shows each option's default ("--rate-hz UINT=1000"), except where the stored value only marks "not given"
+/// (-1: the daemon's or the plant's own default; [] an empty list), which the option's description explains.
+/// Call after every option is added.
+inline void hideUnsetDefaults(CLI::App& app) {
+  for (CLI::Option* opt : app.get_options([](CLI::Option*) { return true; })) {
+    const std::string d = opt->get_default_str();
+    if (d == "-1" || d == "[]") opt->default_str("");
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) hideUnsetDefaults(*sub);
+}
+
 /// Optimal-string-alignment edit distance (a swap of two neighbours counts once: --secnods → --seconds is 1).
 inline std::size_t editDistance(const std::string& a, const std::string& b) {
   std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));

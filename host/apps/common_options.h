@@ -12,9 +12,12 @@ namespace phalanx::host {
 inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_path, bool& no_rt, bool& json) {
   // The last occurrence wins, so wrapper scripts' defaults can be overridden (tools/run-glove.sh --seconds 30).
   app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app.option_defaults()->always_capture_default();  // help shows every default ("[1000]")
   app.add_option("--config", config_path, "YAML configuration file (command-line options override it)")
       ->check(CLI::ExistingFile);
-  app.add_option("--device", opt.device, "sim:glove5 | sim:sea_finger | sim:sea_rig | sim:pantograph | serial:/dev/ttyACM0[@baud] | can:can0[:node][@fd|@fd-compact|@classic]");
+  app.add_option("--device", opt.device,
+                 "sim:glove5 | sim:sea_finger | sim:sea_rig | sim:pantograph | serial:/dev/ttyACM0[@baud] | "
+                 "can:can0[:node][@fd|@fd-compact|@classic] | usb:VID:PID[:serial]");
   app.add_option("--seconds", opt.seconds, "session length in seconds (0: until Ctrl-C)")->check(cli::inRange(0.0, 86400.0));
   app.add_option("--rate-hz", opt.rate_hz, "host loop rate")->check(cli::inRange(100u, 4000u));
   app.add_option("--command-timeout-ms", opt.command_timeout_ms, "timeout carried by every command")

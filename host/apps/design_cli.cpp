@@ -16,6 +16,7 @@
 #include "phalanx/host/design/pen_gii.h"
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/design/svg.h"
+#include "phalanx/host/progress.h"
 
 namespace phalanx::host {
 
@@ -86,7 +87,7 @@ struct DesignCommands::Impl {
   std::size_t rings = 0;
   unsigned threads = 2;
   bool exhaustive = false, compare = false, velocity_literal_inverse = false;
-  double progress_s = 0;
+  double progress_s = 5;
   std::vector<double> eval_design;
   std::string pen_yaml_path;
 
@@ -118,9 +119,9 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
   m.gw->add_option("--plot-grid", m.plot_grid, "samples per joint in the SVG point clouds")->check(cli::inRange(3, 61));
 
   m.go = m.design->add_subcommand("glove-optimize", "link-length optimisation, eq 17-23 (000 §3.7), NLopt");
-  m.go->add_option("--p1", m.p1, "proximal phalanx (mm; default Table 2: 48.3)")->check(cli::inRange(10.0, 120.0));
-  m.go->add_option("--p2", m.p2, "middle phalanx (mm; default 28.2)")->check(cli::inRange(5.0, 80.0));
-  m.go->add_option("--p3", m.p3, "distal phalanx (mm; default 19.1)")->check(cli::inRange(5.0, 60.0));
+  m.go->add_option("--p1", m.p1, "proximal phalanx (mm; default Table 2: 48.3)")->check(cli::inRange(10.0, 120.0))->default_str("");
+  m.go->add_option("--p2", m.p2, "middle phalanx (mm; default 28.2)")->check(cli::inRange(5.0, 80.0))->default_str("");
+  m.go->add_option("--p3", m.p3, "distal phalanx (mm; default 19.1)")->check(cli::inRange(5.0, 60.0))->default_str("");
   m.go->add_option("--population", m.population_scales,
                    "design for a population: finger scale factors, e.g. 0.9 1.0 1.1 (3.3 stochastic workspace)")
       ->check(cli::inRange(0.5, 1.5));
@@ -161,7 +162,8 @@ DesignCommands::DesignCommands(CLI::App& app) : impl_(std::make_unique<Impl>()) 
                    "write the optimum as a pen geometry YAML (phalanx run --pen-geometry / config pen.geometry)");
   m.pg->add_flag("--exhaustive", m.exhaustive, "exhaustive search instead of culling");
   m.pg->add_flag("--compare", m.compare, "run both and check they agree");
-  m.pg->add_option("--progress-s", m.progress_s, "progress to stderr every N s");
+  m.pg->add_option("--progress-s", m.progress_s, "progress with the time left on stderr every N s, also inside a round (0: none)")
+      ->check(cli::inRange(0.0, 3600.0));
   m.pg->add_option("--eval", m.eval_design, "also report the exact GII of this design: l1 l2 l3 l6 Q1")
       ->expected(5)
       ->multi_option_policy(CLI::MultiOptionPolicy::Throw);  // not the design's TakeLast: 2 or 6 values are an error
@@ -299,6 +301,36 @@ bool parseRange(const std::string& s, d::GridRange& r) {
   return true;
 }
 
+/// One progress line on stderr. The exhaustive search knows its total; culling's depends on how fast the bounds
+/// cull, so its estimate is for the pass under way.
+void printSearchProgress(const d::SearchProgress& p) {
+  std::string line = std::string("pen-gii ") + p.search + ": ";
+  char b[256];
+  if (std::string(p.search) == "exhaustive") {
+    std::snprintf(b, sizeof b, "%.0f %% of %zu candidates, %.1f s elapsed", 100.0 * p.fraction, p.candidates,
+                  p.elapsed_s);
+    line += b;
+    if (p.fraction > 0 && p.fraction < 1) line += ", ~" + ProgressLine::duration(p.elapsed_s * (1 - p.fraction) / p.fraction) + " left";
+  } else {
+    std::snprintf(b, sizeof b, "round %zu, %zu of %zu candidates alive, best GII ", p.round, p.alive, p.candidates);
+    line += b;
+    if (p.best_gii >= 0) {
+      std::snprintf(b, sizeof b, "%.4f", p.best_gii);
+      line += b;
+    } else {
+      line += "none yet";
+    }
+    std::snprintf(b, sizeof b, "; pass '%s' %.0f %%, %.1f s elapsed", p.pass, 100.0 * std::max(0.0, p.fraction),
+                  p.elapsed_s);
+    line += b;
+    if (p.fraction > 0 && p.fraction < 1) {
+      line += ", ~" + ProgressLine::duration(p.pass_elapsed_s * (1 - p.fraction) / p.fraction) + " left in this pass";
+    }
+  }
+  std::fprintf(stderr, "%s\n", line.c_str());
+  std::fflush(stderr);
+}
+
 nlohmann::json designJson(const d::PenDesign& p) {
   return {{"l1_cm", p.l1}, {"l2_cm", p.l2}, {"l3_cm", p.l3}, {"l6_cm", p.l6}, {"Q1", p.q1}};
 }
@@ -341,6 +373,7 @@ int DesignCommands::Impl::runPenGii() {
   d::SearchOptions so;
   so.threads = threads;
   so.progress_s = progress_s;
+  so.progress = printSearchProgress;
   int rc = 0;
   if (exhaustive || compare) out["exhaustive"] = searchJson(d::exhaustiveSearch(*pb, so), *pb);
   if (!exhaustive || compare) out["culling"] = searchJson(d::cullingSearch(*pb, so), *pb);
@@ -404,8 +437,9 @@ int DesignCommands::Impl::runPenGiiPlot() {
                "paper Table VIII (force)");
   plot.addLine({{15, 0.105}, {20, 0.186}, {25, 0.232}, {30, 0.269}, {35, 0.285}, {40, 0.303}}, "#cccccc",
                "paper Table IX (velocity)");
-  if (!force.empty()) plot.addLine(force, "#1f5fbf", "this model, force (eq 19)");
-  if (!velocity.empty()) plot.addLine(velocity, "#d9541e", "this model, velocity (eq 26-27)");
+  // Dots as well as a line: one finished run is one point, which a polyline alone does not show.
+  if (!force.empty()) plot.addLine(force, "#1f5fbf", "this model, force (eq 19)", true);
+  if (!velocity.empty()) plot.addLine(velocity, "#d9541e", "this model, velocity (eq 26-27)", true);
   if (const std::string err = plot.write(svg_path); !err.empty()) {
     std::fprintf(stderr, "phalanx design: error: %s\n", err.c_str());
     return 1;

@@ -58,6 +58,7 @@ void addDaemonOptions(CLI::App& app, DaemonArgs& a) {
   app.add_option("--dashboard", a.dashboard_spec,
                  "API mode: serve the live dashboard on ADDRESS:PORT (loopback; docs/dashboard.md; port 0: any free)");
   cli::refuseEmptyValues(app);
+  cli::hideUnsetDefaults(app);
 }
 
 int badArguments(const std::string& message) {

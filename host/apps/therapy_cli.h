@@ -83,9 +83,14 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   CLI::App* limits = client("limits", "show, or lower, the running session's limits");
   limits->add_option("--effort-max", t.effort_max, "channel=value (e.g. index=2.5), may repeat");
   client("profiles", "list patient profiles and whether each is valid");
-  client("profile", "show one patient profile")->add_option("patient", t.patient)->required();
-  client("recordings", "list session records")->add_option("--patient", t.patient);
-  client("api", "send one raw JSON request line (for scripts)")->add_option("request", t.raw)->required();
+  client("profile", "show one patient profile")
+      ->add_option("patient", t.patient, "patient id (the profile <id>.yaml in phalanxd's --profiles-dir)")
+      ->required();
+  client("recordings", "list session records")
+      ->add_option("--patient", t.patient, "only this patient's records (default: every patient's)");
+  client("api", "send one raw JSON request line (for scripts)")
+      ->add_option("request", t.raw, "one JSON request object, e.g. '{\"cmd\": \"status\"}' (docs/api.md)")
+      ->required();
 
   t.record = app.add_subcommand("record", "session records (.phrec)");
   t.record->require_subcommand(1);

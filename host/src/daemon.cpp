@@ -26,6 +26,7 @@
 #include "phalanx/host/design/glove_design.h"
 #include "phalanx/host/design/pen_geometry.h"
 #include "phalanx/host/modbus/server.h"
+#include "phalanx/host/program_name.h"
 #include "phalanx/host/record/csv_recorder.h"
 #include "phalanx/host/safety_io.h"
 #include "phalanx/host/link_recovery.h"
@@ -80,15 +81,15 @@ void logEvent(void* hooks, const protocol::Event& e) {
   if (hooks != nullptr) static_cast<SessionHooks*>(hooks)->onDeviceEvent(e);
   switch (e.code) {
     case protocol::EventCode::kFaultLatched:
-      std::fprintf(stderr, "phalanxd: device fault latched: %s\n",
+      std::fprintf(stderr, "%s: device fault latched: %s\n", programName(),
                    faultList(static_cast<uint16_t>(e.value)).c_str());
       break;
     case protocol::EventCode::kCommandRejected:
-      std::fprintf(stderr, "phalanxd: device rejected a command (reason %u, channel %u, value %g)\n", e.detail,
+      std::fprintf(stderr, "%s: device rejected a command (reason %u, channel %u, value %g)\n", programName(), e.detail,
                    e.channel, static_cast<double>(e.value));
       break;
     case protocol::EventCode::kClearRefused:
-      std::fprintf(stderr, "phalanxd: device refused to clear faults: %s still present\n",
+      std::fprintf(stderr, "%s: device refused to clear faults: %s still present\n", programName(),
                    faultList(static_cast<uint16_t>(e.value)).c_str());
       break;
     default:
@@ -269,7 +270,7 @@ class SessionRunner {
  private:
   int fail(const std::string& msg, int code) {
     summary_["error"] = msg;
-    std::fprintf(stderr, "phalanxd: error: %s\n", msg.c_str());
+    std::fprintf(stderr, "%s: error: %s\n", programName(), msg.c_str());
     return code;
   }
   double waitBoundS() const { return opt_.handshake_timeout_s; }
@@ -309,7 +310,7 @@ class SessionRunner {
       io_.have_estop = true;
       io_.estop_error = io_.estop.open(spec, "phalanxd-estop");
       io_.estop_open = io_.estop_error.empty();
-      if (!io_.estop_open) std::fprintf(stderr, "phalanxd: e-stop: %s - counts as pressed\n", io_.estop_error.c_str());
+      if (!io_.estop_open) std::fprintf(stderr, "%s: e-stop: %s - counts as pressed\n", programName(), io_.estop_error.c_str());
     }
     return 0;
   }
@@ -391,7 +392,7 @@ class SessionRunner {
     linux_hal::RealtimeStatus rt;
     if (opt_.realtime) {
       rt = linux_hal::setupRealtime(opt_.rt_priority);
-      if (!rt.warning.empty()) std::fprintf(stderr, "phalanxd: warning: %s\n", rt.warning.c_str());
+      if (!rt.warning.empty()) std::fprintf(stderr, "%s: warning: %s\n", programName(), rt.warning.c_str());
     }
     summary_["realtime"] = {{"memory_locked", rt.memory_locked}, {"sched_fifo", rt.fifo_scheduling}};
   }
@@ -402,7 +403,7 @@ class SessionRunner {
     const std::string prior = faultList(session_->latest().fault_bits);
     summary_["faults_at_start"] = prior;
     if (!opt_.clear_faults) return fail("device has latched faults (" + prior + ") and clear_faults is off", 5);
-    std::fprintf(stderr, "phalanxd: clearing faults latched before this session: %s\n", prior.c_str());
+    std::fprintf(stderr, "%s: clearing faults latched before this session: %s\n", programName(), prior.c_str());
     session_->sendClearFaults();
     link_->push();
     return 0;
@@ -473,7 +474,7 @@ class SessionRunner {
       if (!getParam(id) || session_->lastParam().status != protocol::ParamStatus::kOk) continue;
       const std::string warning = controller_->startupWarning(id, session_->lastParam().value);
       if (warning.empty()) continue;
-      std::fprintf(stderr, "phalanxd: WARNING: %s\n", warning.c_str());
+      std::fprintf(stderr, "%s: WARNING: %s\n", programName(), warning.c_str());
       summary_["startup_warnings"].push_back(warning);
     }
   }
@@ -487,7 +488,7 @@ class SessionRunner {
     }
     mb_server_ = std::make_unique<modbus::Server>(opt_.modbus, limits);
     if (std::string err = mb_server_->start(); !err.empty()) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: modbus: serving on %s:%u (%s)\n", opt_.modbus.address.c_str(), mb_server_->port(),
+    std::fprintf(stderr, "%s: modbus: serving on %s:%u (%s)\n", programName(), opt_.modbus.address.c_str(), mb_server_->port(),
                  opt_.modbus.writes_enabled ? "writes enabled" : "read-only");
     mb_port_ = std::make_unique<modbus::LoopPort>(*mb_server_, opt_.modbus, static_cast<uint16_t>(layout_->type),
                                                   layout_->sample_count, layout_->setpoint_count);
@@ -513,7 +514,7 @@ class SessionRunner {
     const client::DeviceIdentity id{layout_, opt_.rate_hz, session_->deviceInfo().firmware_build_id};
     client_server_ = std::make_unique<client::Server>(opt_.client, id);
     if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
+    std::fprintf(stderr, "%s: client: serving on %s\n", programName(), opt_.client.socket_path.c_str());
     client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get(),
                                                         clientModelGeometry());
     return 0;
@@ -541,7 +542,7 @@ class SessionRunner {
     std::string err;
     dds_bridge_ = dds::startBridge(opt_.dds, dev, *dds_port_, err);
     if (!dds_bridge_) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: dds: publishing rt/%s/* on domain %u\n",
+    std::fprintf(stderr, "%s: dds: publishing rt/%s/* on domain %u\n", programName(),
                  dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id);
     return 0;
   }
@@ -555,7 +556,7 @@ class SessionRunner {
     cmd_.timeout_ms = static_cast<uint16_t>(opt_.command_timeout_ms);
     makeSafe(cmd_);
     startSafetyIo();
-    if (link_->reconnects()) std::fprintf(stderr, "phalanxd: control loop started on %s\n", link_->where().c_str());
+    if (link_->reconnects()) std::fprintf(stderr, "%s: control loop started on %s\n", programName(), link_->where().c_str());
     CycleMode mode = CycleMode::kTelemetry;
     parseCycleMode(opt_.cycle, mode);  // validated
     const unsigned device_hz = session_->deviceInfo().tick_rate_hz;
@@ -572,7 +573,7 @@ class SessionRunner {
     recovery_ = std::make_unique<LinkRecovery>(
         *link_, *session_, layout_->type, controller_->startupParams(), rec_opt,
         [this]() { return static_cast<uint32_t>(rd_()); },
-        [](const std::string& m) { std::fprintf(stderr, "phalanxd: %s\n", m.c_str()); }, start_ns_);
+        [](const std::string& m) { std::fprintf(stderr, "%s: %s\n", programName(), m.c_str()); }, start_ns_);
     while (g_stop == 0 && (max_cycles_ == 0 || cycles_ < max_cycles_) &&
            (opt_.hooks == nullptr || !opt_.hooks->stopRequested())) {
       if (!cycle()) break;
@@ -650,17 +651,17 @@ class SessionRunner {
       safety_->start(io_.estop_open, linux_hal::monotonicNs());
       last_pressed_ = safety_->estopPressed();
       if (safety_->stopped()) {
-        std::fprintf(stderr, "phalanxd: e-stop: starting STOPPED (%s): devices held safe until a reset (SIGUSR1 or the API's reset)\n",
+        std::fprintf(stderr, "%s: e-stop: starting STOPPED (%s): devices held safe until a reset (SIGUSR1 or the API's reset)\n", programName(),
                      stopCauseName(safety_->cause()));
       } else if (io_.have_enable) {
-        std::fprintf(stderr, "phalanxd: enable: drives enabled\n");
+        std::fprintf(stderr, "%s: enable: drives enabled\n", programName());
       }
     }
     if (io_.have_sync) {
       if (std::string w = io_.sync.start(opt_.realtime ? std::max(1, opt_.rt_priority - 1) : 0); !w.empty()) {
-        std::fprintf(stderr, "phalanxd: warning: %s\n", w.c_str());
+        std::fprintf(stderr, "%s: warning: %s\n", programName(), w.c_str());
       }
-      std::fprintf(stderr, "phalanxd: sync: pulses at %g Hz on %s\n", io_.sync.rateHz(), opt_.gpio.sync.c_str());
+      std::fprintf(stderr, "%s: sync: pulses at %g Hz on %s\n", programName(), io_.sync.rateHz(), opt_.gpio.sync.c_str());
     }
   }
 
@@ -681,9 +682,9 @@ class SessionRunner {
     const uint64_t now_ns = linux_hal::monotonicNs();
     if (reset_request && safety_->stopped()) {
       if (const char* why = safety_->requestReset(now_ns); why != nullptr) {
-        std::fprintf(stderr, "phalanxd: e-stop: reset refused at t=%.3f s: %s\n", t_s, why);
+        std::fprintf(stderr, "%s: e-stop: reset refused at t=%.3f s: %s\n", programName(), t_s, why);
       } else {
-        std::fprintf(stderr, "phalanxd: e-stop: reset accepted at t=%.3f s: drives enabled, control resumes\n", t_s);
+        std::fprintf(stderr, "%s: e-stop: reset accepted at t=%.3f s: drives enabled, control resumes\n", programName(), t_s);
       }
     }
     if (safety_->update(now_ns)) {
@@ -702,7 +703,7 @@ class SessionRunner {
     }
     if (safety_->estopPressed() != last_pressed_) {
       last_pressed_ = safety_->estopPressed();
-      if (!last_pressed_) std::fprintf(stderr, "phalanxd: e-stop: released at t=%.3f s (%s)\n", t_s,
+      if (!last_pressed_) std::fprintf(stderr, "%s: e-stop: released at t=%.3f s (%s)\n", programName(), t_s,
                                        safety_->stopped() ? "still stopped: a reset is needed" : "running");
     }
   }
@@ -714,8 +715,8 @@ class SessionRunner {
     r.ticks_to_safe = static_cast<uint16_t>(session_->safeSeq() - r.seq_at_seen);
     r.device_ticks_to_safe = session_->deviceTicksToSafe();
     awaiting_safe_ = false;
-    std::fprintf(stderr, "phalanxd: e-stop: device safe %u tick(s) after the edge reached the daemon "
-                 "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", r.ticks_to_safe,
+    std::fprintf(stderr, "%s: e-stop: device safe %u tick(s) after the edge reached the daemon "
+                 "(edge->daemon %.0f us, daemon->safe telemetry %.0f us)\n", programName(), r.ticks_to_safe,
                  r.edge_ns != 0 ? static_cast<double>(r.seen_ns - r.edge_ns) / 1000.0 : -1.0,
                  static_cast<double>(r.safe_rx_ns - r.seen_ns) / 1000.0);
   }
@@ -756,7 +757,7 @@ class SessionRunner {
     }
     if (log_stop_) {
       log_stop_ = false;
-      std::fprintf(stderr, "phalanxd: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n",
+      std::fprintf(stderr, "%s: E-STOP (%s) at t=%.3f s: enable dropped, devices commanded safe; stopped until reset\n", programName(),
                    stopCauseName(safety_->cause()), t_s);
     }
     if (!pushed) return linkLost(link_->linkError());
@@ -844,7 +845,7 @@ class SessionRunner {
     summarize();
     if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
     if (summary_.contains("link_error")) {
-      std::fprintf(stderr, "phalanxd: session ended by a link error: %s\n",
+      std::fprintf(stderr, "%s: session ended by a link error: %s\n", programName(),
                    summary_["link_error"].get<std::string>().c_str());
       return 6;
     }

@@ -1,5 +1,7 @@
 #include "phalanx/host/device_link.h"
 
+#include "phalanx/host/program_name.h"
+
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
@@ -214,7 +216,7 @@ class CanDeviceLink : public DeviceLink {
   }
   void afterCycle(double t_s) override {
     if (can_.state() == state_) return;
-    std::fprintf(stderr, "phalanxd: CAN bus %s -> %s at t=%.3f s\n", linux_hal::canBusStateName(state_),
+    std::fprintf(stderr, "%s: CAN bus %s -> %s at t=%.3f s\n", programName(), linux_hal::canBusStateName(state_),
                  linux_hal::canBusStateName(can_.state()), t_s);
     state_ = can_.state();
   }
@@ -266,7 +268,7 @@ class UsbDeviceLink : public DeviceLink {
     linux_hal::UsbLink::Options o;
     linux_hal::parseUsbDevice(spec, o);  // validated before
     if (std::string err = usb_.open(o); !err.empty()) return err;
-    std::fprintf(stderr, "phalanxd: USB device %s at %s\n", spec.substr(4).c_str(), usb_.where().c_str());
+    std::fprintf(stderr, "%s: USB device %s at %s\n", programName(), spec.substr(4).c_str(), usb_.where().c_str());
     return {};
   }
   HostSession makeSession() override { return HostSession(static_cast<hal::PacketLink&>(usb_)); }

@@ -2,6 +2,9 @@
 
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdio>
+#include <map>
 #include <random>
 
 #include "../../firmware/mcu/include/phalanx/fw_mcu/board_diag.h"
@@ -15,12 +18,13 @@ namespace {
 struct DiagName {
   uint16_t id;
   const char* name;
+  bool integer = true;  ///< a count: carried as an f32 parameter, printed as the integer it is
 };
 namespace p = fw_mcu::diag_param;
 constexpr DiagName kDiagNames[] = {
     {p::kTickCount, "tick_count"},   {p::kTickWorst, "tick_worst"},     {p::kTickMedian, "tick_median"},
     {p::kTickP99, "tick_p99"},       {p::kTickWorstTimer, "tick_worst_timer_counts"},
-    {p::kTickUnitNs, "tick_unit_ns"}, {p::kOverruns, "overruns"},       {p::kPlantMs, "plant_ms"},
+    {p::kTickUnitNs, "tick_unit_ns", false}, {p::kOverruns, "overruns"},       {p::kPlantMs, "plant_ms"},
     {p::kRxOverflows, "rx_overflows"}, {p::kLinkKind, "link_kind"},
 };
 }  // namespace
@@ -57,9 +61,7 @@ nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std
     error = session.handshakeError();
     return {};
   }
-  nlohmann::json out;
-  out["device_type"] = session.layout()->name;
-  nlohmann::json params = nlohmann::json::object();
+  std::map<uint16_t, float> values;
   for (const DiagName& d : kDiagNames) {
     // Telemetry keeps arriving (1 kHz) while we wait: poll() consumes it; the answer is the next ParamValue with
     // this id.
@@ -79,7 +81,26 @@ nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std
               std::to_string(static_cast<int>(session.lastParam().status)) + "): not an MCU board?";
       return {};
     }
-    params[d.name] = session.lastParam().value;
+    values[d.id] = session.lastParam().value;
+  }
+  return mcuDiagJson(session.layout()->name, session.deviceInfo(), values);
+}
+
+nlohmann::json mcuDiagJson(const std::string& device_type, const protocol::HelloAck& ack,
+                           const std::map<uint16_t, float>& values) {
+  nlohmann::json out;
+  out["device_type"] = device_type;
+  // The firmware's identity as its handshake carries it: the build id is the git hash it was built from.
+  char build[16];
+  std::snprintf(build, sizeof build, "%08x", static_cast<unsigned>(ack.firmware_build_id));
+  out["firmware"] = {{"build_id", build}, {"protocol_version", ack.protocol_version}, {"tick_rate_hz", ack.tick_rate_hz}};
+  nlohmann::json params = nlohmann::json::object();
+  for (const DiagName& d : kDiagNames) {
+    const auto it = values.find(d.id);
+    if (it == values.end()) continue;
+    const float v = it->second;
+    if (d.integer && std::isfinite(v) && v >= 0.0f) params[d.name] = static_cast<uint64_t>(std::llround(v));
+    else params[d.name] = v;
   }
   out["params"] = params;
   return out;

@@ -75,6 +75,14 @@ steps:
   EXPECT_NE(html.find("Error distribution"), std::string::npos);
   EXPECT_EQ(html.find("<script"), std::string::npos);
   EXPECT_EQ(html.find("https://"), std::string::npos) << "nothing fetched from outside";
+  // A bandwidth the sweep never reached −3 dB within is said so, in the check and in the report, not shown as a
+  // plain figure (issue 26 item 8).
+  const bool beyond = r.steps[1].sp.bandwidth_beyond_band;
+  ASSERT_EQ(r.steps[1].checks.size(), 1u);
+  EXPECT_EQ(r.steps[1].checks[0].note.find("not reached within the sweep") != std::string::npos, beyond);
+  EXPECT_EQ(html.find("not reached within the sweep") != std::string::npos, beyond);
+  EXPECT_NE(html.find("on a linear chirp (eq 16)"), std::string::npos) << "the plan has a chirp step";
+  EXPECT_NE(html.find("setpoint vs instrument: −3 dB bandwidth, eq 17 (Hz)"), std::string::npos) << "checks by name";
 }
 
 TEST(BenchRun, PlanWithLimitsTooTightFailsAndNamesTheCheck) {
@@ -185,7 +193,13 @@ steps:
   EXPECT_EQ(br::benchRunMain(plan_path, report), 0);
   std::stringstream html;
   html << std::ifstream(report).rdbuf();
-  EXPECT_NE(html.str().find("peak_tip_penetration_mm"), std::string::npos);
+  // Step figures by their names, not the JSON keys; no chirp paragraph and no empty bandwidth column on a plan
+  // without a chirp step (issue 26 item 8).
+  EXPECT_NE(html.str().find("deepest true tip penetration (mm)"), std::string::npos);
+  EXPECT_NE(html.str().find("peak commanded wall force (N)"), std::string::npos);
+  EXPECT_EQ(html.str().find("peak_commanded_wall_force_N"), std::string::npos);
+  EXPECT_EQ(html.str().find("linear chirp"), std::string::npos);
+  EXPECT_EQ(html.str().find("bandwidth"), std::string::npos);
 }
 
 TEST(BenchRun, PenWallPlanWithLimitsTooTightFailsWithExitOne) {

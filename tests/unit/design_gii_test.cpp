@@ -1,8 +1,13 @@
 // GII (004 eq 11), axis-angle sampling (eq 14–16), culling vs exhaustive search, Twin-Pantograph problem.
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <mutex>
 #include <random>
+#include <thread>
+#include <vector>
 
 #include "phalanx/host/design/gii.h"
 #include "phalanx/host/design/pen_gii.h"
@@ -162,6 +167,60 @@ TEST(DesignGii, CullingReturnsTheExhaustiveOptimumOnRandomProblems) {
       ASSERT_EQ(cu.gii, ex.gii) << "seed " << seed;
       EXPECT_EQ(ex.jacobian_evals, groups * samples);
     }
+  }
+}
+
+namespace {
+/// A problem whose evaluations wait until the search's progress callback has run once: a report that came only
+/// between rounds or passes could never release them (the wait is bounded, so that such a build fails, not hangs).
+class HeldUntilReported final : public d::MinimaxProblem {
+ public:
+  explicit HeldUntilReported(const d::MinimaxProblem& inner) : inner_(inner) {}
+  std::size_t numGroups() const override { return inner_.numGroups(); }
+  std::size_t groupSize() const override { return inner_.groupSize(); }
+  std::size_t numSamples() const override { return inner_.numSamples(); }
+  void evaluate(std::size_t group, std::size_t sample, const std::uint32_t* members, std::size_t n,
+                d::SigmaPair* out) const override {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (!reported.load() && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    inner_.evaluate(group, sample, members, n, out);
+  }
+  mutable std::atomic<bool> reported{false};
+
+ private:
+  const d::MinimaxProblem& inner_;
+};
+}  // namespace
+
+TEST(DesignGii, ProgressIsReportedInsideAPassAndDoesNotChangeTheResult) {
+  const RandomProblem inner(30, 4, 40, 7);
+  for (bool culling : {true, false}) {
+    HeldUntilReported pb(inner);
+    std::vector<d::SearchProgress> reports;
+    std::mutex m;
+    d::SearchOptions o;
+    o.progress_s = 0.01;
+    o.progress = [&](const d::SearchProgress& p) {
+      std::lock_guard<std::mutex> lock(m);
+      reports.push_back(p);
+      pb.reported = true;
+    };
+    const d::SearchResult r = culling ? d::cullingSearch(pb, o) : d::exhaustiveSearch(pb, o);
+    const d::SearchResult quiet = culling ? d::cullingSearch(inner) : d::exhaustiveSearch(inner);
+    EXPECT_EQ(r.best, quiet.best);
+    EXPECT_EQ(r.gii, quiet.gii);
+    std::lock_guard<std::mutex> lock(m);
+    ASSERT_FALSE(reports.empty());
+    const d::SearchProgress& first = reports.front();
+    EXPECT_STREQ(first.search, culling ? "culling" : "exhaustive");
+    EXPECT_EQ(first.round, 0u) << "the first report came before any round ended";
+    EXPECT_GE(first.fraction, 0.0);
+    EXPECT_LT(first.fraction, 1.0) << "inside the first pass";
+    EXPECT_EQ(first.candidates, 120u);
+    if (culling) {
+      EXPECT_STREQ(first.pass, "all alive at a sample");
+    }
+    for (const d::SearchProgress& p : reports) EXPECT_LE(p.fraction, 1.0);
   }
 }
 

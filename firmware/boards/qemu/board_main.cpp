@@ -92,7 +92,8 @@ class Diagnostics final : public fw_mcu::DiagSource {
       case p::kTickMedian: v = static_cast<float>(tick.median()); return true;
       case p::kTickP99: v = static_cast<float>(tick.quantile(0.99f)); return true;
       case p::kTickWorstTimer: v = static_cast<float>(worst_counts); return true;
-      case p::kTickUnitNs: v = static_cast<float>(g_ns_per_insn); return true;
+      // The unit toUnits() measures in: an instruction under -icount, else a SysTick count.
+      case p::kTickUnitNs: v = static_cast<float>(g_ns_per_insn != 0 ? g_ns_per_insn : kNsPerCount); return true;
       case p::kOverruns: v = static_cast<float>(overruns); return true;
       case p::kPlantMs: v = static_cast<float>(g_plant_ms); return true;
       case p::kRxOverflows: v = static_cast<float>(uartLink().rxOverflows()); return true;

@@ -1,10 +1,12 @@
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 
 #include "phalanx/host/benchrun/report.h"
 #include "phalanx/host/benchrun/runner.h"
+#include "phalanx/host/progress.h"
 
 namespace phalanx::host::benchrun {
 
@@ -22,15 +24,26 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path) {
   const bool tty = isatty(STDERR_FILENO) != 0;
   int last_pct = -1;
   size_t last_step = static_cast<size_t>(-1);
+  // The plan's share done, by step length (steps run paced to real time): the estimate of the time left.
+  double plan_s = 0.0;
+  for (const Step& st : plan.steps) plan_s += st.seconds;
+  double before_s = 0.0;  // length of the steps already run
+  const auto t0 = std::chrono::steady_clock::now();
   const PlanResult result = runPlan(plan, [&](size_t i, size_t n, const std::string& name, double frac) {
     const int pct = static_cast<int>(frac * 100.0);
     if (i != last_step) {
+      if (last_step != static_cast<size_t>(-1)) before_s += plan.steps[last_step].seconds;
       last_step = i;
       last_pct = -1;
     }
-    // On a terminal: one line updated in place; in a log: a line every 25 %.
+    // On a terminal: one line updated in place; in a log: a line every 25 % of a step.
     if (tty ? pct != last_pct : (pct / 25 != last_pct / 25 || last_pct < 0)) {
-      std::fprintf(stderr, tty ? "\r\033[K[%zu/%zu] %s %3d %%" : "[%zu/%zu] %s %3d %%\n", i + 1, n, name.c_str(), pct);
+      const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double plan_frac = plan_s > 0 ? (before_s + frac * plan.steps[i].seconds) / plan_s : 0.0;
+      char step[256];
+      std::snprintf(step, sizeof step, "[%zu/%zu] %s %3d %%, plan", i + 1, n, name.c_str(), pct);
+      const std::string line = ProgressLine::format(step, elapsed_s, plan_frac, "");
+      std::fprintf(stderr, tty ? "\r\033[K%s" : "%s\n", line.c_str());
       std::fflush(stderr);
     }
     last_pct = pct;
@@ -40,7 +53,10 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path) {
     std::fprintf(stderr, "%s  %s%s%s\n", s.pass ? "PASS" : "FAIL", s.name.c_str(), s.error.empty() ? "" : ": ",
                  s.error.c_str());
     for (const Check& c : s.checks) {
-      if (!c.pass) std::fprintf(stderr, "      %s = %.4g, limit %s %.4g\n", c.what.c_str(), c.value, c.is_min ? "≥" : "≤", c.limit);
+      if (!c.pass) {
+        std::fprintf(stderr, "      %s = %.4g, limit %s %.4g%s%s\n", c.what.c_str(), c.value, c.is_min ? "≥" : "≤", c.limit,
+                     c.note.empty() ? "" : "; ", c.note.c_str());
+      }
     }
   }
   nlohmann::json j = toJson(result);

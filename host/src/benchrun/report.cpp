@@ -184,19 +184,70 @@ std::string histogram(const std::vector<std::pair<std::string, std::vector<doubl
   return o.str();
 }
 
-std::string metricRow(const char* pair, const PairMetrics& m, const std::string& unit) {
+/// bandwidth: the table has the −3 dB column (chirp steps only).
+std::string metricRow(const char* pair, const PairMetrics& m, const std::string& unit, bool bandwidth) {
   std::ostringstream o;
   o << "<tr><td>" << pair << "</td><td>" << fmt(m.rmse) << " " << esc(unit) << "</td><td>" << fmt(m.nrmse_percent, "%.2f")
-    << " %</td><td>" << fmt(m.fidelity_percent, "%.2f") << " %</td><td>";
-  if (m.bandwidth_hz >= 0) o << (m.bandwidth_beyond_band ? "&ge; " : "") << fmt(m.bandwidth_hz, "%.2f") << " Hz";
-  else o << "&ndash;";
-  o << "</td></tr>";
+    << " %</td><td>" << fmt(m.fidelity_percent, "%.2f") << " %</td>";
+  if (bandwidth) {
+    o << "<td>";
+    if (m.bandwidth_hz < 0) o << "&ndash;";
+    else if (m.bandwidth_beyond_band) o << "&ge; " << fmt(m.bandwidth_hz, "%.2f") << " Hz (&minus;3 dB not reached within the sweep)";
+    else o << fmt(m.bandwidth_hz, "%.2f") << " Hz";
+    o << "</td>";
+  }
+  o << "</tr>";
   return o.str();
+}
+
+/// The names a person reads for the runner's keys (checks and step figures); an unknown key is shown as it is.
+std::string humanName(const std::string& key) {
+  static const std::pair<const char*, const char*> kNames[] = {
+      {"estimate_vs_instrument", "estimate vs instrument"},
+      {"setpoint_vs_instrument", "setpoint vs instrument"},
+      {"rmse", "RMSE"},
+      {"nrmse_percent", "NRMSE (%)"},
+      {"fidelity_percent", "fidelity, eq 15 (%)"},
+      {"bandwidth_hz", "−3 dB bandwidth, eq 17 (Hz)"},
+      {"penetration_mm", "deepest true penetration (mm)"},
+      {"peak_tip_penetration_mm", "deepest true tip penetration (mm)"},
+      {"wall_energy_generated_mJ", "energy the walls generated (mJ; ≤ 0: passive)"},
+      {"wall_work_mJ", "work of the wall forces on the pen (mJ)"},
+      {"peak_commanded_wall_force_N", "peak commanded wall force (N)"},
+      {"braking_pulses", "braking pulses"},
+      {"split_scaled_cycles", "cycles with the force split scaled down (saturation)"},
+      {"stiffness_N_per_cm", "wall stiffness (N/cm)"},
+      {"braking", "braking pulse at contact onset"},
+  };
+  const auto one = [](const std::string& k) {
+    for (const auto& [raw, name] : kNames) {
+      if (k == raw) return std::string(name);
+    }
+    return k;
+  };
+  const auto dot = key.find('.');
+  if (dot == std::string::npos) return one(key);
+  return one(key.substr(0, dot)) + ": " + one(key.substr(dot + 1));
+}
+
+std::string figureValue(const nlohmann::json& v) {
+  if (v.is_boolean()) return v.get<bool>() ? "yes" : "no";
+  if (v.is_number_float()) return fmt(v.get<double>());
+  return esc(v.dump());
+}
+
+/// The sentence on what the simulated instrument serves, for the plan's device.
+std::string instrumentTruth(const std::string& device) {
+  if (device == "sim:sea_rig") return "the plant's true joint torque of SEA 0 (the rig's load cell)";
+  if (device == "sim:glove5") return "the plant's true fingertip pad force";
+  if (device == "sim:pantograph") return "the force the pen truly puts on the walls";
+  return "the plant's ground truth";
 }
 
 }  // namespace
 
 std::string renderHtml(const Plan& plan, const PlanResult& res) {
+  const bool has_chirp = std::any_of(plan.steps.begin(), plan.steps.end(), [](const Step& s) { return s.kind == "sea-rig-chirp"; });
   std::ostringstream o;
   o << "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>Phalanx bench report: " << esc(plan.source)
     << "</title><style>body{font-family:sans-serif;max-width:900px;margin:2em auto;color:#222}"
@@ -212,10 +263,11 @@ std::string renderHtml(const Plan& plan, const PlanResult& res) {
   o << "<p class='note'>Reference instrument: Modbus " << esc(plan.instrument.transport) << ", " << esc(plan.instrument.table)
     << " register " << plan.instrument.address << " (" << esc(plan.instrument.type) << ", scale " << fmt(plan.instrument.scale)
     << ", offset " << fmt(plan.instrument.offset) << "), polled at " << fmt(plan.instrument.poll_hz) << " Hz; "
-    << "in simulation a simulated amplifier serves the plant's true joint torque / fingertip force / pen wall force. "
-       "Metrics (seeds/001): RMSE; NRMSE = RMSE / peak |reference|; fidelity F = (1 − var(y − y<sub>ref</sub>)/var(y))·100 % "
-       "(eq 15); −3 dB bandwidth of |Y(jω)|/|R(jω)| (eq 17) on a linear chirp (eq 16). "
-       "<i>estimate vs instrument</i>: y = the device's own estimate, reference = the instrument; "
+    << "in simulation a simulated amplifier serves " << instrumentTruth(plan.device) << ". "
+    << "Metrics (seeds/001): RMSE; NRMSE = RMSE / peak |reference|; fidelity F = (1 − var(y − y<sub>ref</sub>)/var(y))·100 % "
+       "(eq 15)"
+    << (has_chirp ? "; −3 dB bandwidth of |Y(jω)|/|R(jω)| (eq 17) on a linear chirp (eq 16)" : "") << ". "
+    << "<i>estimate vs instrument</i>: y = the device's own estimate, reference = the instrument; "
        "<i>setpoint vs instrument</i>: y = the instrument, reference = the setpoint.</p>";
   o << "<table><tr><th>step</th><th>result</th><th>checks</th></tr>";
   for (const StepResult& s : res.steps) {
@@ -223,8 +275,10 @@ std::string renderHtml(const Plan& plan, const PlanResult& res) {
       << (s.pass ? "pass'>pass" : "fail'>fail") << "</span></td><td>";
     if (!s.error.empty()) o << esc(s.error) << "<br>";
     for (const Check& c : s.checks) {
-      o << (c.pass ? "&#10003; " : "&#10007; ") << esc(c.what) << " = " << fmt(c.value) << (c.is_min ? " &ge; " : " &le; ")
-        << fmt(c.limit) << "<br>";
+      o << (c.pass ? "&#10003; " : "&#10007; ") << esc(humanName(c.what)) << " = " << fmt(c.value)
+        << (c.is_min ? ", limit &ge; " : ", limit &le; ") << fmt(c.limit);
+      if (!c.note.empty()) o << " <i>(" << esc(c.note) << ")</i>";
+      o << "<br>";
     }
     o << "</td></tr>";
   }
@@ -240,15 +294,16 @@ std::string renderHtml(const Plan& plan, const PlanResult& res) {
     if (s.step_metrics.is_object() && !s.step_metrics.empty()) {
       o << "<table><tr><th>step figure</th><th>value</th></tr>";
       for (const auto& [key, v] : s.step_metrics.items()) {
-        o << "<tr><td>" << esc(key) << "</td><td>" << (v.is_number_float() ? fmt(v.get<double>()) : esc(v.dump()))
-          << "</td></tr>";
+        o << "<tr><td>" << esc(humanName(key)) << "</td><td>" << figureValue(v) << "</td></tr>";
       }
       o << "</table>";
     }
     if (s.instrument.empty()) continue;
-    o << "<table><tr><th>comparison</th><th>RMSE</th><th>NRMSE</th><th>fidelity (eq 15)</th><th>−3 dB bandwidth (eq 17)</th></tr>"
-      << metricRow("estimate vs instrument", s.est, s.unit) << metricRow("setpoint vs instrument", s.sp, s.unit)
-      << "</table>";
+    const bool bandwidth = s.est.bandwidth_hz >= 0 || s.sp.bandwidth_hz >= 0;
+    o << "<table><tr><th>comparison</th><th>RMSE</th><th>NRMSE</th><th>fidelity (eq 15)</th>"
+      << (bandwidth ? "<th>−3 dB bandwidth (eq 17)</th>" : "") << "</tr>"
+      << metricRow("estimate vs instrument", s.est, s.unit, bandwidth)
+      << metricRow("setpoint vs instrument", s.sp, s.unit, bandwidth) << "</table>";
     // Time series: the whole step, and its last two seconds for detail.
     o << "<h3>Time series</h3>"
       << plot({{"setpoint", "#2ca02c", &s.t, &s.setpoint},

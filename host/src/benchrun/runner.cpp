@@ -238,6 +238,9 @@ void judge(const PairLimits& l, const PairMetrics& m, const std::string& pair, s
   add("nrmse_percent", l.nrmse_percent_max, m.nrmse_percent, false);
   add("fidelity_percent", l.fidelity_percent_min, m.fidelity_percent, true);
   add("bandwidth_hz", l.bandwidth_hz_min, m.bandwidth_hz, true);
+  if (l.bandwidth_hz_min && m.bandwidth_beyond_band) {
+    out.back().note = "-3 dB not reached within the sweep: the bandwidth is at least this";
+  }
 }
 
 StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
@@ -492,6 +495,7 @@ nlohmann::json toJson(const PlanResult& r) {
     }
     for (const Check& c : s.checks) {
       sj["checks"].push_back({{"what", c.what}, {"value", c.value}, {c.is_min ? "min" : "max", c.limit}, {"pass", c.pass}});
+      if (!c.note.empty()) sj["checks"].back()["note"] = c.note;
     }
     sj["instrument"] = s.instrument_stats;
     if (!s.step_metrics.is_null()) sj["metrics"] = s.step_metrics;

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "phalanx/host/client/client_port.h"
+#include "phalanx/host/program_name.h"
 
 namespace phalanx::host::client {
 namespace {
@@ -180,7 +181,7 @@ void Server::serve() {
     pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {client_fd_, POLLIN, 0}};
     const int n = ::poll(fds, client_fd_ >= 0 ? 2 : 1, 50);  // wake to notice stop()
     if (n < 0 && errno != EINTR) {
-      std::fprintf(stderr, "phalanxd: client channel: poll: %s; no more clients are served\n", std::strerror(errno));
+      std::fprintf(stderr, "%s: client channel: poll: %s; no more clients are served\n", programName(), std::strerror(errno));
       return;
     }
     if (n <= 0) continue;

@@ -4,8 +4,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
+#include <condition_variable>
 #include <limits>
+#include <mutex>
 #include <thread>
 
 namespace phalanx::host::design {
@@ -131,6 +132,64 @@ inline bool beats(double va, std::size_t ia, double vb, std::size_t ib) {
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+
+/// What the search threads publish for the progress reports (relaxed atomics: a report is a snapshot, never an
+/// input of the search).
+struct LiveState {
+  std::atomic<std::uint64_t> jacobians{0};
+  std::atomic<std::uint64_t> pass_done{0}, pass_total{0};
+  std::atomic<int> pass{0};  // index into kPassNames
+  std::atomic<std::size_t> round{0}, alive{0};
+  std::atomic<double> best{-1.0};
+  std::atomic<double> pass_start_s{0.0};
+};
+constexpr const char* kPassNames[] = {"", "all alive at a sample", "leader over every sample"};
+
+/// Calls opt.progress every opt.progress_s from its own thread until destroyed (so a report comes inside a long
+/// pass, not only between rounds).
+class ProgressMonitor {
+ public:
+  ProgressMonitor(const SearchOptions& opt, const char* search, std::size_t candidates, const LiveState& live,
+                  std::chrono::steady_clock::time_point t0) {
+    if (!(opt.progress_s > 0) || !opt.progress) return;
+    thread_ = std::thread([this, &opt, &live, search, candidates, t0] {
+      std::unique_lock<std::mutex> lock(mutex_);
+      const auto period = std::chrono::duration<double>(opt.progress_s);
+      while (!cv_.wait_for(lock, period, [this] { return done_; })) {
+        SearchProgress p;
+        p.search = search;
+        p.elapsed_s = secondsSince(t0);
+        p.pass_elapsed_s = p.elapsed_s - live.pass_start_s.load(std::memory_order_relaxed);
+        const double total = static_cast<double>(live.pass_total.load(std::memory_order_relaxed));
+        if (total > 0) p.fraction = static_cast<double>(live.pass_done.load(std::memory_order_relaxed)) / total;
+        p.pass = kPassNames[live.pass.load(std::memory_order_relaxed)];
+        p.round = live.round.load(std::memory_order_relaxed);
+        p.alive = live.alive.load(std::memory_order_relaxed);
+        p.candidates = candidates;
+        p.best_gii = live.best.load(std::memory_order_relaxed);
+        p.jacobian_evals = live.jacobians.load(std::memory_order_relaxed);
+        opt.progress(p);
+      }
+    });
+  }
+  ~ProgressMonitor() {
+    if (!thread_.joinable()) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  ProgressMonitor(const ProgressMonitor&) = delete;
+  ProgressMonitor& operator=(const ProgressMonitor&) = delete;
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;
+};
 }  // namespace
 
 // -------------------------------------------------------------------------------------------------------------
@@ -148,6 +207,10 @@ SearchResult exhaustiveSearch(const MinimaxProblem& pb, const SearchOptions& opt
   const unsigned T = std::max(1u, opt.threads);
   std::vector<Local> locals(T);
   std::atomic<unsigned> slot{0};
+  LiveState live;
+  live.pass_total = static_cast<std::uint64_t>(G) * S;
+  live.alive = pb.numCandidates();
+  ProgressMonitor monitor(opt, "exhaustive", pb.numCandidates(), live, t0);
   parallelFor(G, T, [&](std::size_t gb, std::size_t ge) {
     Local& L = locals[slot.fetch_add(1)];
     std::vector<std::uint32_t> members(M);
@@ -166,6 +229,8 @@ SearchResult exhaustiveSearch(const MinimaxProblem& pb, const SearchOptions& opt
           hi[m] = std::max(hi[m], out[m].max);
         }
       }
+      live.pass_done.fetch_add(S, std::memory_order_relaxed);
+      live.jacobians.fetch_add(S, std::memory_order_relaxed);
       for (std::size_t m = 0; m < M; ++m) {
         const double v = upperBound(lo[m], hi[m]);
         const std::size_t id = g * M + m;
@@ -202,10 +267,17 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
   double best = -1;
   std::size_t best_id = 0;
   std::atomic<std::uint64_t> jev{0}, sev{0};
+  LiveState live;
+  live.alive = C;
+  ProgressMonitor monitor(opt, "culling", C, live, t0);
 
   // Evaluates every alive candidate at sample s (groups split between threads at group boundaries).
   auto evaluateAlive = [&](std::size_t s) {
     const std::size_t n = alive.size();
+    live.pass_done = 0;
+    live.pass_total = n;
+    live.pass = 1;
+    live.pass_start_s = secondsSince(t0);
     std::vector<std::size_t> cuts{0};
     for (unsigned t = 1; t < T; ++t) {
       std::size_t k = n * t / T;
@@ -229,6 +301,8 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
           pb.evaluate(g, s, members.data(), members.size(), out.data());
           ++j;
           sg += members.size();
+          live.pass_done.fetch_add(members.size(), std::memory_order_relaxed);
+          live.jacobians.fetch_add(1, std::memory_order_relaxed);
           for (std::size_t q = 0; q < members.size(); ++q) {
             const std::size_t c = alive[i + q];
             lo[c] = std::min(lo[c], out[q].min);
@@ -255,9 +329,9 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
       alive[w++] = alive[i];
     }
     alive.resize(w);
+    live.alive = w;
   };
 
-  double last_print = 0;
   evaluateAlive(std::min(pb.seedSample(), S - 1));
   for (;;) {
     cull();
@@ -270,6 +344,11 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
       if (ub > lub) lub = ub, leader = c;
     }
     ++r.rounds;
+    live.round = r.rounds;
+    live.pass_done = 0;
+    live.pass_total = S;
+    live.pass = 2;
+    live.pass_start_s = secondsSince(t0);
     // Full evaluation of the leader, early stop when it cannot beat `best`.
     struct Part {
       double lo = kInf, hi = 0;
@@ -288,7 +367,11 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
         const std::size_t b = S * t / T, e = S * (t + 1) / T;
         SigmaPair sp;
         for (std::size_t s = b; s < e; ++s) {
-          if ((s & 63) == 0 && stop.load(std::memory_order_relaxed)) break;
+          if ((s & 63) == 0) {
+            if (stop.load(std::memory_order_relaxed)) break;
+            live.pass_done.fetch_add(64, std::memory_order_relaxed);
+            live.jacobians.fetch_add(64, std::memory_order_relaxed);
+          }
           pb.evaluate(g, s, &member, 1, &sp);
           ++P.n;
           if (sp.min < P.lo) P.lo = sp.min, P.arg_lo = s;
@@ -317,16 +400,12 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
       done[leader] = 1;
       const double v = upperBound(lo[leader], hi[leader]);  // exact GII: every sample seen
       if (beats(v, leader, best, best_id)) best = v, best_id = leader;
+      live.best = best;
     }
     // The leader's critical samples become culling samples for everyone still alive.
     cull();
     if (all.lo < kInf && !used[all.arg_lo]) evaluateAlive(all.arg_lo);
     if (all.hi > 0 && !used[all.arg_hi]) evaluateAlive(all.arg_hi);
-    if (opt.progress_s > 0 && secondsSince(t0) - last_print > opt.progress_s) {
-      last_print = secondsSince(t0);
-      std::fprintf(stderr, "culling: %.0f s, round %zu, alive %zu, best %zu GII %.4f, jacobians %.3g\n", last_print,
-                   r.rounds, alive.size(), best_id, best, static_cast<double>(jev.load()));
-    }
   }
   r.best = best_id;
   r.gii = std::max(0.0, best);

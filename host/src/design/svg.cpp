@@ -18,12 +18,12 @@ SvgPlot::SvgPlot(std::string title, std::string x_label, std::string y_label, in
 
 void SvgPlot::addScatter(const std::vector<std::array<double, 2>>& pts, const std::string& colour,
                          const std::string& label, double radius_px, double opacity) {
-  series_.push_back(Series{pts, colour, label, radius_px, opacity, false});
+  series_.push_back(Series{pts, colour, label, radius_px, opacity, false, false});
 }
 
 void SvgPlot::addLine(const std::vector<std::array<double, 2>>& pts, const std::string& colour,
-                      const std::string& label) {
-  series_.push_back(Series{pts, colour, label, 1.5, 1.0, true});
+                      const std::string& label, bool markers) {
+  series_.push_back(Series{pts, colour, label, 1.5, 1.0, true, markers});
 }
 
 namespace {
@@ -105,6 +105,12 @@ std::string SvgPlot::render() const {
       o << "<polyline fill=\"none\" stroke=\"" << s.colour << "\" stroke-width=\"" << s.radius_px << "\" points=\"";
       for (const auto& p : s.pts) o << X(p[0]) << ',' << Y(p[1]) << ' ';
       o << "\"/>\n";
+      if (!s.markers) continue;
+      o << "<g fill=\"" << s.colour << "\">\n";
+      for (const auto& p : s.pts) {
+        if (std::isfinite(p[0]) && std::isfinite(p[1])) o << "<circle cx=\"" << X(p[0]) << "\" cy=\"" << Y(p[1]) << "\" r=\"3.5\"/>\n";
+      }
+      o << "</g>\n";
     } else {
       o << "<g fill=\"" << s.colour << "\" fill-opacity=\"" << s.opacity << "\">\n";
       for (const auto& p : s.pts) {

@@ -1,4 +1,5 @@
 #include "phalanx/host/modbus/server.h"
+#include "phalanx/host/program_name.h"
 
 #include <arpa/inet.h>
 #include <modbus/modbus.h>
@@ -97,7 +98,7 @@ void Server::serve() {
     const int n = ::select(maxfd + 1, &rd, nullptr, nullptr, &tv);
     if (n < 0) {
       if (errno == EINTR) continue;
-      std::fprintf(stderr, "phalanxd: modbus: select: %s; server stopped\n", std::strerror(errno));
+      std::fprintf(stderr, "%s: modbus: select: %s; server stopped\n", programName(), std::strerror(errno));
       break;
     }
     if (n == 0) continue;

@@ -2,6 +2,7 @@
 // hand, then thrown at a wall hands-off (seeds/004 §VI, Fig. 19–20), in lockstep: the pantograph firmware app,
 // the pen plant, the link codec and the host's PD+B pen controller at 1 kHz.
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
@@ -291,7 +292,14 @@ nlohmann::json benchWall(const PenWallBenchOptions& o) {
   // Largest stable stiffness with and without the braking pulse, same scenario and seed.
   nlohmann::json out;
   out["bench"] = "pen-wall-sweep";
+  constexpr double kSweepK[] = {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 24.0, 28.0, 32.0, 40.0, 48.0, 64.0};
+  const std::size_t runs_total = 1 + 2 * std::size(kSweepK);
+  std::size_t runs_done = 0;
+  const auto ran = [&] {
+    if (o.progress) o.progress(++runs_done, runs_total);
+  };
   out["requested"] = benchWallRun(o);
+  ran();
   for (bool braking : {true, false}) {
     double largest = 0.0;  // every stiffness up to this one was stable
     bool all_ok = true;
@@ -299,12 +307,13 @@ nlohmann::json benchWall(const PenWallBenchOptions& o) {
     std::map<std::string, bool> phase_ok;
     std::vector<double> stable_ks;
     nlohmann::json runs = nlohmann::json::array();
-    for (double k : {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 24.0, 28.0, 32.0, 40.0, 48.0, 64.0}) {
+    for (double k : kSweepK) {
       PenWallBenchOptions oo = o;
       oo.sweep = false;
       oo.braking = braking;
       oo.stiffness_N_per_cm = k;
       const nlohmann::json r = benchWallRun(oo);
+      ran();
       const bool ok = r.value("stable", false);
       nlohmann::json phases;
       for (const auto& ph : r["press"]) {

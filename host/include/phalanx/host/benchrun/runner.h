@@ -79,6 +79,8 @@ struct Check {
   double value, limit;
   bool is_min;       ///< limit is a minimum (else a maximum)
   bool pass;
+  /// What the value means beyond its number: "-3 dB not reached within the sweep" (the bandwidth is at least it).
+  std::string note = {};
 };
 
 struct StepResult {

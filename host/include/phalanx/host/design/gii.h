@@ -95,10 +95,28 @@ struct SearchResult {
   double seconds = 0;
 };
 
+/// A search's state while it runs (SearchOptions::progress).
+struct SearchProgress {
+  const char* search = "";          ///< "exhaustive" | "culling"
+  double elapsed_s = 0;
+  double pass_elapsed_s = 0;        ///< since the current pass began (exhaustive: the search is one pass)
+  /// Exhaustive: share of all (group, sample) Jacobians done. Culling: share of the current pass done (the total
+  /// is not known in advance: it depends on how fast the bounds cull).
+  double fraction = -1;
+  const char* pass = "";            ///< culling: "all alive at a sample" | "leader over every sample"
+  std::size_t round = 0;            ///< culling rounds started
+  std::size_t alive = 0;            ///< culling: candidates still alive (exhaustive: all)
+  std::size_t candidates = 0;
+  double best_gii = -1;             ///< best exact GII so far (-1: none yet; exhaustive: known only at the end)
+  std::uint64_t jacobian_evals = 0;
+};
+
 struct SearchOptions {
   unsigned threads = 2;
-  /// Print progress to stderr every this many seconds (0: quiet).
+  /// Called every progress_s seconds of the search, from a thread of its own (also inside a round or a pass),
+  /// never after the search returns. progress_s <= 0 or no callback: quiet.
   double progress_s = 0;
+  std::function<void(const SearchProgress&)> progress;
 };
 
 /// Evaluates every candidate at every sample (the reference the culling must equal).

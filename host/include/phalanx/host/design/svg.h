@@ -14,8 +14,10 @@ class SvgPlot {
   /// Points (x, y) in data units drawn as small dots.
   void addScatter(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label,
                   double radius_px = 1.2, double opacity = 0.6);
-  /// A polyline in data units.
-  void addLine(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label);
+  /// A polyline in data units; markers: also a dot at every point (so that a single point, which no line can
+  /// show, is seen).
+  void addLine(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label,
+               bool markers = false);
   /// Equal scaling of x and y (workspace plots).
   void setEqualAspect(bool on) { equal_aspect_ = on; }
 
@@ -29,6 +31,7 @@ class SvgPlot {
     std::string colour, label;
     double radius_px = 1.2, opacity = 0.6;
     bool line = false;
+    bool markers = false;
   };
   std::string title_, x_label_, y_label_;
   int width_px_, height_px_;

@@ -1,6 +1,7 @@
 #pragma once
 /// Pen bench scenarios (`phalanx bench pen-split|pen-wall`).
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -33,6 +34,8 @@ struct PenWallBenchOptions {
   uint32_t seed = 1;
   bool noise = true;
   bool sweep = false;               ///< also sweep K with and without braking: largest stable stiffness
+  /// Called after each run of a sweep (runs done, runs in all); not called for a single run.
+  std::function<void(std::size_t, std::size_t)> progress;
 };
 
 /// The pencil tip pressed by the simulated hand into the box's x wall, floor, far wall and their corners, then
