@@ -128,9 +128,12 @@ void CsvRecorder::writerMain() {
     const bool more = running_.load();
     size_t n = 0;
     while (queue_->pop(r)) {
+      // An MCAP chunk is closed before the row that would take it past kMcapChunkS of session time, so a chunk
+      // spans less than that however long the loop itself stalled between two rows.
+      if (mcap_ && pending_rows_ > 0 && r.t_s - pending_t0_ >= kMcapChunkS) writePending();
       format(r);
       ++n;
-      if (pending_rows_ >= kRowsPerWrite || (mcap_ && r.t_s - pending_t0_ >= kMcapChunkS)) writePending();
+      if (pending_rows_ >= kRowsPerWrite) writePending();
     }
     if (!more) break;
     if (n == 0) usleep(5000);

@@ -60,7 +60,7 @@ class CsvRecorder {
   static constexpr size_t kQueueRows = 8192;
   /// Rows formatted before each write(2): ~100 ms of recording at 1 kHz (a crash loses at most that much).
   static constexpr size_t kRowsPerWrite = 100;
-  /// MCAP: a chunk is written when it holds this much session time (or kRowsPerWrite rows).
+  /// MCAP: a chunk is written before it would hold this much session time (or at kRowsPerWrite rows).
   static constexpr double kMcapChunkS = 0.05;
   struct Row {
     double t_s = 0.0;
