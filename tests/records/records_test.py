@@ -125,12 +125,31 @@ check(np.array_equal(csv["force_index_N"].astype(np.float32), rec["force_index_N
       "CSV export values equal the record's (float32)")
 
 # Range of motion from the CSV export, the report's way: 5 Hz first-order low-pass on t_s, min/max within the
-# assessment (exercise_id 1 in the aux values; the whole session if there is none).
+# assessment (exercise_id 1 in the aux values; the whole session if there is none), leaving out the cycles the
+# device was faulted or locked after a fault (docs/therapy.md: from a fault until the device moves again, while
+# the session commanded a mode other than safe (0) or lock (3)).
+def excluded_cycles(csv):
+    out, after_fault = [], False
+    for fault, tel_mode, cmd_mode in zip(csv["fault_bits"], csv["tel_mode"], csv["cmd_mode"]):
+        if fault != 0:
+            after_fault = True
+        elif tel_mode not in (0, 3):
+            after_fault = False
+        out.append(fault != 0 or (after_fault and cmd_mode not in (0, 3)))
+    return out
+
+
 page = open(report).read()
 metrics = json.loads(html.unescape(re.search(r"id='metrics'>(.*?)</script>", page, re.S).group(1)))
 ex = csv["exercise_id"]
 assess = np.any(ex == 1)
 t = csv["t_s"]
+excluded = excluded_cycles(csv)
+if any(excluded):
+    print(f"note the session faulted: {sum(excluded)} cycles excluded from the metrics, as the report does")
+excluded_s = sum(t[i] - t[i - 1] for i in range(1, len(t)) if excluded[i])
+check(abs(excluded_s - metrics.get("excluded_s", 0.0)) < 1e-3,
+      f"excluded time from the CSV export {excluded_s:.3f} s = the report's {metrics.get('excluded_s', 0.0):.3f} s")
 worst = 0.0
 for j in joints:
     x = csv[f"{j}_flexion_deg"]
@@ -142,7 +161,7 @@ for j in joints:
         a = dt / (dt + 1.0 / (2.0 * math.pi * 5.0))
         lp = lp + a * (x[i] - lp) if math.isfinite(lp) else x[i]
         prev = t[i]
-        if assess and ex[i] != 1:
+        if (assess and ex[i] != 1) or excluded[i]:
             continue
         lo, hi = min(lo, lp), max(hi, lp)
     want = metrics["rom_deg"][j]
