@@ -161,9 +161,10 @@ inline int runReplay(const TherapyCli& t) {
     return 0;
   }
   for (const auto& m : r.first) {
-    std::fprintf(stderr, "MISMATCH at cycle %llu (t_s %.6f): %s recorded %.9g (0x%08x), replayed %.9g (0x%08x)\n",
-                 static_cast<unsigned long long>(m.cycle), m.t_s, m.channel.c_str(), m.recorded, m.recorded_bits,
-                 m.replayed, m.replayed_bits);
+    char bits[48] = "";  // a setpoint's float bits; mode and gain scales are integers
+    if (m.recorded_bits != m.replayed_bits) std::snprintf(bits, sizeof bits, " (0x%08x → 0x%08x)", m.recorded_bits, m.replayed_bits);
+    std::fprintf(stderr, "MISMATCH at cycle %llu (t_s %.6f): %s recorded %.9g, replayed %.9g%s\n",
+                 static_cast<unsigned long long>(m.cycle), m.t_s, m.channel.c_str(), m.recorded, m.replayed, bits);
   }
   std::fprintf(stderr, "%llu of %llu compared cycles differ (%llu values)\n",
                static_cast<unsigned long long>(r.mismatched_cycles), static_cast<unsigned long long>(r.compared),
