@@ -344,6 +344,13 @@ for dev in ("glove5", "sea_finger", "pantograph"):
     check(rc == 1 and res["mismatched_cycles"] > 0 and "MISMATCH at cycle" in err,
           f"{dev}: replay with --set mode=transparent: exit {rc}, {res and res['mismatched_cycles']} cycles differ")
 
+# A recording cut by kill -9 (no summary, no footer) replays up to its last whole chunk.
+killed = os.path.join(TMP, "killed-0.mcap")
+rc, res, err = replay(killed)
+check(rc == 0 and res is not None and not res["file_complete"] and res["compared"] == len(records.load(killed)) > 200
+      and res["mismatched_cycles"] == 0, f"the kill -9'd --record file replays: {res and res['compared']} cycles, "
+      f"{res and res['mismatched_cycles']} mismatches, file_complete {res and res['file_complete']}")
+
 # Input validation: a damaged chunk, a CSV, a session record, an export without the replay configuration.
 damaged = os.path.join(TMP, "damaged.mcap")
 source = os.path.join(TMP, "live-pantograph.mcap")
