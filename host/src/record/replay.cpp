@@ -259,6 +259,65 @@ nlohmann::json ReplayResult::toJson() const {
           {"first_mismatch", first_j}, {"file_complete", file_complete}};
 }
 
+namespace {
+
+/// What the replay runs: the device, its column names, the controller the recorded configuration makes.
+struct Setup {
+  const protocol::DeviceLayout* layout = nullptr;
+  Names names;
+  std::unique_ptr<Controller> controller;
+  double dt_s = 0.0;
+};
+
+std::string setUp(const nlohmann::json& header, const ReplayOptions& options, EmbeddedFiles& files, Setup& s) {
+  const nlohmann::json& rc = header["replay"];
+  if (rc.value("patient_limits", false) || rc.value("controller", "") == "therapy") {
+    return "recorded with a therapy exercise or patient limits; replaying those is not supported";
+  }
+  const std::string device = header.value("device", "");
+  s.layout = layoutNamed(device);
+  if (s.layout == nullptr) return "unknown device '" + device + "'";
+  if (std::string err = namesOf(header, *s.layout, s.names); !err.empty()) return err;
+  RunOptions opt;
+  if (std::string err = optionsFrom(rc, options, files, opt); !err.empty()) return err;
+  std::string err;
+  s.controller = makeController(*s.layout, opt, err);
+  if (!s.controller) return "the recorded controller cannot be built: " + err;
+  s.dt_s = 1.0 / opt.rate_hz;  // the daemon's dt
+  return {};
+}
+
+/// Every recorded cycle through the controller and the limits stage, compared with the recorded command.
+std::string runCycles(const McapContents& m, uint16_t ch_tel, uint16_t ch_cmd, Setup& s, ReplayResult& result) {
+  std::vector<const McapMessage*> tel, com;
+  for (const McapMessage& msg : m.messages) {
+    if (msg.channel == ch_tel) tel.push_back(&msg);
+    if (msg.channel == ch_cmd) com.push_back(&msg);
+  }
+  if (tel.size() != com.size()) return "telemetry and command messages do not pair up";
+  CommandLimits limits(*s.layout);
+  protocol::Command cmd;
+  makeSafe(cmd);  // as the daemon's command before its first cycle
+  cmd.channel_count = s.layout->setpoint_count;
+  for (std::size_t i = 0; i < tel.size(); ++i) {
+    Recorded rec;
+    if (std::string err = parseCycle(tel[i]->data, com[i]->data, s.names, rec); !err.empty()) {
+      return "cycle " + std::to_string(i) + ": " + err;
+    }
+    replayCycle(*s.controller, limits, rec, s.dt_s, cmd);
+    ++result.cycles;
+    if (rec.source != kSourceController && rec.source != kSourceStop) {
+      ++result.external;  // a client's command: the controller ran (its state follows), nothing to compare
+      continue;
+    }
+    ++result.compared;
+    compare(rec, cmd, i, s.names, result);
+  }
+  return {};
+}
+
+}  // namespace
+
 std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result) {
   result = ReplayResult{};
   result.file = path;
@@ -268,48 +327,12 @@ std::string replayRecording(const std::string& path, const ReplayOptions& option
   nlohmann::json header;
   uint16_t ch_tel = 0, ch_cmd = 0;
   if (std::string err = sessionOf(m, path, header, ch_tel, ch_cmd); !err.empty()) return err;
-  const nlohmann::json& rc = header["replay"];
-  if (rc.value("patient_limits", false) || rc.value("controller", "") == "therapy") {
-    return path + ": recorded with a therapy exercise or patient limits; replaying those is not supported";
-  }
-  result.device = header.value("device", "");
-  const protocol::DeviceLayout* layout = layoutNamed(result.device);
-  if (layout == nullptr) return path + ": unknown device '" + result.device + "'";
-  Names names;
-  if (std::string err = namesOf(header, *layout, names); !err.empty()) return path + ": " + err;
-  RunOptions opt;
   EmbeddedFiles files;
-  if (std::string err = optionsFrom(rc, options, files, opt); !err.empty()) return path + ": " + err;
-  std::string err;
-  std::unique_ptr<Controller> ctl = makeController(*layout, opt, err);
-  if (!ctl) return path + ": the recorded controller cannot be built: " + err;
-  result.controller = ctl->name();
-  CommandLimits limits(*layout);
-  protocol::Command cmd;
-  makeSafe(cmd);  // as the daemon's command before its first cycle
-  cmd.channel_count = layout->setpoint_count;
-  std::vector<const McapMessage*> tel, com;
-  for (const McapMessage& msg : m.messages) {
-    if (msg.channel == ch_tel) tel.push_back(&msg);
-    if (msg.channel == ch_cmd) com.push_back(&msg);
-  }
-  const std::size_t n = std::min(tel.size(), com.size());
-  if (tel.size() > n + 1 || com.size() > n + 1) return path + ": telemetry and command messages do not pair up";
-  const double dt_s = 1.0 / opt.rate_hz;
-  for (std::size_t i = 0; i < n; ++i) {
-    Recorded rec;
-    if (err = parseCycle(tel[i]->data, com[i]->data, names, rec); !err.empty()) {
-      return path + ": cycle " + std::to_string(i) + ": " + err;
-    }
-    replayCycle(*ctl, limits, rec, dt_s, cmd);
-    ++result.cycles;
-    if (rec.source != kSourceController && rec.source != kSourceStop) {
-      ++result.external;  // a client's command: the controller ran (its state follows), nothing to compare
-      continue;
-    }
-    ++result.compared;
-    compare(rec, cmd, i, names, result);
-  }
+  Setup s;
+  if (std::string err = setUp(header, options, files, s); !err.empty()) return path + ": " + err;
+  result.device = s.layout->name;
+  result.controller = s.controller->name();
+  if (std::string err = runCycles(m, ch_tel, ch_cmd, s, result); !err.empty()) return path + ": " + err;
   return {};
 }
 
