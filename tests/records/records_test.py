@@ -275,8 +275,9 @@ def replay(path, *extra):
     return p.returncode, (json.loads(p.stdout) if p.stdout.strip().startswith("{") else None), p.stderr
 
 
-def rewrite_mcap(src, dst, change):
-    """Copies src to dst with the `mcap` package's Writer; change(topic, index, message dict) may alter JSON."""
+def rewrite_mcap(src, dst, change, header_change=None):
+    """Copies src to dst with the `mcap` package's Writer; change(topic, index, message dict) may alter JSON,
+    header_change(header dict) the phalanx_session header."""
     from mcap.writer import Writer
     from mcap.reader import make_reader
     with open(src, "rb") as f_in, open(dst, "wb") as f_out:
@@ -285,7 +286,12 @@ def rewrite_mcap(src, dst, change):
         w = Writer(f_out)
         w.start(profile="", library="records_test")
         for m in reader.iter_metadata():
-            w.add_metadata(m.name, m.metadata)
+            meta = dict(m.metadata)
+            if header_change and m.name == "phalanx_session":
+                h = json.loads(meta["header"])
+                header_change(h)
+                meta["header"] = json.dumps(h)
+            w.add_metadata(m.name, meta)
         schema_ids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
         chan_ids = {cid: w.register_channel(c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0), c.metadata)
                     for cid, c in summary.channels.items()}
@@ -356,6 +362,24 @@ for dev in ("glove5", "sea_finger", "pantograph"):
     rc, res, err = replay(live, "--set", "mode=transparent")
     check(rc == 1 and res["mismatched_cycles"] > 0 and "MISMATCH at cycle" in err,
           f"{dev}: replay with --set mode=transparent: exit {rc}, {res and res['mismatched_cycles']} cycles differ")
+
+# A SEA session with a subject file: the recording embeds it and the replay uses it (without it: other commands).
+subject = os.path.join(TMP, "subject.yaml")
+with open(subject, "w") as f:  # Table 4's P̂ with two segments 3 mm longer
+    f.write("sea_subject:\n  x_A_m: 0.0\n  y_A_m: -0.036\n  l_BC_m: 0.045\n  l_CD_m: 0.038\n  l_AH_m: 0.040\n"
+            "  l_FG_m: 0.029\n  l_GH_m: 0.029\n")
+sea_subj = os.path.join(TMP, "sea-subject.mcap")
+p = run(daemon("--device", "sim:sea_finger", "--record", sea_subj, "--seconds", "2", "--seed", "4", "--sea-subject", subject))
+check(p.returncode == 0, "sea_finger --record with --sea-subject")
+os.remove(subject)  # the replay must not need the file
+rc, res, err = replay(sea_subj)
+check(rc == 0 and res["mismatched_cycles"] == 0 and res["compared"] > 1500,
+      f"sea_finger with a subject file: {res and res['compared']} cycles replay identical from the embedded file")
+no_subj = os.path.join(TMP, "sea-no-subject.mcap")
+rewrite_mcap(sea_subj, no_subj, lambda *a: False, lambda h: h["replay"].update(sea_subject=""))
+rc, res, err = replay(no_subj)
+check(rc == 1 and res["mismatched_cycles"] > 0, f"the same recording with the subject removed from its header: "
+      f"{res and res['mismatched_cycles']} cycles differ")
 
 # A recording cut by kill -9 (no summary, no footer) replays up to its last whole chunk.
 killed = os.path.join(TMP, "killed-0.mcap")
