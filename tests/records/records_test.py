@@ -18,6 +18,7 @@ import json
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -489,5 +490,7 @@ for (dev, ext), rate in sorted(sizes.items()):
     print(f"storage {dev} --record .{ext}: {rate / 1e3:.1f} kB/s")
 check(phrec_rate < 125e3, f"session record {phrec_rate / 1e3:.0f} kB/s, well under the former ~250 kB/s")
 
-print(f"{len(FAILS)} failed" if FAILS else "all passed")
+print(f"{len(FAILS)} failed (files kept in {TMP})" if FAILS else "all passed")
+if not FAILS:
+    shutil.rmtree(TMP, ignore_errors=True)
 sys.exit(1 if FAILS else 0)
