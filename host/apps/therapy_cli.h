@@ -23,6 +23,7 @@
 #include "phalanx/host/api/server.h"
 #include "phalanx/host/record/mcap_session.h"
 #include "phalanx/host/record/record_reader.h"
+#include "phalanx/host/record/replay.h"
 #include "phalanx/host/therapy/fhir.h"
 #include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/report.h"
@@ -46,6 +47,8 @@ struct TherapyCli {
   CLI::App* rec_info = nullptr;
   CLI::App* rec_report = nullptr;
   CLI::App* rec_fhir = nullptr;
+  CLI::App* rec_replay = nullptr;
+  std::vector<std::string> replay_set;  // KEY=VALUE
   std::string rec_file, rec_out, rec_previous, rec_reference;
   bool csv = false;
   bool mcap = false;
@@ -113,6 +116,65 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_fhir = t.record->add_subcommand("fhir", "export a record's results as a FHIR R4 Bundle of Observations (JSON)");
   t.rec_fhir->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_fhir->add_option("--out", t.rec_out, "output file (default: FILE with .fhir.json; never the record itself)");
+  t.rec_replay = t.record->add_subcommand(
+      "replay", "feed a --record FILE.mcap recording through this build's controller offline and compare every command "
+                "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable)");
+  t.rec_replay->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
+  t.rec_replay->add_option("--set", t.replay_set,
+                           "change the recorded configuration for the replay, KEY=VALUE (mode, scene, "
+                           "pen_wall_stiffness_N_per_cm, pen_floor_mm); repeatable");
+}
+
+/// Why FILE is not a replayable recording, from its first bytes ("" for MCAP).
+inline std::string replayableKind(const std::string& path) {
+  char head[8] = {};
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  const std::size_t n = f != nullptr ? std::fread(head, 1, sizeof head, f) : 0;
+  if (f != nullptr) std::fclose(f);
+  if (n == 8 && std::memcmp(head, "\x89MCAP0\r\n", 8) == 0) return {};
+  if (n == 8 && std::memcmp(head, "PHXREC1\n", 8) == 0) {
+    return path + " is a session record (.phrec): replaying therapy sessions is not supported (exercise and limit "
+                  "changes are not tied to the cycle that took them); replay a `--record FILE.mcap` recording";
+  }
+  if (n >= 4 && std::memcmp(head, "t_s,", 4) == 0) {
+    return path + " is a CSV recording: it rounds values to 5 significant digits and holds no configuration, so "
+                  "it cannot reproduce commands bit for bit; record with `--record FILE.mcap`";
+  }
+  return path + " is not an MCAP recording";
+}
+
+/// `phalanx record replay`: JSON result on stdout, one line for people on stderr.
+inline int runReplay(const TherapyCli& t) {
+  if (const std::string why = replayableKind(t.rec_file); !why.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", why.c_str());
+    return 2;
+  }
+  record::ReplayOptions o;
+  o.set = t.replay_set;
+  record::ReplayResult r;
+  if (const std::string err = record::replayRecording(t.rec_file, o, r); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+    return 2;
+  }
+  std::cout << r.toJson().dump(2) << std::endl;
+  std::fprintf(stderr, "replay %s (%s, %s): %llu cycles, %llu compared, %llu commanded by a client (not compared)%s\n",
+               r.file.c_str(), r.device.c_str(), r.controller.c_str(), static_cast<unsigned long long>(r.cycles),
+               static_cast<unsigned long long>(r.compared), static_cast<unsigned long long>(r.external),
+               r.file_complete ? "" : "; the file has no end (a killed recording): its whole chunks were replayed");
+  if (r.mismatched_cycles == 0) {
+    std::fprintf(stderr, "identical: every compared command equals the recorded one bit for bit\n");
+    return 0;
+  }
+  for (const auto& m : r.first) {
+    char bits[48] = "";  // a setpoint's float bits; mode and gain scales are integers
+    if (m.recorded_bits != m.replayed_bits) std::snprintf(bits, sizeof bits, " (0x%08x → 0x%08x)", m.recorded_bits, m.replayed_bits);
+    std::fprintf(stderr, "MISMATCH at cycle %llu (t_s %.6f): %s recorded %.9g, replayed %.9g%s\n",
+                 static_cast<unsigned long long>(m.cycle), m.t_s, m.channel.c_str(), m.recorded, m.replayed, bits);
+  }
+  std::fprintf(stderr, "%llu of %llu compared cycles differ (%llu values)\n",
+               static_cast<unsigned long long>(r.mismatched_cycles), static_cast<unsigned long long>(r.compared),
+               static_cast<unsigned long long>(r.mismatched_values));
+  return 1;
 }
 
 using therapy::anatomicalKeys;
@@ -342,6 +404,7 @@ inline std::string withExtension(const std::string& path, const std::string& ext
 
 /// Runs the parsed therapy/record subcommand; returns -1 if none of them was given.
 inline int runTherapyCommands(TherapyCli& t) {
+  if (t.record->parsed() && t.rec_replay->parsed()) return runReplay(t);
   if (t.record->parsed()) {
     record::SessionRecord rec;
     auto progress = [](uint64_t done, uint64_t total) {

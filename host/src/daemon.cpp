@@ -28,6 +28,7 @@
 #include "phalanx/host/modbus/server.h"
 #include "phalanx/host/program_name.h"
 #include "phalanx/host/record/csv_recorder.h"
+#include "phalanx/host/record/replay.h"
 #include "phalanx/host/safety_io.h"
 #include "phalanx/host/link_recovery.h"
 #include "phalanx/host/session.h"
@@ -36,9 +37,6 @@
 #include "phalanx/linux/usb_link.h"
 
 namespace phalanx::host {
-
-std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, const RunOptions& opt,
-                                           std::string& error);
 
 namespace {
 
@@ -350,7 +348,7 @@ class SessionRunner {
     limits_ = std::make_unique<CommandLimits>(*layout_);
     if (opt_.hooks != nullptr) limits_->setPatientStage(opt_.hooks->patientLimits());
     if (!opt_.record_csv.empty()) {
-      if (std::string err = recorder_.open(opt_.record_csv, *layout_, io_.have_sync); !err.empty()) return fail(err, 3);
+      if (std::string err = recorder_.open(opt_.record_csv, *layout_, recordingContext()); !err.empty()) return fail(err, 3);
     }
     setUpRealtime();
     // The first telemetry, bounded like the handshake: a device that answered late on a slow or loaded link
@@ -370,6 +368,16 @@ class SessionRunner {
       if (std::string err = opt_.hooks->onStart(*layout_, summary_); !err.empty()) return fail(err, 3);
     }
     return 0;
+  }
+
+  /// What --record FILE holds besides the cycles: the replay configuration, the pen's geometry.
+  record::RecordingContext recordingContext() const {
+    record::RecordingContext c;
+    c.sync_column = io_.have_sync;
+    const bool patient = opt_.hooks != nullptr && opt_.hooks->patientLimits() != nullptr;
+    c.replay = record::replayConfig(opt_, controller_->name(), patient);
+    c.pen_model = record::penModelOf(*controller_);
+    return c;
   }
 
   int chooseController() {
@@ -601,7 +609,7 @@ class SessionRunner {
     limits_->apply(tel, cmd_);
     if (!sendCommand(t_s)) return false;
     if (new_telemetry > 0) reaction_us_.add(static_cast<double>(session_->lastSendNs() - tel.host_rx_ns) / 1000.0);
-    recorder_.row(t_s, tel, cmd_, io_.have_sync ? io_.sync.pulses() : 0);
+    recorder_.row(t_s, tel, cmd_, io_.have_sync ? io_.sync.pulses() : 0, last_source_);
     if (opt_.hooks != nullptr) opt_.hooks->onCycle(wake_ns, t_s, tel, cmd_);
     publish(tel, wake_ns, t_s);
     return !recorder_.failed();  // a recording asked for and failing ends the session (exit 7), never silently
@@ -727,19 +735,24 @@ class SessionRunner {
   void commandFromSources(const TelemetryFrame& tel, double t_s, uint64_t wake_ns) {
     if (have_safety_io_ && safety_->stopped()) {
       makeSafe(cmd_);  // no controller update while stopped: no integrator wind-up
-      ++source_cycles_[kSourceStop];
+      countSource(kSourceStop);
       return;
     }
     controller_->update(tel, t_s, 1.0 / opt_.rate_hz, cmd_);
     if (mb_port_ && mb_port_->overrideCommand(cmd_, wake_ns)) {
-      ++source_cycles_[kSourceModbus];
+      countSource(kSourceModbus);
       return;
     }
     if (client_port_ && client_port_->overrideCommand(tel, cmd_, wake_ns)) {
-      ++source_cycles_[kSourceClient];
+      countSource(kSourceClient);
       return;
     }
-    ++source_cycles_[kSourceController];
+    countSource(kSourceController);
+  }
+
+  void countSource(uint8_t source) {
+    ++source_cycles_[source];
+    last_source_ = source;  // recorded with the cycle (record::CommandExtras::source: the same numbering)
   }
 
   /// Send, push the link, time-stamp an e-stop's safe command. false on a hard link error.
@@ -949,6 +962,7 @@ class SessionRunner {
 
   static constexpr size_t kMaxStopRecords = 256;  // fixed: no allocation in the loop; later stops are counted only
   enum Source : uint8_t { kSourceController = 0, kSourceModbus, kSourceClient, kSourceStop, kSourceCount };
+  uint8_t last_source_ = kSourceController;
 
   const RunOptions& opt_;
   nlohmann::json& summary_;

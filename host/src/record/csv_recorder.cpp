@@ -1,5 +1,6 @@
 #include "phalanx/host/record/csv_recorder.h"
 
+#include "phalanx/host/record/pen_channels.h"
 #include "phalanx/host/therapy/device.h"
 
 #include <fcntl.h>
@@ -16,13 +17,17 @@
 
 namespace phalanx::host::record {
 
-std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column) {
+std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLayout& layout,
+                              const RecordingContext& context) {
+  const bool sync_column = context.sync_column;
   fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd_ < 0) return "cannot write recording " + path + ": " + std::strerror(errno);
   path_ = path;
   sync_column_ = sync_column;
   samples_ = layout.sample_count;
   setpoints_ = layout.setpoint_count;
+  pen_ = layout.type == protocol::DeviceType::kPantograph;
+  pen_model_ = context.pen_model != nullptr ? *context.pen_model : phalanx::pen::defaultModel<double>();
   const bool mcap = path.size() > 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
   std::string header;
   if (mcap) {
@@ -33,6 +38,10 @@ std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLay
     l.start_epoch_ns = static_cast<uint64_t>(
         std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count());
     l.header = {{"device", layout.name}, {"samples", l.samples}, {"setpoints", l.setpoints}};
+    if (!context.replay.is_null()) l.header["replay"] = context.replay;
+    l.live = true;
+    l.pen = pen_;
+    l.pen_model = pen_model_;
     std::string err;
     mcap_ = std::make_unique<McapSession>(l, therapy::makeTherapyDevice(layout, {}, err));
     const std::vector<uint8_t> start = mcap_->start();
@@ -43,6 +52,9 @@ std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLay
     header = "t_s,device_time_us,seq,cmd_seq_echo,mode,fault_bits";
     for (const auto& n : sampleColumnNames(layout)) header += "," + n;
     for (const auto& n : setpointColumnNames(layout)) header += "," + n;
+    if (pen_) {
+      for (const auto& n : penCsvColumns()) header += "," + n;
+    }
     // Rising edges of the sync pulse emitted so far: the motion-capture frame index (docs/gpio.md).
     if (sync_column) header += ",sync_pulses";
     header += "\n";
@@ -63,7 +75,8 @@ std::string CsvRecorder::open(const std::string& path, const protocol::DeviceLay
   return {};
 }
 
-void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses) {
+void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses,
+                      uint8_t source) {
   if (!queue_) return;
   if (failed()) {
     countLost(1);
@@ -86,8 +99,10 @@ void CsvRecorder::row(double t_s, const TelemetryFrame& tel, const protocol::Com
   r.cmd_mode = static_cast<uint8_t>(cmd.mode);
   r.cmd_seq = cmd.seq;
   r.state_flags = tel.state_flags;
+  r.source = source;
   std::copy(tel.value.begin(), tel.value.begin() + samples_, r.sample.begin());
   std::copy(cmd.setpoint, cmd.setpoint + setpoints_, r.setpoint.begin());
+  std::copy(cmd.gain_scale_permille, cmd.gain_scale_permille + setpoints_, r.gain_permille.begin());
   if (!queue_->push(r)) countLost(1);
 }
 
@@ -194,27 +209,34 @@ void CsvRecorder::writePending() {
                std::to_string(written_.load()) + " rows written; nothing after them is recorded)");
 }
 
+void CsvRecorder::formatMcap(const Row& r) {
+  CycleRecord c;
+  c.host_ns = static_cast<uint64_t>(std::llround(r.t_s * 1e9)) + 1;  // the loop's wake-up, from t_s (never 0)
+  c.t_s = r.t_s;
+  c.device_time_us = r.device_time_us;
+  c.tel_seq = r.seq;
+  c.cmd_seq_echo = r.cmd_seq_echo;
+  c.fault_bits = r.fault_bits;
+  c.tel_mode = r.mode;
+  c.cmd_mode = r.cmd_mode;
+  c.cmd_seq = r.cmd_seq;
+  c.state_flags = r.state_flags;
+  c.sample_count = samples_;
+  c.setpoint_count = setpoints_;
+  c.sample = r.sample;
+  c.setpoint = r.setpoint;
+  CommandExtras extras;
+  extras.source = r.source;
+  extras.gain_permille = r.gain_permille;
+  if (pending_rows_ == 0) pending_t0_ = r.t_s;
+  if (written_.load() + pending_rows_ == 0) mcap_->setStartEpoch(epoch_ns_);
+  mcap_->addCycle(c, &extras);
+  ++pending_rows_;
+}
+
 void CsvRecorder::format(const Row& r) {
   if (mcap_) {
-    CycleRecord c;
-    c.host_ns = static_cast<uint64_t>(std::llround(r.t_s * 1e9)) + 1;  // the loop's wake-up, from t_s (never 0)
-    c.t_s = r.t_s;
-    c.device_time_us = r.device_time_us;
-    c.tel_seq = r.seq;
-    c.cmd_seq_echo = r.cmd_seq_echo;
-    c.fault_bits = r.fault_bits;
-    c.tel_mode = r.mode;
-    c.cmd_mode = r.cmd_mode;
-    c.cmd_seq = r.cmd_seq;
-    c.state_flags = r.state_flags;
-    c.sample_count = samples_;
-    c.setpoint_count = setpoints_;
-    c.sample = r.sample;
-    c.setpoint = r.setpoint;
-    if (pending_rows_ == 0) pending_t0_ = r.t_s;
-    if (written_.load() + pending_rows_ == 0) mcap_->setStartEpoch(epoch_ns_);
-    mcap_->addCycle(c);
-    ++pending_rows_;
+    formatMcap(r);
     return;
   }
   char buf[64];
@@ -223,6 +245,7 @@ void CsvRecorder::format(const Row& r) {
                     r.seq, r.cmd_seq_echo, static_cast<unsigned>(r.mode), r.fault_bits));
   for (uint8_t i = 0; i < samples_; ++i) put(std::snprintf(buf, sizeof buf, ",%.5g", static_cast<double>(r.sample[i])));
   for (uint8_t i = 0; i < setpoints_; ++i) put(std::snprintf(buf, sizeof buf, ",%.5g", static_cast<double>(r.setpoint[i])));
+  if (pen_) appendPenCsv(pending_, measurePen(pen_model_, r.sample.data()));
   if (sync_column_) put(std::snprintf(buf, sizeof buf, ",%llu", static_cast<unsigned long long>(r.sync_pulses)));
   pending_.push_back('\n');
   ++pending_rows_;

@@ -5,6 +5,7 @@
 #include <ctime>
 
 #include "phalanx/host/record/output_file.h"
+#include "phalanx/host/record/pen_channels.h"
 #include "phalanx/host/record/ros2_msgs.h"
 #include "phalanx/host/session.h"
 #include "phalanx/host/therapy/device.h"
@@ -45,7 +46,12 @@ void putNumber(std::string& out, const char* key, double v, bool as_float) {
     out += "null";
     return;
   }
-  // %.9g round-trips a float exactly; %.17g a double.
+  // %.9g round-trips a float exactly; %.17g a double. A negative zero is written -0.0: JSON readers take "-0"
+  // for the integer 0 and would lose its sign (a replay compares commands bit for bit).
+  if (v == 0.0 && std::signbit(v)) {
+    out += "-0.0";
+    return;
+  }
   std::snprintf(buf, sizeof buf, as_float ? "%.9g" : "%.17g", v);
   out += buf;
 }
@@ -144,18 +150,31 @@ std::vector<uint8_t> McapSession::start() {
     if (unitOf(layout_.samples[i]) == "rad") angle_samples_.push_back(i);
   }
   ch_mechanism_ = writer_.addChannel(js, "/phalanx/mechanism/joint_states", "cdr", meta);
-  ch_telemetry_ = json("/phalanx/telemetry",
-                       numberSchema("phalanx.Telemetry",
-                                    {{"t_s", "s since the session's first cycle"},
-                                     {"device_time_us", "device clock, µs"},
-                                     {"seq", "telemetry sequence number"},
-                                     {"mode", "device mode (protocol::Mode)"},
-                                     {"fault_bits", "latched device faults (protocol::fault)"}},
-                                    layout_.samples));
-  ch_command_ = json("/phalanx/command", numberSchema("phalanx.Command",
-                                                      {{"t_s", "s"}, {"seq", "command sequence number"},
-                                                       {"mode", "commanded mode (protocol::Mode)"}},
-                                                      layout_.setpoints));
+  std::vector<std::pair<std::string, std::string>> tel_fields{
+      {"t_s", "s since the session's first cycle"}, {"device_time_us", "device clock, µs"},
+      {"seq", "telemetry sequence number"}, {"mode", "device mode (protocol::Mode)"},
+      {"fault_bits", "latched device faults (protocol::fault)"}};
+  std::vector<std::pair<std::string, std::string>> cmd_fields{
+      {"t_s", "s"}, {"seq", "command sequence number"}, {"mode", "commanded mode (protocol::Mode)"}};
+  if (layout_.live) {
+    tel_fields.emplace_back("cmd_seq_echo", "seq of the last command the device applied");
+    tel_fields.emplace_back("state_flags", "device state flags (protocol::state)");
+    cmd_fields.emplace_back("source", "who commanded: 0 controller, 1 Modbus, 2 client channel, 3 e-stop (safe)");
+  }
+  ch_telemetry_ = json("/phalanx/telemetry", numberSchema("phalanx.Telemetry", tel_fields, layout_.samples));
+  nlohmann::json cmd_schema = numberSchema("phalanx.Command", cmd_fields, layout_.setpoints);
+  if (layout_.live) {
+    cmd_schema["properties"]["gain_permille"] = {
+        {"type", "array"}, {"items", {{"type", "integer"}}},
+        {"description", "controller gain scale per setpoint, per mille (1000 = nominal)"}};
+  }
+  ch_command_ = json("/phalanx/command", cmd_schema);
+  if (layout_.pen) {
+    const uint16_t ps = writer_.addSchema(ros2::kPoseStampedName, "ros2msg", ros2::poseStampedDefinition());
+    ch_pen_pose_ = writer_.addChannel(ps, "/phalanx/pen/pose", "cdr", meta);
+    const uint16_t ws = writer_.addSchema(ros2::kWrenchStampedName, "ros2msg", ros2::wrenchStampedDefinition());
+    ch_pen_wrench_ = writer_.addChannel(ws, "/phalanx/pen/wrench", "cdr", meta);
+  }
   if (!layout_.aux.empty()) {
     ch_therapy_ = json("/phalanx/therapy", numberSchema("phalanx.Therapy", {{"t_s", "s"}}, layout_.aux));
   }
@@ -207,19 +226,28 @@ std::string McapSession::numbersJson(const std::vector<std::string>& names, cons
   return s;
 }
 
-void McapSession::addCycle(const CycleRecord& c) {
+void McapSession::addCycle(const CycleRecord& c, const CommandExtras* extras) {
   const uint64_t t = logTime(c.t_s);
   std::string s = "{";
   putNumber(s, "t_s", c.t_s, false);
   s += ",\"device_time_us\":" + std::to_string(c.device_time_us) + ",\"seq\":" + std::to_string(c.tel_seq) +
        ",\"mode\":" + std::to_string(c.tel_mode) + ",\"fault_bits\":" + std::to_string(c.fault_bits);
+  if (layout_.live) {
+    s += ",\"cmd_seq_echo\":" + std::to_string(c.cmd_seq_echo) + ",\"state_flags\":" + std::to_string(c.state_flags);
+  }
   s += numbersJson(layout_.samples, c.sample.data(), c.sample_count) + "}";
   writer_.addMessage(ch_telemetry_, t, s);
   s = "{";
   putNumber(s, "t_s", c.t_s, false);
   s += ",\"seq\":" + std::to_string(c.cmd_seq) + ",\"mode\":" + std::to_string(c.cmd_mode);
+  if (layout_.live && extras != nullptr) {
+    s += ",\"source\":" + std::to_string(extras->source) + ",\"gain_permille\":[";
+    for (std::size_t i = 0; i < c.setpoint_count; ++i) s += (i ? "," : "") + std::to_string(extras->gain_permille[i]);
+    s += ']';
+  }
   s += numbersJson(layout_.setpoints, c.setpoint.data(), c.setpoint_count) + "}";
   writer_.addMessage(ch_command_, t, s);
+  if (layout_.pen) addPen(t, c);
   if (!layout_.aux.empty() && c.aux_count > 0) {
     s = "{";
     putNumber(s, "t_s", c.t_s, false);
@@ -293,6 +321,24 @@ void McapSession::addCycle(const CycleRecord& c) {
   last_faults_ = c.fault_bits;
   first_ = false;
   if (c.t_s - window_start_s_ >= 1.0) emitLoopStats(c.t_s);
+}
+
+void McapSession::addPen(uint64_t t, const CycleRecord& c) {
+  if (c.sample_count < 12) return;
+  const PenMeasurement m = measurePen(layout_.pen_model, c.sample.data());
+  const double nan = std::nan("");
+  ros2::PoseStamped pose;
+  pose.header = ros2::headerAt(t, "pen_base");
+  for (std::size_t i = 0; i < 3; ++i) pose.position[i] = m.pose_valid ? m.centre_m[i] : nan;
+  for (std::size_t i = 0; i < 4; ++i) pose.orientation[i] = m.pose_valid ? m.orientation[i] : nan;
+  writer_.addMessage(ch_pen_pose_, t, ros2::encode(pose));
+  ros2::WrenchStamped w;
+  w.header = ros2::headerAt(t, "pen_base");
+  for (std::size_t i = 0; i < 3; ++i) {
+    w.force[i] = m.wrench_valid ? m.force_N[i] : nan;
+    w.torque[i] = m.wrench_valid ? m.torque_Nm[i] : nan;
+  }
+  writer_.addMessage(ch_pen_wrench_, t, ros2::encode(w));
 }
 
 void McapSession::emitLoopStats(double t_s) {

@@ -11,7 +11,7 @@ namespace {
 constexpr uint8_t kMagic[8] = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
 enum Op : uint8_t {
   kHeader = 0x01, kFooter = 0x02, kSchema = 0x03, kChannel = 0x04, kMessage = 0x05, kChunk = 0x06,
-  kMessageIndex = 0x07, kChunkIndex = 0x08, kStatistics = 0x0B, kMetadata = 0x0C, kSummaryOffset = 0x0E,
+  kMessageIndex = 0x07, kChunkIndex = 0x08, kStatistics = 0x0B, kMetadata = 0x0C, kMetadataIndex = 0x0D, kSummaryOffset = 0x0E,
   kDataEnd = 0x0F,
 };
 
@@ -77,6 +77,7 @@ std::vector<uint8_t> McapWriter::start(const std::string& profile, const std::st
   o.str(profile);
   o.str(library);
   o.endRecord(at);
+  pending_offset_ = b.size();
   return b;
 }
 
@@ -116,16 +117,19 @@ uint16_t McapWriter::addChannel(uint16_t schema_id, const std::string& topic, co
 
 void McapWriter::addMetadata(const std::string& name, const std::map<std::string, std::string>& values) {
   Out o{pending_};
+  const std::size_t from = pending_.size();
   const std::size_t at = o.beginRecord(kMetadata);
   o.str(name);
   o.strMap(values);
   o.endRecord(at);
+  metadata_index_.push_back({pending_offset_ + from, pending_.size() - from, name});
   ++metadata_count_;
 }
 
 std::vector<uint8_t> McapWriter::takePending() {
   std::vector<uint8_t> out;
   out.swap(pending_);
+  pending_offset_ += out.size();
   return out;
 }
 
@@ -232,6 +236,15 @@ std::vector<uint8_t> McapWriter::finish(uint64_t file_offset, uint32_t data_crc)
       o.u64(channel_counts_[c]);
     }
     o.endRecord(at);
+  });
+  group(kMetadataIndex, [&] {
+    for (const MetadataIndex& m : metadata_index_) {
+      at = o.beginRecord(kMetadataIndex);
+      o.u64(m.offset);
+      o.u64(m.length);
+      o.str(m.name);
+      o.endRecord(at);
+    }
   });
   group(kChunkIndex, [&] {
     for (const ChunkIndex& ci : chunks_) {

@@ -111,6 +111,11 @@ std::string parseCanDevice(const std::string& spec, linux_hal::CanLink::Options&
 /// Validate options; returns an empty string or the first problem, naming the option.
 std::string validate(const RunOptions& opt);
 
+/// The built-in controller the options ask for (the session's, when no SessionHooks supplies one; also the
+/// replay's, record/replay.h). null and error set when the options do not fit the device.
+std::unique_ptr<Controller> makeController(const protocol::DeviceLayout& layout, const RunOptions& opt,
+                                           std::string& error);
+
 /// Run one session. Returns the process exit code (0 ok); summary is filled in either case, with
 /// summary["error"] set on failure.
 int runSession(const RunOptions& opt, nlohmann::json& summary);

@@ -30,13 +30,28 @@ namespace phalanx::host::record {
 /// (mcap_session.h's channels; one zstd chunk per ≤ 50 ms, so a kill -9 loses at most that; the summary is
 /// written at close()). Both go through the same queue, writer thread and failure accounting; a "row" of an
 /// MCAP file is one cycle, written when its whole chunk reached the file.
+/// What a recording holds besides the cycles (docs/records.md, "Replay").
+struct RecordingContext {
+  bool sync_column = false;  ///< CSV: the sync_pulses column
+  /// MCAP: the header's "replay" object (record/replay.h replayConfig); null: the file cannot be replayed.
+  nlohmann::json replay;
+  /// pantograph: the geometry the pen channels / columns use (null: pen::defaultModel).
+  const phalanx::pen::Model<double>* pen_model = nullptr;
+};
+
 class CsvRecorder {
  public:
   ~CsvRecorder() { close(); }
   /// Create the file and write its header; starts the writer thread. "" or the problem.
-  std::string open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column);
-  /// Loop side: one copy into the queue (after a failure: only counted as lost).
-  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses);
+  std::string open(const std::string& path, const protocol::DeviceLayout& layout, const RecordingContext& context);
+  std::string open(const std::string& path, const protocol::DeviceLayout& layout, bool sync_column) {
+    RecordingContext c;
+    c.sync_column = sync_column;
+    return open(path, layout, c);
+  }
+  /// Loop side: one copy into the queue (after a failure: only counted as lost). source: CommandExtras::source.
+  void row(double t_s, const TelemetryFrame& tel, const protocol::Command& cmd, uint64_t sync_pulses,
+           uint8_t source = 0);
   /// Writes what is queued, fsyncs and closes (a failure there is latched too). Idempotent.
   void close();
 
@@ -66,10 +81,12 @@ class CsvRecorder {
     double t_s = 0.0;
     uint64_t device_time_us = 0, sync_pulses = 0;
     uint16_t seq = 0, cmd_seq_echo = 0, fault_bits = 0, cmd_seq = 0;
-    uint8_t mode = 0, cmd_mode = 0, state_flags = 0;
+    uint8_t mode = 0, cmd_mode = 0, state_flags = 0, source = 0;
     std::array<float, protocol::kMaxSamples> sample{};
     std::array<float, protocol::kMaxSetpoints> setpoint{};
+    std::array<uint16_t, protocol::kMaxSetpoints> gain_permille{};
   };
+  void formatMcap(const Row& r);
   void writerMain();
   void format(const Row& r);
   /// Writes the formatted rows (none after a failure) and counts them.
@@ -81,6 +98,8 @@ class CsvRecorder {
   uint8_t samples_ = 0;
   uint8_t setpoints_ = 0;
   bool sync_column_ = false;
+  bool pen_ = false;                 // pantograph: the CSV's pen columns
+  phalanx::pen::Model<double> pen_model_{};
   // Loop thread only writes dropped_ (queue full, or after a failure); the writer thread written_/unwritten_.
   std::atomic<uint64_t> dropped_{0};
   std::atomic<uint64_t> written_{0};

@@ -15,6 +15,9 @@
 ///   /phalanx/faults                  fault bits and their names, at every change
 ///   /phalanx/events                  session events (the .phrec's event records)
 ///   /phalanx/loop_stats, /diagnostics  loop statistics once per second (JSON; diagnostic_msgs/DiagnosticArray)
+///   /phalanx/pen/pose, /phalanx/pen/wrench  pantograph: geometry_msgs/PoseStamped (pen centre and orientation)
+///                                    and geometry_msgs/WrenchStamped (measured wrench at the centre), base frame
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -26,6 +29,7 @@
 #include "phalanx/host/record/record_format.h"
 #include "phalanx/host/record/record_reader.h"
 #include "phalanx/protocol/devices.h"
+#include "phalanx/pen/kinematics.h"
 
 namespace phalanx::host::therapy {
 class TherapyDevice;
@@ -38,6 +42,19 @@ struct McapLayout {
   std::vector<std::string> samples, setpoints, aux;  ///< column names (with their units)
   uint64_t start_epoch_ns = 0;              ///< log time of t_s = 0 (wall clock, ns since the Unix epoch)
   nlohmann::json header;                    ///< stored as metadata "phalanx_session" (the .phrec header)
+  /// A live `--record` file: the telemetry and command messages carry what a replay needs besides the samples
+  /// (cmd_seq_echo, state_flags; the command's source and gain scales: addCycle's CommandExtras); the header then
+  /// holds "replay" (record/replay.h).
+  bool live = false;
+  /// pantograph: the pen channels, computed with this model (the session's geometry).
+  bool pen = false;
+  phalanx::pen::Model<double> pen_model{};
+};
+
+/// What a live recording adds to each cycle's command (docs/records.md, "Replay").
+struct CommandExtras {
+  uint8_t source = 0;  ///< 0 the controller, 1 a Modbus client, 2 a client-channel client, 3 the e-stop (safe)
+  std::array<uint16_t, protocol::kMaxSetpoints> gain_permille{};
 };
 
 class McapSession {
@@ -51,7 +68,7 @@ class McapSession {
   /// Log time of t_s = 0 (before the first addCycle; else McapLayout::start_epoch_ns).
   void setStartEpoch(uint64_t epoch_ns) { layout_.start_epoch_ns = epoch_ns; }
   /// Not real time (writer thread): one cycle → its messages in the open chunk.
-  void addCycle(const CycleRecord& c);
+  void addCycle(const CycleRecord& c, const CommandExtras* extras = nullptr);
   /// An event {"t_s", "kind", …}.
   void addEvent(const nlohmann::json& event);
   std::size_t chunkMessages() const { return writer_.chunkMessages(); }
@@ -63,13 +80,15 @@ class McapSession {
  private:
   uint64_t logTime(double t_s) const;
   void emitLoopStats(double t_s);
+  void addPen(uint64_t t, const CycleRecord& c);
   std::string numbersJson(const std::vector<std::string>& names, const float* values, std::size_t n) const;
 
   McapLayout layout_;
   std::unique_ptr<therapy::TherapyDevice> device_;
   McapWriter writer_;
   uint16_t ch_joints_ = 0, ch_mechanism_ = 0, ch_telemetry_ = 0, ch_command_ = 0, ch_therapy_ = 0, ch_limits_ = 0,
-           ch_faults_ = 0, ch_events_ = 0, ch_loop_ = 0, ch_diag_ = 0;
+           ch_faults_ = 0, ch_events_ = 0, ch_loop_ = 0, ch_diag_ = 0,
+           ch_pen_pose_ = 0, ch_pen_wrench_ = 0;
   std::vector<uint16_t> ch_effort_;
   std::vector<std::size_t> angle_samples_;  // indices of the angle samples (mechanism joint states)
   int limited_aux_ = -1;

@@ -68,6 +68,14 @@ class McapWriter {
   std::vector<uint32_t> sequence_;  // per channel
   std::vector<uint64_t> channel_counts_;
   uint32_t metadata_count_ = 0;
+  // Metadata Index records of the summary: where each Metadata record lands, the pending bytes being written
+  // right after start() (and after the previous takePending()).
+  struct MetadataIndex {
+    uint64_t offset, length;
+    std::string name;
+  };
+  std::vector<MetadataIndex> metadata_index_;
+  uint64_t pending_offset_ = 0;
   // The open chunk.
   std::vector<uint8_t> chunk_;
   std::map<uint16_t, std::vector<std::pair<uint64_t, uint64_t>>> chunk_index_;  // channel → (time, offset)
