@@ -420,16 +420,17 @@ std::string exportMcap(const SessionRecord& rec, const std::string& path) {
     const auto& ev = rec.events[i];
     return ev.is_object() && ev.contains("t_s") && ev["t_s"].is_number() ? ev["t_s"].get<double>() : 0.0;
   };
+  bool ok = true;
   for (const CycleRecord& c : rec.cycles) {
-    while (e < rec.events.size() && eventT(e) <= c.t_s) s.addEvent(rec.events[e++]);
-    s.addCycle(c);
-    if (c.t_s - chunk_t >= 0.05) {
-      if (!put(s.takeChunk(offset))) break;
+    if (c.t_s - chunk_t >= 0.05) {  // closed before the cycle that would take it past 50 ms (as CsvRecorder does)
+      if (!(ok = put(s.takeChunk(offset)))) break;
       chunk_t = c.t_s;
     }
+    while (e < rec.events.size() && eventT(e) <= c.t_s) s.addEvent(rec.events[e++]);
+    s.addCycle(c);
   }
-  while (e < rec.events.size()) s.addEvent(rec.events[e++]);
-  put(s.takeChunk(offset));
+  while (ok && e < rec.events.size()) s.addEvent(rec.events[e++]);
+  if (ok) put(s.takeChunk(offset));
   const std::vector<uint8_t> tail = s.finish(offset, crc);
   f.write(tail.data(), tail.size());
   return f.commit();
