@@ -10,7 +10,8 @@
 #include <vector>
 
 #include "phalanx/host/dds/dds_bridge.h"
-#include "phalanx/host/model_state.h"
+#include "phalanx/host/client/device_model.h"
+#include "phalanx/host/dds/model_view.h"
 #include "phalanx/host/stats.h"
 #include "ros2_msgs.h"
 
@@ -32,8 +33,8 @@ nlohmann::json histogram(const Histogram& h) {
 class CycloneBridge final : public Bridge {
  public:
   CycloneBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port)
-      : opt_(o), dev_(dev), port_(port), model_(*dev.layout, dev.glove, dev.pen),
-        names_(ModelStateComputer::names(dev.layout->type)), ns_(topicNamespace(o, *dev.layout)) {
+      : opt_(o), dev_(dev), port_(port), stage_(std::make_unique<client::DeviceModelStage>(*dev.layout, dev_.geometry)),
+        names_(modelNames(dev.layout->type)), ns_(topicNamespace(o, *dev.layout)) {
     for (const char c : ns_) frame_prefix_ += c == '/' ? '_' : c;
     frame_prefix_ += '_';
   }
@@ -150,7 +151,8 @@ class CycloneBridge final : public Bridge {
 
   /// Header stamp: the telemetry's arrival at the host (CLOCK_MONOTONIC mapped onto CLOCK_REALTIME at start).
   void publishState(const LoopSample& s) {
-    model_.compute(s.tel, ms_);
+    stage_->observe(s.tel);  // the client channel's device-model stage, on this thread (its own instance)
+    modelView(*dev_.layout, *stage_, s.tel, ms_);
     const builtin_interfaces_msg_dds__Time_ st = stamp(s.tel.host_rx_ns);
     if (joints_w_ > 0) {
       sensor_msgs_msg_dds__JointState_ m{};
@@ -232,7 +234,7 @@ class CycloneBridge final : public Bridge {
   DdsOptions opt_;
   BridgeDevice dev_;
   LoopPort& port_;
-  ModelStateComputer model_;
+  std::unique_ptr<client::DeviceModelStage> stage_;
   ModelNames names_;
   std::string ns_, frame_prefix_, joint_frame_;
   dds_entity_t domain_ = 0, participant_ = 0, joints_w_ = 0, diag_w_ = 0;

@@ -524,16 +524,7 @@ class SessionRunner {
     dev.rate_hz = opt_.rate_hz;
     dev.firmware_build_id = session_->deviceInfo().firmware_build_id;
     dev.device_spec = opt_.device;
-    for (std::size_t f = 0; f < glove::kNumFingers; ++f) dev.glove[f] = glove::defaultModel<double>(static_cast<glove::FingerId>(f));
-    static const char* const kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};
-    for (std::size_t f = 0; f < glove::kNumFingers; ++f) {
-      if (const auto it = opt_.glove_geometry.find(kFingerNames[f]); it != opt_.glove_geometry.end()) {
-        design::loadGloveGeometryYaml(it->second, dev.glove[f]);  // validated with the options
-      }
-    }
-    pen::Geometry<double> pg = pen::defaultGeometry<double>();
-    if (!opt_.pen_geometry.empty()) design::loadPenGeometryYaml(opt_.pen_geometry, pg);
-    if (pen::makeModel(pg, dev.pen) != pen::Status::kOk) dev.pen = pen::defaultModel<double>();
+    dev.geometry = clientModelGeometry();
     dds_port_ = std::make_unique<dds::LoopPort>(opt_.dds, opt_.rate_hz);
     std::string err;
     dds_bridge_ = dds::startBridge(opt_.dds, dev, *dds_port_, err);

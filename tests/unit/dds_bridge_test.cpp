@@ -1,12 +1,14 @@
 // The DDS bridge's parts that need no network: the `dds` configuration section, the model state it publishes
-// (against the device models it uses, in both directions), and the loop's hand-over ring (drops counted).
+// (the client channel's device-model stage, put into the ROS shapes; checked against the device models in both
+// directions), and the loop's hand-over ring (drops counted).
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "phalanx/host/config.h"
 #include "phalanx/host/dds/dds_bridge.h"
-#include "phalanx/host/model_state.h"
+#include "phalanx/host/client/device_model.h"
+#include "phalanx/host/dds/model_view.h"
 
 using namespace phalanx;
 using phalanx::host::loadConfigText;
@@ -72,16 +74,20 @@ TEST(DdsConfig, ShippedConfigParses) {
 }
 
 namespace {
-std::array<glove::Model<double>, 5> defaultGlove() {
-  std::array<glove::Model<double>, 5> g;
-  for (std::size_t f = 0; f < 5; ++f) g[f] = glove::defaultModel<double>(static_cast<glove::FingerId>(f));
-  return g;
+std::array<glove::Model<double>, 5> defaultGlove() { return host::client::ModelGeometry::defaultGlove(); }
+
+/// What the bridge publishes for one telemetry frame: its own device-model stage, then the view.
+host::dds::ModelState viewOf(const protocol::DeviceLayout& layout, const host::TelemetryFrame& tel) {
+  host::client::DeviceModelStage stage(layout, host::client::ModelGeometry{});
+  stage.observe(tel);
+  host::dds::ModelState s;
+  host::dds::modelView(layout, stage, tel, s);
+  return s;
 }
 }  // namespace
 
 TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
   const auto glove_models = defaultGlove();
-  host::ModelStateComputer c(protocol::kGlove5Layout, glove_models, pen::defaultModel<double>());
   host::TelemetryFrame tel;
   tel.sample_count = 25;
   std::array<glove::Vec3<double>, 5> theta{};
@@ -92,8 +98,7 @@ TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
     for (std::size_t j = 0; j < 3; ++j) tel.value[3 * f + j] = static_cast<float>(alpha[j]);
     tel.value[15 + f] = 1.5f + static_cast<float>(f);
   }
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kGlove5Layout, tel);
   ASSERT_EQ(s.joint_count, 30);
   ASSERT_EQ(s.body_count, 5);
   for (std::size_t f = 0; f < 5; ++f) {
@@ -108,18 +113,16 @@ TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
     EXPECT_EQ(s.wrench[f].force[1], 1.5 + static_cast<double>(f));
     EXPECT_TRUE(s.body_valid[f]);
   }
-  const host::ModelNames n = host::ModelStateComputer::names(protocol::DeviceType::kGlove5);
+  const host::dds::ModelNames n = host::dds::modelNames(protocol::DeviceType::kGlove5);
   EXPECT_STREQ(n.joints[3], "index_mcp");
   EXPECT_STREQ(n.joints[29], "little_mech3");
 }
 
 TEST(ModelState, GloveNaNIsNaNNotAPose) {
-  host::ModelStateComputer c(protocol::kGlove5Layout, defaultGlove(), pen::defaultModel<double>());
   host::TelemetryFrame tel;
   tel.value.fill(0.1f);
   tel.value[0] = std::nanf("");
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kGlove5Layout, tel);
   EXPECT_TRUE(std::isnan(s.position[0]));
   EXPECT_FALSE(s.body_valid[0]);
   EXPECT_TRUE(std::isnan(s.pose[0].position[0]));
@@ -127,7 +130,6 @@ TEST(ModelState, GloveNaNIsNaNNotAPose) {
 
 TEST(ModelState, PenPoseAndWrenchFromJointsAndMeasuredTorques) {
   const pen::Model<double> m = pen::defaultModel<double>();
-  host::ModelStateComputer c(protocol::kPantographLayout, defaultGlove(), m);
   pen::PenPose<double> pose;
   pose.centre_m = {0.01, -0.005, 0.2};
   pose.theta_x_rad = 0.2;
@@ -145,8 +147,7 @@ TEST(ModelState, PenPoseAndWrenchFromJointsAndMeasuredTorques) {
     tel.value[6 + i] = static_cast<float>(tb[i]);
     tel.value[9 + i] = static_cast<float>(tt[i]);
   }
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kPantographLayout, tel);
   ASSERT_TRUE(s.body_valid[0]);
   for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(s.pose[0].position[i], pose.centre_m[i], 1e-5);
   // Orientation: R·y_B is the pen axis.
