@@ -1,6 +1,8 @@
 // The DDS bridge over Cyclone DDS's C API (Debian cyclonedds-dev 0.10.2). The message types are compiled from
 // host/dds/idl/ros2_msgs.idl by idlc (CMake). Everything here runs on the bridge's own thread, never the loop's.
 #include <arpa/inet.h>
+#include <pthread.h>
+#include <sched.h>
 #include <dds/dds.h>
 
 #include <atomic>
@@ -10,6 +12,7 @@
 #include <vector>
 
 #include "phalanx/host/dds/dds_bridge.h"
+#include "phalanx/host/client/client_port.h"
 #include "phalanx/host/client/device_model.h"
 #include "phalanx/host/dds/model_view.h"
 #include "phalanx/host/stats.h"
@@ -57,11 +60,15 @@ class CycloneBridge final : public Bridge {
     offset_ns_ = static_cast<int64_t>(clockNs(CLOCK_REALTIME)) - static_cast<int64_t>(clockNs(CLOCK_MONOTONIC));
     running_ = true;
     thread_ = std::thread([this] { serve(); });
+    if (cmd_r_ > 0) cmd_thread_ = std::thread([this] { serveCommands(); });
     return {};
   }
 
   void stop() override {
-    if (running_.exchange(false)) thread_.join();
+    if (running_.exchange(false)) {
+      thread_.join();
+      if (cmd_thread_.joinable()) cmd_thread_.join();
+    }
     if (domain_ > 0) {
       dds_delete(domain_);
     } else if (participant_ > 0) {
@@ -79,7 +86,8 @@ class CycloneBridge final : public Bridge {
             {"state_samples", state_samples_},
             {"diagnostics_samples", diag_samples_},
             {"write_errors", write_errors_},
-            {"telemetry_to_written", histogram(to_written_us_)}};
+            {"telemetry_to_written", histogram(to_written_us_)},
+            {"commands", commandsJson()}};
   }
 
  private:
@@ -122,9 +130,130 @@ class CycloneBridge final : public Bridge {
     }
     dds_delete_qos(state);
     dds_delete_qos(diag);
+    if (err.empty() && dev_.commands != nullptr) err = createCommandReader(base + "command");
     joint_frame_ = frame_prefix_ + "base";
     for (uint8_t j = 0; j < names_.joint_count; ++j) joint_names_[j] = const_cast<char*>(names_.joints[j]);
     return err;
+  }
+
+  /// Commands (docs/dds.md §"Commands"): reliable, volatile, keep-last commands.depth; a wait set on its own
+  /// thread.
+  std::string createCommandReader(const std::string& name) {
+    dds_qos_t* q = makeQos(true, opt_.command_depth);
+    const dds_entity_t t = dds_create_topic(participant_, &phalanx_msgs_msg_dds__Command__desc, name.c_str(), q, nullptr);
+    std::string err;
+    if (t < 0) err = "dds: cannot create topic " + name + ": " + dds_strretcode(t);
+    if (err.empty()) {
+      cmd_r_ = dds_create_reader(participant_, t, q, nullptr);
+      if (cmd_r_ < 0) err = "dds: cannot create the reader of " + name + ": " + dds_strretcode(cmd_r_);
+    }
+    dds_delete_qos(q);
+    if (!err.empty()) return err;
+    waitset_ = dds_create_waitset(participant_);
+    const dds_entity_t rc = dds_create_readcondition(cmd_r_, DDS_ANY_STATE);
+    if (waitset_ < 0 || rc < 0 || dds_waitset_attach(waitset_, rc, 0) != DDS_RETCODE_OK) {
+      return "dds: cannot wait on the reader of " + name;
+    }
+    command_topic_ = name;
+    return {};
+  }
+
+  void serveCommands() {
+    // Threads inherit the loop's scheduling; the network side never competes with it.
+    sched_param normal{};
+    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+    constexpr int kBatch = 32;
+    void* samples[kBatch] = {};
+    dds_sample_info_t infos[kBatch];
+    while (running_.load(std::memory_order_relaxed)) {
+      dds_waitset_wait(waitset_, nullptr, 0, DDS_MSECS(100));
+      for (;;) {
+        const dds_return_t n = dds_take(cmd_r_, samples, infos, kBatch, kBatch);  // loaned samples
+        if (n <= 0) break;
+        for (dds_return_t i = 0; i < n; ++i) {
+          onCommand(*static_cast<const phalanx_msgs_msg_dds__Command_*>(samples[i]), infos[i]);
+        }
+        dds_return_loan(cmd_r_, samples, n);
+      }
+    }
+  }
+
+  /// How many values a command of this kind carries (0: a kind the client path refuses; any length passes).
+  size_t expectedValues(uint8_t kind) const {
+    switch (static_cast<client_wire::CommandKind>(kind)) {
+      case client_wire::CommandKind::kRaw: return dev_.layout->setpoint_count;
+      case client_wire::CommandKind::kGloveFingertipForce: return 10;
+      case client_wire::CommandKind::kSeaFingerTorque: return 2;
+      case client_wire::CommandKind::kPenWrench: return 6;
+      default: return 0;
+    }
+  }
+
+  /// One sample: the writer that first commands holds the device (the client channel's one-commander rule);
+  /// its commands go into the command block as a socket client's would. Validation of values, mode and kind,
+  /// the limits, the deadline and the force-off are the client path's (ClientPort), not repeated here.
+  void onCommand(const phalanx_msgs_msg_dds__Command_& m, const dds_sample_info_t& info) {
+    if (!info.valid_data) {  // the holder's writer went away: deleted (disposed, a hand-back) or lost (lease)
+      if (generation_ != 0 && info.publication_handle == holder_) {
+        if (info.instance_state == DDS_IST_NOT_ALIVE_DISPOSED) dev_.commands->releaseInProcess(generation_);
+        else dev_.commands->goneInProcess(generation_);
+        generation_ = 0;
+        holder_ = 0;
+      }
+      return;
+    }
+    ++cmd_received_;
+    const size_t want = expectedValues(m.kind);
+    if (m.values._length > client_wire::kMaxModelValues || (want != 0 && m.values._length != want)) {
+      ++cmd_malformed_;
+      cmd_last_refusal_ = "kind " + std::to_string(m.kind) + " carries " + std::to_string(want) + " values, got " +
+                          std::to_string(m.values._length);
+      return;
+    }
+    if (generation_ == 0) {
+      std::string why;
+      const auto fb = opt_.command_fallback == "transparent" ? client_wire::Fallback::kTransparent
+                                                             : client_wire::Fallback::kSafe;
+      generation_ = dev_.commands->attachInProcess(opt_.command_deadline_ms, fb, client::CommandSource::kDds, why);
+      if (generation_ == 0) {
+        ++cmd_refused_busy_;
+        cmd_last_refusal_ = why;
+        return;
+      }
+      holder_ = info.publication_handle;
+    } else if (info.publication_handle != holder_) {
+      ++cmd_other_writer_;
+      cmd_last_refusal_ = "another DDS writer holds this device";
+      return;
+    }
+    client_wire::CommandPayload p{};
+    p.generation = generation_;
+    p.command_seq = ++command_seq_;
+    p.mode = m.mode;
+    p.kind = static_cast<client_wire::CommandKind>(m.kind);
+    bool finite = true;
+    float* dst = p.kind == client_wire::CommandKind::kRaw ? p.setpoint : p.model;
+    for (uint32_t i = 0; i < m.values._length; ++i) {
+      dst[i] = m.values._buffer[i];
+      finite = finite && std::isfinite(dst[i]);
+    }
+    if (!finite) ++cmd_nonfinite_;  // passed on: the client path refuses and counts it
+    dev_.commands->writeInProcess(p);
+    ++cmd_accepted_;
+  }
+
+  nlohmann::json commandsJson() const {
+    if (cmd_r_ <= 0) return {{"enabled", false}};
+    return {{"enabled", true},
+            {"topic", command_topic_},
+            {"deadline_ms", opt_.command_deadline_ms},
+            {"received", cmd_received_},
+            {"passed_to_client_path", cmd_accepted_},
+            {"nonfinite_passed", cmd_nonfinite_},
+            {"refused_malformed", cmd_malformed_},
+            {"refused_busy", cmd_refused_busy_},
+            {"refused_other_writer", cmd_other_writer_},
+            {"last_refusal", cmd_last_refusal_}};
   }
 
   void serve() {
@@ -244,7 +373,13 @@ class CycloneBridge final : public Bridge {
   ModelState ms_{};
   int64_t offset_ns_ = 0;
   std::atomic<bool> running_{false};
-  std::thread thread_;
+  std::thread thread_, cmd_thread_;
+  dds_entity_t cmd_r_ = 0, waitset_ = 0;
+  std::string command_topic_, cmd_last_refusal_;
+  dds_instance_handle_t holder_ = 0;  ///< the publication that holds the device (0: none)
+  uint32_t generation_ = 0, command_seq_ = 0;
+  uint64_t cmd_received_ = 0, cmd_accepted_ = 0, cmd_nonfinite_ = 0, cmd_malformed_ = 0, cmd_refused_busy_ = 0,
+           cmd_other_writer_ = 0;  // command thread only; read by summaryJson() after stop()
   uint64_t state_samples_ = 0, diag_samples_ = 0, write_errors_ = 0, last_overruns_ = 0, last_dropped_ = 0;
   Histogram to_written_us_{20000};
 };

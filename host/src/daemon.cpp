@@ -504,13 +504,18 @@ class SessionRunner {
   }
 
   /// Optional local client channel (docs/sdk.md): its socket thread; the loop only copies through shared memory.
+  /// DDS commands (docs/dds.md §"Commands") come in through it too: with them on and no socket, the channel has
+  /// no socket, only the command path.
   int startClientChannel() {
-    if (opt_.client.socket_path.empty()) return 0;
+    const bool dds_commands = opt_.dds.enabled && opt_.dds.commands;
+    if (opt_.client.socket_path.empty() && !dds_commands) return 0;
     if (std::string err = client::validateClientOptions(opt_.client); !err.empty()) return fail(err, 2);
     const client::DeviceIdentity id{layout_, opt_.rate_hz, session_->deviceInfo().firmware_build_id};
     client_server_ = std::make_unique<client::Server>(opt_.client, id);
     if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
+    if (!opt_.client.socket_path.empty()) {
+      std::fprintf(stderr, "phalanxd: client: serving on %s\n", opt_.client.socket_path.c_str());
+    }
     client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get(),
                                                         clientModelGeometry());
     return 0;
@@ -525,12 +530,14 @@ class SessionRunner {
     dev.firmware_build_id = session_->deviceInfo().firmware_build_id;
     dev.device_spec = opt_.device;
     dev.geometry = clientModelGeometry();
+    dev.commands = opt_.dds.commands ? client_server_.get() : nullptr;
     dds_port_ = std::make_unique<dds::LoopPort>(opt_.dds, opt_.rate_hz);
     std::string err;
     dds_bridge_ = dds::startBridge(opt_.dds, dev, *dds_port_, err);
     if (!dds_bridge_) return fail(err, 3);
-    std::fprintf(stderr, "phalanxd: dds: publishing rt/%s/* on domain %u\n",
-                 dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id);
+    std::fprintf(stderr, "phalanxd: dds: publishing rt/%s/* on domain %u%s\n",
+                 dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id,
+                 opt_.dds.commands ? "; commands on rt/<ns>/command" : "");
     return 0;
   }
 
@@ -819,16 +826,14 @@ class SessionRunner {
       summary_["modbus"]["cycles_under_modbus_control"] = mb_port_->remoteCycles();
       summary_["modbus"]["command_timeouts"] = mb_port_->remoteTimeouts();
     }
+    if (dds_bridge_) dds_bridge_->stop();  // first: its command reader writes into the client channel
     if (client_server_) {
       client_port_->finish(summary_.contains("link_error") ? client_wire::ForceOffCause::kLinkLoss
                                                             : client_wire::ForceOffCause::kDaemonStop);
       client_server_->stop();
       summary_["client"] = client_port_->summaryJson(start_ns_);
     }
-    if (dds_bridge_) {
-      dds_bridge_->stop();
-      summary_["dds"] = dds_bridge_->summaryJson();
-    }
+    if (dds_bridge_) summary_["dds"] = dds_bridge_->summaryJson();
     summarize();
     if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
     if (summary_.contains("link_error")) {

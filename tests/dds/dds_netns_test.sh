@@ -4,7 +4,8 @@
 # independent peer on the Cyclone DDS Python binding (tests/dds/ros2_peer.py, its own ROS 2 type definitions)
 # subscribes in the other and checks topics, QoS and values against phalanxd's own --record CSV. Printed, not
 # gated: ddsperf's round trip between the namespaces (the baseline), the publish latency telemetry → peer, and
-# the loop's missed periods / jitter with the bridge publishing at 1 kHz vs without it (docs/dds.md).
+# the loop's missed periods / jitter with the bridge publishing at 1 kHz vs without it (docs/dds.md). Then a
+# commander in B (tests/dds/command_peer.py) drives the glove through rt/<ns>/command and is killed -9.
 # Usage: dds_netns_test.sh BIN_DIR     (root; exit 77 = skipped)
 set -euo pipefail
 BIN=$1
@@ -12,6 +13,9 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 if [ "$(id -u)" != 0 ]; then echo "SKIP: network namespaces need root"; exit 77; fi
 command -v ddsperf >/dev/null || { echo "FAIL: ddsperf missing (cyclonedds-tools; tools/setup.sh)"; exit 1; }
 python3 -c "import cyclonedds" || { echo "FAIL: the cyclonedds Python binding is missing (tools/setup.sh)"; exit 1; }
+# The commander runs on the binding 0.10.2 over Debian's libddsc (tools/setup.sh says why; docs/dds.md).
+PY010=${PHALANX_DDS_PY010:-/opt/phalanx/dds-py010}/bin/python
+"$PY010" -c "import cyclonedds" || { echo "FAIL: $PY010 has no cyclonedds 0.10.2 (tools/setup.sh --test)"; exit 1; }
 
 TAG=$$
 NA=phxddsA$TAG NB=phxddsB$TAG VA=vdA$TAG VB=vdB$TAG
@@ -69,6 +73,34 @@ echo "== sim:glove5, bridge at 100 Hz =="
 run_session glove glove5 phalanx/glove5 --dds-state-rate 100
 echo "== sim:pantograph, bridge at 1 kHz, namespace lab/pen1 =="
 run_session pen pantograph lab/pen1 --dds-state-rate 1000 --dds-namespace lab/pen1
+
+# Commands over DDS (docs/dds.md §"Commands"): the peer in B commands the glove's index pad force through
+# rt/lab/glove_cmd/command (enabled in a config file, like a deployment), then is killed -9 mid-command.
+echo "== sim:glove5, commands from the peer: in limit, beyond it, NaN, then the peer killed =="
+cat >"$WORK/cmd.yaml" <<EOF
+dds:
+  domain_id: $DOMAIN
+  interface: $VA
+  namespace: lab/glove_cmd
+  state_rate_hz: 10
+  commands: {enabled: true, deadline_ms: 250, fallback: safe}
+EOF
+ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" "$PY010" "$HERE/command_peer.py" send --domain $DOMAIN \
+  --ns lab/glove_cmd --log "$WORK/cmd.sent" --armed "$WORK/cmd.armed" >"$WORK/cmd.peer" 2>&1 &
+CMDPEER=$!
+PIDS+=($CMDPEER)
+ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 10 --mode transparent \
+  --scene none --scenario still --record "$WORK/cmd.csv" --json >"$WORK/cmd.json" 2>"$WORK/cmd.err" &
+CMDD=$!
+PIDS+=($CMDD)
+for _ in $(seq 200); do [ -f "$WORK/cmd.armed" ] && break; sleep 0.05; done
+[ -f "$WORK/cmd.armed" ] || { cat "$WORK/cmd.peer" "$WORK/cmd.err"; echo "FAIL: the commander never got through its phases"; exit 1; }
+sleep 0.3
+kill -9 $CMDPEER
+rc=0
+wait $CMDD || rc=$?
+if [ $rc -ne 0 ]; then cat "$WORK/cmd.err"; echo "FAIL: phalanxd exited $rc"; exit 1; fi
+python3 "$HERE/command_peer.py" check --log "$WORK/cmd.sent" --csv "$WORK/cmd.csv" --summary "$WORK/cmd.json"
 
 echo "== the same pantograph session without the bridge (loop figures only) =="
 ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --seconds 5 --json >"$WORK/nodds.json" 2>"$WORK/nodds.err" ||

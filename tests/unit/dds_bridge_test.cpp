@@ -36,6 +36,33 @@ TEST(DdsConfig, OffByDefaultAndEveryKeyApplies) {
   EXPECT_TRUE(o.dds.joint_states);
   EXPECT_FALSE(o.dds.poses);
   EXPECT_FALSE(o.dds.diagnostics);
+  EXPECT_FALSE(o.dds.commands);  // commands stay off unless enabled
+}
+
+TEST(DdsConfig, CommandsAreOffUnlessEnabledAndValidated) {
+  RunOptions o;
+  ASSERT_EQ(loadConfigText("dds:\n  commands: {deadline_ms: 100}\n", "t.yaml", o), "");
+  EXPECT_FALSE(o.dds.commands);
+  ASSERT_EQ(loadConfigText("dds:\n  commands: {enabled: true, deadline_ms: 100, fallback: transparent, depth: 8}\n",
+                           "t.yaml", o),
+            "");
+  EXPECT_TRUE(o.dds.commands);
+  EXPECT_EQ(o.dds.command_deadline_ms, 100u);
+  EXPECT_EQ(o.dds.command_fallback, "transparent");
+  EXPECT_EQ(o.dds.command_depth, 8u);
+  const auto err = [](const std::string& text) {
+    RunOptions r;
+    std::string e = loadConfigText(text, "t.yaml", r);
+    if (e.empty()) e = host::dds::validateDdsOptions(r.dds, 1000);
+    return e;
+  };
+  EXPECT_NE(err("dds: {commands: {enabled: true, deadline_ms: 1}}\n").find("dds.commands.deadline_ms: must be in [2, 1000]"),
+            std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: true, fallback: hold}}\n").find("dds.commands.fallback"), std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: true, depth: 0}}\n").find("dds.commands.depth"), std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: yes please}}\n").find("dds.commands.enabled: expected a boolean"),
+            std::string::npos);
+  EXPECT_NE(err("dds: {commands: {rate: 5}}\n").find("dds.commands.rate: unknown key"), std::string::npos);
 }
 
 TEST(DdsConfig, RefusesWhatIsWrongNamingTheKey) {

@@ -19,6 +19,10 @@
 #include "phalanx/host/session.h"
 #include "phalanx/protocol/devices.h"
 
+namespace phalanx::host::client {
+class Server;
+}
+
 namespace phalanx::host::dds {
 
 /// What the loop hands over: the telemetry and the loop's own figures at that cycle.
@@ -70,6 +74,7 @@ struct BridgeDevice {
   uint32_t firmware_build_id = 0;
   std::string device_spec;  ///< sim:glove5, serial:…, …
   client::ModelGeometry geometry;  ///< the device models' geometry (the same as the client channel's)
+  client::Server* commands = nullptr;  ///< dds.commands: the client channel commands enter by (else none read)
 };
 
 /// The publishing side (Cyclone DDS). Created by startBridge().

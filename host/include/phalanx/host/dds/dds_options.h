@@ -21,6 +21,11 @@ struct DdsOptions {
   uint32_t state_depth = 1;                       ///< keep-last depth of the state topics, 1..100
   uint32_t diagnostics_depth = 10;                ///< keep-last depth of diagnostics (reliable), 1..100
   uint32_t queue_slots = 256;                     ///< loop → bridge ring, 16..65536 (full: the sample is dropped, counted)
+  /// `commands`: rt/<ns>/command read into the client channel's command path (docs/dds.md §"Commands").
+  bool commands = false;                  ///< commands.enabled (off by default)
+  uint32_t command_deadline_ms = 250;     ///< commands.deadline_ms: a local client's deadline, [2 periods, 1000]
+  std::string command_fallback = "safe";  ///< commands.fallback: safe | transparent (after a force-off)
+  uint32_t command_depth = 64;            ///< commands.depth: reader keep-last depth (reliable), 1..1000
 };
 
 /// Read the `dds` mapping into o (unknown keys, wrong types are errors naming the key). "" or "dds.<key>: …".
