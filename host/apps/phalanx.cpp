@@ -11,6 +11,7 @@
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/config.h"
+#include "phalanx/host/dds/dds_options.h"
 #include "phalanx/host/glove/glove_bench.h"
 #include "phalanx/host/mcu_diag.h"
 #include "phalanx/host/sea/sea_bench.h"
@@ -21,6 +22,36 @@
 
 namespace {
 constexpr double kBenchStep_s = 1e-3;  // the glove and SEA benches step their lockstep loop at 1 kHz
+}  // namespace
+
+namespace {
+
+/// `phalanx devices`: a table (or JSON) of every device announced within the listening time.
+int listDevicesMain(uint32_t domain, const std::string& interface, double seconds, bool json) {
+  std::vector<phalanx::host::dds::DeviceSeen> seen;
+  if (const std::string err = phalanx::host::dds::listDevices(domain, interface, seconds, seen); !err.empty()) {
+    std::fprintf(stderr, "phalanx devices: %s\n", err.c_str());
+    return 3;
+  }
+  if (json) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& d : seen) {
+      a.push_back({{"host", d.host}, {"name", d.name}, {"type", d.device_type}, {"device", d.device_spec},
+                   {"state", d.state}, {"rate_hz", d.rate_hz}, {"firmware_build_id", d.firmware_build_id},
+                   {"commands", d.commands}, {"age_s", d.age_s}});
+    }
+    std::printf("%s\n", a.dump(2).c_str());
+    return 0;
+  }
+  std::printf("%-16s %-24s %-11s %-8s %-9s %s\n", "HOST", "NAME", "TYPE", "RATE_HZ", "COMMANDS", "STATE");
+  for (const auto& d : seen) {
+    std::printf("%-16s %-24s %-11s %-8.0f %-9s %s\n", d.host.c_str(), d.name.c_str(), d.device_type.c_str(), d.rate_hz,
+                d.commands ? "on" : "off", d.state.c_str());
+  }
+  if (seen.empty()) std::fprintf(stderr, "phalanx devices: none announced on domain %u within %.1f s\n", domain, seconds);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -36,6 +67,17 @@ int main(int argc, char** argv) {
   addRunOptions(*run, opt, config_path, no_rt, json);
 
   CLI::App* version = app.add_subcommand("version", "print version information");
+
+  // `phalanx devices`: every device the daemons on the network announce (docs/dds.md §"Devices on the network").
+  CLI::App* devices = app.add_subcommand("devices", "list the devices announced over DDS (rt/phalanx/devices)");
+  uint32_t dev_domain = 0;
+  std::string dev_interface;
+  double dev_seconds = 2.0;
+  bool dev_json = false;
+  devices->add_option("--domain", dev_domain, "DDS domain id (dds.domain_id)")->check(CLI::Range(0, 232));
+  devices->add_option("--interface", dev_interface, "network interface name or IPv4 address (dds.interface)");
+  devices->add_option("--seconds", dev_seconds, "listen this long")->check(CLI::Range(0.1, 60.0));
+  devices->add_flag("--json", dev_json, "one JSON array");
 
   CLI::App* mcu_diag = app.add_subcommand(
       "mcu-diag", "read an MCU board's control-tick statistics through the protocol (ParamGet 0x0080-0x0089)");
@@ -155,6 +197,7 @@ int main(int argc, char** argv) {
   cli::refuseEmptyValues(app);
 
   if (int rc = 0; !cli::parseArgs(app, argc, argv, "phalanx", rc)) return rc;
+  if (devices->parsed()) return listDevicesMain(dev_domain, dev_interface, dev_seconds, dev_json);
   if (design_cmds.parsed()) return design_cmds.run();
   if (plan_run->parsed()) return phalanx::host::benchrun::benchRunMain(plan_path, plan_report);
   if (sea_sine->parsed() || sea_chirp->parsed() || sea_finger_torque->parsed() || sea_transparency->parsed()) {

@@ -8,7 +8,7 @@ namespace.
   check: the daemon's --record CSV and --json summary: commanded = limited value, the saturation and the NaN
          refusal counted, and the killed commander forced off (client-timeout) in the first cycle past its
          deadline, the device safe within two telemetry frames of that.
-Exit status 1 with the reason on any mismatch."""
+Exit status 1 with the reason on any mismatch; 2 when the simulated device faulted (run the session again)."""
 import argparse
 import csv
 import json
@@ -89,6 +89,13 @@ def check(a):
     cl, dc = s.get("client"), s.get("dds", {}).get("commands")
     if cl is None or dc is None or not dc.get("enabled"):
         fail("the summary has no client / dds.commands section: %s" % json.dumps(s)[:400])
+    print("command_peer: daemon summary: client %s; dds.commands %s; faults %s" % (
+        json.dumps({k: cl.get(k) for k in ("cycles_commanded", "limited", "refused_invalid", "force_off_records")}),
+        json.dumps(dc), json.dumps(s.get("faults", s.get("fault_bits")))))
+    faulted = [r for r in cl["force_off_records"] if r["cause"] == "device-fault"]
+    if faulted:  # the simulated motor's current limit under load, or a latched command timeout: not this test's
+        print("command_peer: the simulated device faulted (%s); the session is run again" % faulted, flush=True)
+        sys.exit(2)
     sp = ["setpoint_thumb", "setpoint_index", "setpoint_middle", "setpoint_ring", "setpoint_little"]
     val = lambda r, c: float(r[c])  # noqa: E731
     # 1. commanded = limited value: every setpoint sent is finite and within the limit; the in-limit command
@@ -111,8 +118,13 @@ def check(a):
                  (r["t_s"], v, IN_N, LIMIT_N))
     if n_in == 0 or n_lim == 0:
         fail("cycles sent at %g N: %d, at the limit %g N: %d (both must occur)" % (IN_N, n_in, LIMIT_N, n_lim))
-    # The device moved: its measured index pad force follows the command (median over the commanded cycles).
-    measured = sorted(val(r, "force_index_N") for r in rows if abs(val(r, "setpoint_index") - IN_N) < 1e-6)
+    # The device moved: its measured index pad force follows the command (median over the cycles commanded at IN_N
+    # before the first at the limit: the 10 N push displaces the simulated mechanism, which the safe state's
+    # worm drive then holds against the still hand, so later pad forces are not the command's).
+    first_lim = next(i for i, r in enumerate(rows) if abs(val(r, "setpoint_index") - LIMIT_N) < 1e-6)
+    measured = sorted(val(r, "force_index_N") for r in rows[:first_lim] if abs(val(r, "setpoint_index") - IN_N) < 1e-6)
+    if not measured:
+        fail("no cycle commanded at %g N before the one beyond the limit" % IN_N)
     pad = measured[len(measured) // 2]
     if abs(pad - IN_N) > 0.2:
         fail("measured index pad force %.3f N (median) while %g N was commanded" % (pad, IN_N))

@@ -39,7 +39,7 @@ std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o) {
                                               "diagnostics_rate_hz", "topics", "state_reliability", "state_depth",
                                               "diagnostics_depth", "queue_slots", "commands"};
   static const std::set<std::string> kCommands = {"enabled", "deadline_ms", "fallback", "depth"};
-  static const std::set<std::string> kTopics = {"joint_states", "poses", "wrenches", "diagnostics"};
+  static const std::set<std::string> kTopics = {"joint_states", "poses", "wrenches", "diagnostics", "announce"};
   const auto allowed = [](const std::set<std::string>& s) {
     std::string l;
     for (const auto& k : s) l += (l.empty() ? "" : ", ") + k;
@@ -78,6 +78,7 @@ std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o) {
         if (key == "poses") o.poses = on;
         if (key == "wrenches") o.wrenches = on;
         if (key == "diagnostics") o.diagnostics = on;
+        if (key == "announce") o.announce = on;
       }
     }
     if (const YAML::Node c = node["commands"]) {

@@ -2,6 +2,7 @@
 /// phalanxd's DDS bridge settings (YAML section `dds`, options --dds-*; docs/dds.md). Off by default.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace YAML {
 class Node;
@@ -17,6 +18,7 @@ struct DdsOptions {
   double state_rate_hz = 100.0;  ///< joint_states, poses, wrenches: 1..device rate (a divisor is kept exactly)
   double diagnostics_rate_hz = 1.0;  ///< diagnostics: 0.1..10 (and at once on a fault change)
   bool joint_states = true, poses = true, wrenches = true, diagnostics = true;  ///< topic enable flags
+  bool announce = true;  ///< topics.announce: this device on rt/phalanx/devices (`phalanx devices`)
   std::string state_reliability = "best_effort";  ///< best_effort | reliable
   uint32_t state_depth = 1;                       ///< keep-last depth of the state topics, 1..100
   uint32_t diagnostics_depth = 10;                ///< keep-last depth of diagnostics (reliable), 1..100
@@ -32,5 +34,17 @@ struct DdsOptions {
 std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o);
 /// Ranges (rate against the session's rate_hz). "" or the first problem, naming the key.
 std::string validateDdsOptions(const DdsOptions& o, unsigned rate_hz);
+
+/// One device announced on the network (rt/phalanx/devices), as `phalanx devices` lists it.
+struct DeviceSeen {
+  std::string host, name, device_type, device_spec, state;
+  double rate_hz = 0.0;
+  uint32_t firmware_build_id = 0;
+  bool commands = false;
+  double age_s = 0.0;  ///< since its latest announcement's stamp (the announcer's clock)
+};
+/// Listen on domain_id (interface: as dds.interface) for `seconds` and return the latest announcement of every
+/// device (host + name). "" or the problem (built without Cyclone DDS: says so).
+std::string listDevices(uint32_t domain_id, const std::string& interface, double seconds, std::vector<DeviceSeen>& out);
 
 }  // namespace phalanx::host::dds
