@@ -43,6 +43,9 @@ TEST(DdsConfig, CommandsAreOffUnlessEnabledAndValidated) {
   RunOptions o;
   ASSERT_EQ(loadConfigText("dds:\n  commands: {deadline_ms: 100}\n", "t.yaml", o), "");
   EXPECT_FALSE(o.dds.commands);
+  EXPECT_TRUE(o.dds.announce);  // rt/phalanx/devices unless turned off
+  ASSERT_EQ(loadConfigText("dds:\n  topics: {announce: false}\n", "t.yaml", o), "");
+  EXPECT_FALSE(o.dds.announce);
   ASSERT_EQ(loadConfigText("dds:\n  commands: {enabled: true, deadline_ms: 100, fallback: transparent, depth: 8}\n",
                            "t.yaml", o),
             "");
