@@ -141,6 +141,9 @@ def check(a):
         fail("the bridge received %s commands, the peer had sent %d before it was armed" % (dc["received"], before_kill))
     if dc["refused_malformed"] or dc["refused_busy"] or dc["refused_other_writer"]:
         fail("commands refused by the bridge: %s" % dc)
+    if cl["refused_busy"] != 1 or cl["connections"] != 0:
+        fail("the local client's attempt: refused_busy %s, connections %s (1 and 0 expected)" %
+             (cl["refused_busy"], cl["connections"]))
     # 3. the kill: one force-off, client-timeout, from DDS; the first cycle past the deadline; then safe.
     offs = cl["force_off_records"]
     if len(offs) != 1 or offs[0]["cause"] != "client-timeout" or offs[0]["source"] != "dds":

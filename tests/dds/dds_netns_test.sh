@@ -16,6 +16,7 @@ python3 -c "import cyclonedds" || { echo "FAIL: the cyclonedds Python binding is
 # The commander runs on the binding 0.10.2 over Debian's libddsc (tools/setup.sh says why; docs/dds.md).
 PY010=${PHALANX_DDS_PY010:-/opt/phalanx/dds-py010}/bin/python
 "$PY010" -c "import cyclonedds" || { echo "FAIL: $PY010 has no cyclonedds 0.10.2 (tools/setup.sh --test)"; exit 1; }
+[ -x "$BIN/glove_press" ] || { echo "FAIL: $BIN/glove_press missing (the SDK example; build the examples)"; exit 1; }
 
 TAG=$$
 NA=phxddsA$TAG NB=phxddsB$TAG VA=vdA$TAG VB=vdB$TAG
@@ -92,12 +93,21 @@ EOF
     --ns lab/glove_cmd --log "$WORK/cmd.sent" --armed "$WORK/cmd.armed" >"$WORK/cmd.peer" 2>&1 &
   CMDPEER=$!
   PIDS+=($CMDPEER)
+  rm -f "$WORK/c.sock"
   ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 10 --mode transparent \
-    --scene none --scenario still --record "$WORK/cmd.csv" --json >"$WORK/cmd.json" 2>"$WORK/cmd.err" &
+    --scene none --scenario still --client-socket "$WORK/c.sock" --record "$WORK/cmd.csv" --json \
+    >"$WORK/cmd.json" 2>"$WORK/cmd.err" &
   CMDD=$!
   PIDS+=($CMDD)
   for _ in $(seq 200); do [ -f "$WORK/cmd.armed" ] && break; sleep 0.05; done
   [ -f "$WORK/cmd.armed" ] || { cat "$WORK/cmd.peer" "$WORK/cmd.err"; echo "FAIL: the commander never got through its phases"; exit 1; }
+  # One commander at a time: a local client (the SDK's glove_press) is refused while the DDS commander holds.
+  rc=0
+  "$BIN/glove_press" "$WORK/c.sock" 1 1 100 250 >"$WORK/press.out" 2>"$WORK/press.err" || rc=$?
+  if [ $rc -ne 3 ] || ! grep -q "another client" "$WORK/press.err"; then
+    cat "$WORK/press.out" "$WORK/press.err"; echo "FAIL: a local client was not refused (exit $rc) while DDS commanded"; exit 1
+  fi
+  echo "local client while the DDS commander holds: refused ($(head -c 120 "$WORK/press.err" | tr '\n' ' '))"
   sleep 0.3
   kill -9 $CMDPEER
   rc=0
