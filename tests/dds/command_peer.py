@@ -69,6 +69,13 @@ def send(a):
             sent[name] += 1
             time.sleep(0.005)
 
+    if a.release:  # a clean hand-back: command, then dispose and delete the writer
+        phase("in", IN_N, 0.5)
+        w.dispose(R.Command(mode=2, kind=0, values=[0.0] * 5))
+        with open(a.log, "w") as f:
+            json.dump(sent, f)
+        time.sleep(1.0)  # the reliable dispose reaches the daemon; then the writer goes with the process
+        return
     phase("in", IN_N, 1.0)
     phase("over", OVER_N, 0.05)
     phase("nan", float("nan"), 0.1)
@@ -91,7 +98,7 @@ def check(a):
         fail("the summary has no client / dds.commands section: %s" % json.dumps(s)[:400])
     print("command_peer: daemon summary: client %s; dds.commands %s; faults %s" % (
         json.dumps({k: cl.get(k) for k in ("cycles_commanded", "limited", "refused_invalid", "force_off_records")}),
-        json.dumps(dc), json.dumps(s.get("faults", s.get("fault_bits")))))
+        json.dumps(dc), json.dumps(s.get("faults_seen"))))
     faulted = [r for r in cl["force_off_records"] if r["cause"] == "device-fault"]
     if faulted:  # the simulated motor's current limit under load, or a latched command timeout: not this test's
         print("command_peer: the simulated device faulted (%s); the session is run again" % faulted, flush=True)
@@ -187,6 +194,33 @@ def check(a):
           (1000 * (ts[forced] - ts[last]), dc["deadline_ms"], fresh, 1000 * (ts[safe_row] - ts[forced])))
 
 
+def check_release(a):
+    """The commander disposed its writer: a clean hand-back, no force-off, the built-in controller again."""
+    s = json.load(open(a.summary))
+    rows = list(csv.DictReader(open(a.csv)))
+    cl = s["client"]
+    if cl["releases"] != 1 or cl["force_off_records"] or cl["disconnects_without_release"] != 0:
+        fail("release: releases %s, force-offs %s, disconnects %s (1, none, 0 expected)" %
+             (cl["releases"], cl["force_off_records"], cl["disconnects_without_release"]))
+    idx = [i for i, r in enumerate(rows) if abs(float(r["setpoint_index"]) - IN_N) < 1e-6]
+    if not idx or s["command_sources"]["client"] < 1:
+        fail("release: the commander never commanded")
+    after = rows[idx[-1] + 1:len(rows) - 20]  # the last 20 ms can be the session's own stop (the safe command)
+    if len(after) < 100:
+        fail("release: the recording ends %d rows after the last command" % len(after))
+    bad = [r for r in after[5:] if float(r["setpoint_index"]) != 0.0 or int(r["mode"]) == 0]
+    if bad:
+        fail("release: %d rows after the hand-back with a force or safe, first t_s %s mode %s setpoint %s fault_bits %s "
+             "(last command row t_s %s); faults seen %s" % (len(bad), bad[0]["t_s"], bad[0]["mode"],
+                                                             bad[0]["setpoint_index"], bad[0]["fault_bits"],
+                                                             rows[idx[-1]]["t_s"], s.get("faults_seen")))
+    if int(after[-1]["mode"]) != 1:
+        fail("release: the device is in mode %s after the hand-back, not the built-in transparent" % after[-1]["mode"])
+    print("command_peer: writer disposed -> released (no force-off); the built-in controller (transparent) commands "
+          "again: %d cycles by the commander, %d by the controller" % (s["command_sources"]["client"],
+                                                                    s["command_sources"]["controller"]))
+
+
 def main():
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -195,12 +229,16 @@ def main():
     se.add_argument("--ns", required=True)
     se.add_argument("--log", required=True)
     se.add_argument("--armed", required=True)
+    se.add_argument("--release", action="store_true", help="command 0.5 s, then hand the device back (dispose)")
     ch = sub.add_parser("check")
     ch.add_argument("--log", required=True)
     ch.add_argument("--csv", required=True)
     ch.add_argument("--summary", required=True)
+    cr = sub.add_parser("check-release")
+    cr.add_argument("--csv", required=True)
+    cr.add_argument("--summary", required=True)
     a = ap.parse_args()
-    send(a) if a.cmd == "send" else check(a)
+    {"send": send, "check": check, "check-release": check_release}[a.cmd](a)
 
 
 if __name__ == "__main__":

@@ -123,6 +123,15 @@ for attempt in 1 2 3; do
 done
 [ $rc -eq 0 ] || exit 1
 
+echo "== sim:glove5, the commander hands the device back (disposes its writer) =="
+ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" "$PY010" "$HERE/command_peer.py" send --release \
+  --domain $DOMAIN --ns lab/glove_cmd --log "$WORK/rel.sent" --armed "$WORK/rel.armed" >"$WORK/rel.peer" 2>&1 &
+PIDS+=($!)
+ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 5 --mode transparent \
+  --scene none --scenario still --record "$WORK/rel.csv" --json >"$WORK/rel.json" 2>"$WORK/rel.err" ||
+  { cat "$WORK/rel.err" "$WORK/rel.peer"; echo "FAIL: phalanxd (release session)"; exit 1; }
+python3 "$HERE/command_peer.py" check-release --csv "$WORK/rel.csv" --summary "$WORK/rel.json"
+
 # Several devices on several "machines" (docs/dds.md §"Devices on the network"): two daemons in A, one in B; from
 # each namespace `phalanx devices` lists all three from their announcements on rt/phalanx/devices.
 echo "== phalanx devices: glove5 and pantograph in A, sea_finger in B =="
