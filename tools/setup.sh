@@ -94,4 +94,20 @@ if [ "$set_name" = test ]; then
     python3 -m pip install --break-system-packages -q "${pip_missing[@]}"
   fi
 fi
+# The DDS commander of tests/dds (docs/dds.md §"Commands"): the Cyclone DDS Python binding 0.10.2, built against
+# Debian's libddsc 0.10.2, in a venv of its own (the test set's 11.0.1 stays for the subscriber). Why: Debian's
+# libddsc 0.10.2 crashes in its type lookup when a reader of its resolves the type of a writer from the 11.x
+# binding; a 0.10.x writer's types are the reader's own. CYCLONEDDS_HOME must look like an install prefix.
+DDS_PY010=/opt/phalanx/dds-py010
+if [ "$set_name" = test ] && [ $# -eq 0 ] && ! "$DDS_PY010/bin/python" -c "import cyclonedds" 2>/dev/null; then
+  echo "setup: building the cyclonedds 0.10.2 Python binding into $DDS_PY010"
+  home=$(mktemp -d)
+  ln -s /usr/include "$home/include"
+  ln -s "/usr/lib/$(dpkg-architecture -qDEB_HOST_MULTIARCH 2>/dev/null || echo x86_64-linux-gnu)" "$home/lib"
+  ln -s /usr/bin "$home/bin"
+  $SUDO mkdir -p "$(dirname "$DDS_PY010")"
+  $SUDO python3 -m venv "$DDS_PY010"
+  $SUDO env CYCLONEDDS_HOME="$home" "$DDS_PY010/bin/pip" install -q cyclonedds==0.10.2
+  rm -rf "$home"
+fi
 link_python_package "$@"

@@ -4,6 +4,7 @@
 //   phalanx version        protocol and build information
 //   phalanx mcu-diag       an MCU board's control-tick statistics through the protocol
 //   phalanx can            CAN bus-load budget and measurement
+//   phalanx devices        the devices the daemons on the network announce over DDS
 //   phalanx bench          single benches and bench plans (bench_cli.cpp)
 //   phalanx sea-calibrate  SEA finger subject parameters from a recording (001 eq 12)
 //   phalanx design         design tools (design_cli.cpp)
@@ -17,6 +18,7 @@
 #include "design_cli.h"
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/config.h"
+#include "phalanx/host/dds/dds_options.h"
 #include "phalanx/host/mcu_diag.h"
 #include "phalanx/host/program_name.h"
 #include "phalanx/host/sea/sea_calibrate.h"
@@ -108,6 +110,50 @@ struct McuDiagCommand {
   }
 };
 
+// ---- phalanx devices --------------------------------------------------------------------------------------------
+
+/// Every device announced on rt/phalanx/devices within the listening time (docs/dds.md "Devices on the network").
+struct DevicesCommand {
+  CLI::App* app = nullptr;
+  uint32_t domain = 0;
+  std::string interface;
+  double seconds = 2.0;
+  bool json = false;
+
+  explicit DevicesCommand(CLI::App& parent) {
+    app = parent.add_subcommand("devices", "list the devices announced over DDS (rt/phalanx/devices)");
+    app->add_option("--domain", domain, "DDS domain id (dds.domain_id)")->check(cli::inRange<uint32_t>(0, 232));
+    app->add_option("--interface", interface, "network interface name or IPv4 address (dds.interface)");
+    app->add_option("--seconds", seconds, "listen this long")->check(cli::inRange(0.1, 60.0));
+    app->add_flag("--json", json, "one JSON array");
+  }
+
+  int run() const {
+    std::vector<dds::DeviceSeen> seen;
+    if (const std::string err = dds::listDevices(domain, interface, seconds, seen); !err.empty()) {
+      std::fprintf(stderr, "phalanx devices: %s\n", err.c_str());
+      return 3;
+    }
+    if (json) {
+      nlohmann::json a = nlohmann::json::array();
+      for (const auto& d : seen) {
+        a.push_back({{"host", d.host}, {"name", d.name}, {"type", d.device_type}, {"device", d.device_spec},
+                     {"state", d.state}, {"rate_hz", d.rate_hz}, {"firmware_build_id", d.firmware_build_id},
+                     {"commands", d.commands}, {"age_s", d.age_s}});
+      }
+      std::printf("%s\n", a.dump(2).c_str());
+      return 0;
+    }
+    std::printf("%-16s %-24s %-11s %-8s %-9s %s\n", "HOST", "NAME", "TYPE", "RATE_HZ", "COMMANDS", "STATE");
+    for (const auto& d : seen) {
+      std::printf("%-16s %-24s %-11s %-8.0f %-9s %s\n", d.host.c_str(), d.name.c_str(), d.device_type.c_str(),
+                  d.rate_hz, d.commands ? "on" : "off", d.state.c_str());
+    }
+    if (seen.empty()) std::fprintf(stderr, "phalanx devices: none announced on domain %u within %.1f s\n", domain, seconds);
+    return 0;
+  }
+};
+
 // ---- phalanx can ------------------------------------------------------------------------------------------------
 
 struct CanCommands {
@@ -172,6 +218,7 @@ int main(int argc, char** argv) {
   CLI::App* version = app.add_subcommand("version", "print version information");
   McuDiagCommand mcu_diag(app);
   CanCommands can(app);
+  DevicesCommand devices(app);
   BenchCommands bench(app);
   SeaCalibrateCommand sea_cal(app);
   cli::TherapyCli therapy;
@@ -185,6 +232,7 @@ int main(int argc, char** argv) {
   if (bench.parsed()) return bench.run();
   if (sea_cal.app->parsed()) return sea_cal.run();
   if (can.app->parsed()) return can.run();
+  if (devices.app->parsed()) return devices.run();
   if (const int rc = cli::runTherapyCommands(therapy); rc >= 0) return rc;
   if (mcu_diag.app->parsed()) return mcu_diag.run();
   if (version->parsed()) return runVersion();

@@ -1,6 +1,9 @@
 // The DDS bridge over Cyclone DDS's C API (Debian cyclonedds-dev 0.10.2). The message types are compiled from
 // host/dds/idl/ros2_msgs.idl by idlc (CMake). Everything here runs on the bridge's own thread, never the loop's.
 #include <arpa/inet.h>
+#include <unistd.h>
+#include <pthread.h>
+#include <sched.h>
 #include <dds/dds.h>
 
 #include <atomic>
@@ -10,7 +13,9 @@
 #include <vector>
 
 #include "phalanx/host/dds/dds_bridge.h"
-#include "phalanx/host/model_state.h"
+#include "phalanx/host/client/client_port.h"
+#include "phalanx/host/client/device_model.h"
+#include "phalanx/host/dds/model_view.h"
 #include "phalanx/host/stats.h"
 #include "ros2_msgs.h"
 
@@ -29,38 +34,64 @@ nlohmann::json histogram(const Histogram& h) {
   return {{"count", h.count()}, {"p50_us", h.percentile(0.5)}, {"p99_us", h.percentile(0.99)}, {"max_us", h.max()}};
 }
 
+/// A domain on one interface (name or IPv4 address), when one is given; else Cyclone's default.
+std::string createDomain(uint32_t domain_id, const std::string& interface, dds_entity_t& domain) {
+  if (interface.empty()) return {};
+  in_addr a{};
+  const bool address = inet_pton(AF_INET, interface.c_str(), &a) == 1;
+  const std::string xml = "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface " +
+                          std::string(address ? "address" : "name") + "=\"" + interface +
+                          "\"/></Interfaces></General></Domain></CycloneDDS>";
+  domain = dds_create_domain(domain_id, xml.c_str());
+  if (domain < 0) {
+    return "dds: cannot create domain " + std::to_string(domain_id) + " on interface '" + interface +
+           "': " + dds_strretcode(domain);
+  }
+  return {};
+}
+
+constexpr const char* kDevicesTopic = "rt/phalanx/devices";  // one topic for every daemon (docs/dds.md)
+
+/// Reliable, transient-local (a late reader gets each writer's latest), XCDR1.
+dds_qos_t* announceQos(bool reader) {
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+  if (reader) dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+  else dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+  const dds_data_representation_id_t rep[] = {DDS_DATA_REPRESENTATION_XCDR1};
+  dds_qset_data_representation(q, 1, rep);
+  return q;
+}
+
 class CycloneBridge final : public Bridge {
  public:
   CycloneBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port)
-      : opt_(o), dev_(dev), port_(port), model_(*dev.layout, dev.glove, dev.pen),
-        names_(ModelStateComputer::names(dev.layout->type)), ns_(topicNamespace(o, *dev.layout)) {
+      : opt_(o), dev_(dev), port_(port), stage_(std::make_unique<client::DeviceModelStage>(*dev.layout, dev_.geometry)),
+        names_(modelNames(dev.layout->type)), ns_(topicNamespace(o, *dev.layout)) {
     for (const char c : ns_) frame_prefix_ += c == '/' ? '_' : c;
     frame_prefix_ += '_';
   }
   ~CycloneBridge() override { stop(); }
 
   std::string start() {
-    if (!opt_.interface.empty()) {
-      in_addr a{};
-      const bool address = inet_pton(AF_INET, opt_.interface.c_str(), &a) == 1;
-      const std::string xml = "<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface " +
-                              std::string(address ? "address" : "name") + "=\"" + opt_.interface +
-                              "\"/></Interfaces></General></Domain></CycloneDDS>";
-      domain_ = dds_create_domain(opt_.domain_id, xml.c_str());
-      if (domain_ < 0) return "dds: cannot create domain " + std::to_string(opt_.domain_id) + " on interface '" +
-                              opt_.interface + "': " + dds_strretcode(domain_);
-    }
+    if (std::string err = createDomain(opt_.domain_id, opt_.interface, domain_); !err.empty()) return err;
     participant_ = dds_create_participant(opt_.domain_id, nullptr, nullptr);
     if (participant_ < 0) return std::string("dds: cannot create the participant: ") + dds_strretcode(participant_);
     if (std::string err = createWriters(); !err.empty()) return err;
     offset_ns_ = static_cast<int64_t>(clockNs(CLOCK_REALTIME)) - static_cast<int64_t>(clockNs(CLOCK_MONOTONIC));
     running_ = true;
     thread_ = std::thread([this] { serve(); });
+    if (cmd_r_ > 0) cmd_thread_ = std::thread([this] { serveCommands(); });
     return {};
   }
 
   void stop() override {
-    if (running_.exchange(false)) thread_.join();
+    if (running_.exchange(false)) {
+      thread_.join();
+      if (cmd_thread_.joinable()) cmd_thread_.join();
+      announce("stopped");
+    }
     if (domain_ > 0) {
       dds_delete(domain_);
     } else if (participant_ > 0) {
@@ -78,7 +109,9 @@ class CycloneBridge final : public Bridge {
             {"state_samples", state_samples_},
             {"diagnostics_samples", diag_samples_},
             {"write_errors", write_errors_},
-            {"telemetry_to_written", histogram(to_written_us_)}};
+            {"telemetry_to_written", histogram(to_written_us_)},
+            {"announcements", announcements_},
+            {"commands", commandsJson()}};
   }
 
  private:
@@ -121,20 +154,180 @@ class CycloneBridge final : public Bridge {
     }
     dds_delete_qos(state);
     dds_delete_qos(diag);
+    if (err.empty() && dev_.commands != nullptr) err = createCommandReader(base + "command");
+    if (err.empty() && opt_.announce) {
+      dds_qos_t* q = announceQos(false);
+      err = writer(&phalanx_msgs_msg_dds__DeviceAnnouncement__desc, kDevicesTopic, q, announce_w_);
+      dds_delete_qos(q);
+      char host[256] = {};
+      gethostname(host, sizeof host - 1);
+      host_ = host;
+    }
     joint_frame_ = frame_prefix_ + "base";
     for (uint8_t j = 0; j < names_.joint_count; ++j) joint_names_[j] = const_cast<char*>(names_.joints[j]);
     return err;
+  }
+
+  /// Commands (docs/dds.md §"Commands"): reliable, volatile, keep-last commands.depth; a wait set on its own
+  /// thread.
+  std::string createCommandReader(const std::string& name) {
+    dds_qos_t* q = makeQos(true, opt_.command_depth);
+    const dds_entity_t t = dds_create_topic(participant_, &phalanx_msgs_msg_dds__Command__desc, name.c_str(), q, nullptr);
+    std::string err;
+    if (t < 0) err = "dds: cannot create topic " + name + ": " + dds_strretcode(t);
+    if (err.empty()) {
+      cmd_r_ = dds_create_reader(participant_, t, q, nullptr);
+      if (cmd_r_ < 0) err = "dds: cannot create the reader of " + name + ": " + dds_strretcode(cmd_r_);
+    }
+    dds_delete_qos(q);
+    if (!err.empty()) return err;
+    waitset_ = dds_create_waitset(participant_);
+    const dds_entity_t rc = dds_create_readcondition(cmd_r_, DDS_ANY_STATE);
+    if (waitset_ < 0 || rc < 0 || dds_waitset_attach(waitset_, rc, 0) != DDS_RETCODE_OK) {
+      return "dds: cannot wait on the reader of " + name;
+    }
+    command_topic_ = name;
+    return {};
+  }
+
+  void serveCommands() {
+    // Threads inherit the loop's scheduling; the network side never competes with it.
+    sched_param normal{};
+    pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
+    constexpr int kBatch = 32;
+    void* samples[kBatch] = {};
+    dds_sample_info_t infos[kBatch];
+    while (running_.load(std::memory_order_relaxed)) {
+      dds_waitset_wait(waitset_, nullptr, 0, DDS_MSECS(100));
+      for (;;) {
+        const dds_return_t n = dds_take(cmd_r_, samples, infos, kBatch, kBatch);  // loaned samples
+        if (n <= 0) break;
+        for (dds_return_t i = 0; i < n; ++i) {
+          onCommand(*static_cast<const phalanx_msgs_msg_dds__Command_*>(samples[i]), infos[i]);
+        }
+        dds_return_loan(cmd_r_, samples, n);
+      }
+    }
+  }
+
+  /// How many values a command of this kind carries (0: a kind the client path refuses; any length passes).
+  size_t expectedValues(uint8_t kind) const {
+    switch (static_cast<client_wire::CommandKind>(kind)) {
+      case client_wire::CommandKind::kRaw: return dev_.layout->setpoint_count;
+      case client_wire::CommandKind::kGloveFingertipForce: return 10;
+      case client_wire::CommandKind::kSeaFingerTorque: return 2;
+      case client_wire::CommandKind::kPenWrench: return 6;
+      default: return 0;
+    }
+  }
+
+  /// One sample: the writer that first commands holds the device (the client channel's one-commander rule);
+  /// its commands go into the command block as a socket client's would. Validation of values, mode and kind,
+  /// the limits, the deadline and the force-off are the client path's (ClientPort), not repeated here.
+  void onCommand(const phalanx_msgs_msg_dds__Command_& m, const dds_sample_info_t& info) {
+    if (!info.valid_data) {  // the holder's writer went away: deleted (disposed, a hand-back) or lost (lease)
+      if (generation_ != 0 && info.publication_handle == holder_) {
+        if (info.instance_state == DDS_IST_NOT_ALIVE_DISPOSED) dev_.commands->releaseInProcess(generation_);
+        else dev_.commands->goneInProcess(generation_);
+        generation_ = 0;
+        holder_ = 0;
+      }
+      return;
+    }
+    ++cmd_received_;
+    const size_t want = expectedValues(m.kind);
+    if (m.values._length > client_wire::kMaxModelValues || (want != 0 && m.values._length != want)) {
+      ++cmd_malformed_;
+      cmd_last_refusal_ = "kind " + std::to_string(m.kind) + " carries " + std::to_string(want) + " values, got " +
+                          std::to_string(m.values._length);
+      return;
+    }
+    if (generation_ == 0) {
+      std::string why;
+      const auto fb = opt_.command_fallback == "transparent" ? client_wire::Fallback::kTransparent
+                                                             : client_wire::Fallback::kSafe;
+      generation_ = dev_.commands->attachInProcess(opt_.command_deadline_ms, fb, client::CommandSource::kDds, why);
+      if (generation_ == 0) {
+        ++cmd_refused_busy_;
+        cmd_last_refusal_ = why;
+        return;
+      }
+      holder_ = info.publication_handle;
+    } else if (info.publication_handle != holder_) {
+      ++cmd_other_writer_;
+      cmd_last_refusal_ = "another DDS writer holds this device";
+      return;
+    }
+    client_wire::CommandPayload p{};
+    p.generation = generation_;
+    p.command_seq = ++command_seq_;
+    p.mode = m.mode;
+    p.kind = static_cast<client_wire::CommandKind>(m.kind);
+    bool finite = true;
+    float* dst = p.kind == client_wire::CommandKind::kRaw ? p.setpoint : p.model;
+    for (uint32_t i = 0; i < m.values._length; ++i) {
+      dst[i] = m.values._buffer[i];
+      finite = finite && std::isfinite(dst[i]);
+    }
+    if (!finite) ++cmd_nonfinite_;  // passed on: the client path refuses and counts it
+    dev_.commands->writeInProcess(p);
+    ++cmd_accepted_;
+  }
+
+  nlohmann::json commandsJson() const {
+    if (cmd_r_ <= 0) return {{"enabled", false}};
+    return {{"enabled", true},
+            {"topic", command_topic_},
+            {"deadline_ms", opt_.command_deadline_ms},
+            {"received", cmd_received_},
+            {"passed_to_client_path", cmd_accepted_},
+            {"nonfinite_passed", cmd_nonfinite_},
+            {"refused_malformed", cmd_malformed_},
+            {"refused_busy", cmd_refused_busy_},
+            {"refused_other_writer", cmd_other_writer_},
+            {"last_refusal", cmd_last_refusal_}};
+  }
+
+  /// This device on rt/phalanx/devices: at start, about once a second, and "stopped" at the end.
+  void announce(const std::string& state) {
+    if (announce_w_ <= 0) return;
+    phalanx_msgs_msg_dds__DeviceAnnouncement_ m{};
+    m.stamp = stamp(clockNs(CLOCK_MONOTONIC));
+    const std::string spec = dev_.device_spec;
+    m.host = text(host_);
+    m.name = text(ns_);
+    m.device_type = const_cast<char*>(dev_.layout->name);
+    m.device_spec = text(spec);
+    m.state = text(state);
+    m.rate_hz = dev_.rate_hz;
+    m.firmware_build_id = dev_.firmware_build_id;
+    m.commands = dev_.commands != nullptr;
+    check(dds_write(announce_w_, &m));
+    ++announcements_;
+  }
+
+  void announceDue() {
+    const uint64_t now = clockNs(CLOCK_MONOTONIC);
+    if (now < next_announce_ns_) return;
+    next_announce_ns_ = now + 1000000000ull;
+    if (!seen_sample_) announce("starting");
+    else if (last_faults_ != 0) announce("fault: " + faultList(last_faults_));
+    else announce(std::string("running (") + modeName(last_mode_) + ")");
   }
 
   void serve() {
     LoopSample s;
     while (running_.load(std::memory_order_relaxed)) {
       if (port_.take(s, 100)) handle(s);
+      announceDue();
     }
     while (port_.take(s, 0)) handle(s);  // after stop(): what is still queued is published
   }
 
   void handle(const LoopSample& s) {
+    seen_sample_ = true;
+    last_faults_ = s.tel.fault_bits;
+    last_mode_ = s.tel.mode;
     if ((s.what & kState) != 0) publishState(s);
     if ((s.what & kDiagnostics) != 0) publishDiagnostics(s);
   }
@@ -150,7 +343,8 @@ class CycloneBridge final : public Bridge {
 
   /// Header stamp: the telemetry's arrival at the host (CLOCK_MONOTONIC mapped onto CLOCK_REALTIME at start).
   void publishState(const LoopSample& s) {
-    model_.compute(s.tel, ms_);
+    stage_->observe(s.tel);  // the client channel's device-model stage, on this thread (its own instance)
+    modelView(*dev_.layout, *stage_, s.tel, ms_);
     const builtin_interfaces_msg_dds__Time_ st = stamp(s.tel.host_rx_ns);
     if (joints_w_ > 0) {
       sensor_msgs_msg_dds__JointState_ m{};
@@ -232,7 +426,7 @@ class CycloneBridge final : public Bridge {
   DdsOptions opt_;
   BridgeDevice dev_;
   LoopPort& port_;
-  ModelStateComputer model_;
+  std::unique_ptr<client::DeviceModelStage> stage_;
   ModelNames names_;
   std::string ns_, frame_prefix_, joint_frame_;
   dds_entity_t domain_ = 0, participant_ = 0, joints_w_ = 0, diag_w_ = 0;
@@ -242,7 +436,19 @@ class CycloneBridge final : public Bridge {
   ModelState ms_{};
   int64_t offset_ns_ = 0;
   std::atomic<bool> running_{false};
-  std::thread thread_;
+  std::thread thread_, cmd_thread_;
+  dds_entity_t announce_w_ = 0;
+  std::string host_;
+  uint64_t next_announce_ns_ = 0, announcements_ = 0;
+  bool seen_sample_ = false;
+  uint16_t last_faults_ = 0;
+  protocol::Mode last_mode_ = protocol::Mode::kSafe;
+  dds_entity_t cmd_r_ = 0, waitset_ = 0;
+  std::string command_topic_, cmd_last_refusal_;
+  dds_instance_handle_t holder_ = 0;  ///< the publication that holds the device (0: none)
+  uint32_t generation_ = 0, command_seq_ = 0;
+  uint64_t cmd_received_ = 0, cmd_accepted_ = 0, cmd_nonfinite_ = 0, cmd_malformed_ = 0, cmd_refused_busy_ = 0,
+           cmd_other_writer_ = 0;  // command thread only; read by summaryJson() after stop()
   uint64_t state_samples_ = 0, diag_samples_ = 0, write_errors_ = 0, last_overruns_ = 0, last_dropped_ = 0;
   Histogram to_written_us_{20000};
 };
@@ -250,6 +456,50 @@ class CycloneBridge final : public Bridge {
 }  // namespace
 
 bool bridgeAvailable() { return true; }
+
+std::string listDevices(uint32_t domain_id, const std::string& interface, double seconds, std::vector<DeviceSeen>& out) {
+  out.clear();
+  dds_entity_t domain = 0;
+  if (std::string err = createDomain(domain_id, interface, domain); !err.empty()) return err;
+  const dds_entity_t dp = dds_create_participant(domain_id, nullptr, nullptr);
+  if (dp < 0) return std::string("dds: cannot create the participant: ") + dds_strretcode(dp);
+  dds_qos_t* q = announceQos(true);
+  const dds_entity_t t = dds_create_topic(dp, &phalanx_msgs_msg_dds__DeviceAnnouncement__desc, kDevicesTopic, q, nullptr);
+  const dds_entity_t r = t < 0 ? t : dds_create_reader(dp, t, q, nullptr);
+  dds_delete_qos(q);
+  if (r < 0) {
+    dds_delete(domain > 0 ? domain : dp);
+    return std::string("dds: cannot read ") + kDevicesTopic + ": " + dds_strretcode(r);
+  }
+  const int64_t end = static_cast<int64_t>(clockNs(CLOCK_MONOTONIC)) + static_cast<int64_t>(seconds * 1e9);
+  constexpr int kBatch = 32;
+  void* samples[kBatch] = {};
+  dds_sample_info_t infos[kBatch];
+  while (static_cast<int64_t>(clockNs(CLOCK_MONOTONIC)) < end) {
+    const dds_return_t n = dds_take(r, samples, infos, kBatch, kBatch);
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto& m = *static_cast<const phalanx_msgs_msg_dds__DeviceAnnouncement_*>(samples[i]);
+      DeviceSeen d{m.host, m.name, m.device_type, m.device_spec, m.state, m.rate_hz, m.firmware_build_id, m.commands};
+      const double stamp_s = static_cast<double>(m.stamp.sec) + 1e-9 * static_cast<double>(m.stamp.nanosec);
+      d.age_s = stamp_s;  // the stamp until the listing ends (then the age)
+      bool replaced = false;
+      for (auto& e : out) {
+        if (e.host == d.host && e.name == d.name) {
+          if (stamp_s >= e.age_s) e = d;
+          replaced = true;
+        }
+      }
+      if (!replaced) out.push_back(d);
+    }
+    if (n > 0) dds_return_loan(r, samples, n);
+    if (n <= 0) dds_sleepfor(DDS_MSECS(20));
+  }
+  const double now_s = static_cast<double>(clockNs(CLOCK_REALTIME)) * 1e-9;
+  for (auto& e : out) e.age_s = now_s - e.age_s;  // age_s held the stamp until here
+  dds_delete(domain > 0 ? domain : dp);
+  return {};
+}
 
 std::unique_ptr<Bridge> startBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port, std::string& error) {
   auto b = std::make_unique<CycloneBridge>(o, dev, port);

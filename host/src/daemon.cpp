@@ -516,13 +516,18 @@ class SessionRunner {
   }
 
   /// Optional local client channel (docs/sdk.md): its socket thread; the loop only copies through shared memory.
+  /// DDS commands (docs/dds.md §"Commands") come in through it too: with them on and no socket, the channel has
+  /// no socket, only the command path.
   int startClientChannel() {
-    if (opt_.client.socket_path.empty()) return 0;
+    const bool dds_commands = opt_.dds.enabled && opt_.dds.commands;
+    if (opt_.client.socket_path.empty() && !dds_commands) return 0;
     if (std::string err = client::validateClientOptions(opt_.client); !err.empty()) return fail(err, 2);
     const client::DeviceIdentity id{layout_, opt_.rate_hz, session_->deviceInfo().firmware_build_id};
     client_server_ = std::make_unique<client::Server>(opt_.client, id);
     if (std::string err = client_server_->start(); !err.empty()) return fail(err, 3);
-    std::fprintf(stderr, "%s: client: serving on %s\n", programName(), opt_.client.socket_path.c_str());
+    if (!opt_.client.socket_path.empty()) {
+      std::fprintf(stderr, "%s: client: serving on %s\n", programName(), opt_.client.socket_path.c_str());
+    }
     client_port_ = std::make_unique<client::ClientPort>(*client_server_, *layout_, opt_.rate_hz, mb_port_.get(),
                                                         clientModelGeometry());
     return 0;
@@ -536,22 +541,15 @@ class SessionRunner {
     dev.rate_hz = opt_.rate_hz;
     dev.firmware_build_id = session_->deviceInfo().firmware_build_id;
     dev.device_spec = opt_.device;
-    for (std::size_t f = 0; f < glove::kNumFingers; ++f) dev.glove[f] = glove::defaultModel<double>(static_cast<glove::FingerId>(f));
-    static const char* const kFingerNames[] = {"thumb", "index", "middle", "ring", "little"};
-    for (std::size_t f = 0; f < glove::kNumFingers; ++f) {
-      if (const auto it = opt_.glove_geometry.find(kFingerNames[f]); it != opt_.glove_geometry.end()) {
-        design::loadGloveGeometryYaml(it->second, dev.glove[f]);  // validated with the options
-      }
-    }
-    pen::Geometry<double> pg = pen::defaultGeometry<double>();
-    if (!opt_.pen_geometry.empty()) design::loadPenGeometryYaml(opt_.pen_geometry, pg);
-    if (pen::makeModel(pg, dev.pen) != pen::Status::kOk) dev.pen = pen::defaultModel<double>();
+    dev.geometry = clientModelGeometry();
+    dev.commands = opt_.dds.commands ? client_server_.get() : nullptr;
     dds_port_ = std::make_unique<dds::LoopPort>(opt_.dds, opt_.rate_hz);
     std::string err;
     dds_bridge_ = dds::startBridge(opt_.dds, dev, *dds_port_, err);
     if (!dds_bridge_) return fail(err, 3);
-    std::fprintf(stderr, "%s: dds: publishing rt/%s/* on domain %u\n", programName(),
-                 dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id);
+    std::fprintf(stderr, "%s: dds: publishing rt/%s/* on domain %u%s\n", programName(),
+                 dds::topicNamespace(opt_.dds, *layout_).c_str(), opt_.dds.domain_id,
+                 opt_.dds.commands ? "; commands on rt/<ns>/command" : "");
     return 0;
   }
 
@@ -845,16 +843,14 @@ class SessionRunner {
       summary_["modbus"]["cycles_under_modbus_control"] = mb_port_->remoteCycles();
       summary_["modbus"]["command_timeouts"] = mb_port_->remoteTimeouts();
     }
+    if (dds_bridge_) dds_bridge_->stop();  // first: its command reader writes into the client channel
     if (client_server_) {
       client_port_->finish(summary_.contains("link_error") ? client_wire::ForceOffCause::kLinkLoss
                                                             : client_wire::ForceOffCause::kDaemonStop);
       client_server_->stop();
       summary_["client"] = client_port_->summaryJson(start_ns_);
     }
-    if (dds_bridge_) {
-      dds_bridge_->stop();
-      summary_["dds"] = dds_bridge_->summaryJson();
-    }
+    if (dds_bridge_) summary_["dds"] = dds_bridge_->summaryJson();
     summarize();
     if (opt_.hooks != nullptr) opt_.hooks->onEnd(summary_);
     if (summary_.contains("link_error")) {

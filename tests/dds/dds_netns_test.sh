@@ -4,7 +4,8 @@
 # independent peer on the Cyclone DDS Python binding (tests/dds/ros2_peer.py, its own ROS 2 type definitions)
 # subscribes in the other and checks topics, QoS and values against phalanxd's own --record CSV. Printed, not
 # gated: ddsperf's round trip between the namespaces (the baseline), the publish latency telemetry → peer, and
-# the loop's missed periods / jitter with the bridge publishing at 1 kHz vs without it (docs/dds.md).
+# the loop's missed periods / jitter with the bridge publishing at 1 kHz vs without it (docs/dds.md). Then a
+# commander in B (tests/dds/command_peer.py) drives the glove through rt/<ns>/command and is killed -9.
 # Usage: dds_netns_test.sh BIN_DIR     (root; exit 77 = skipped)
 set -euo pipefail
 BIN=$1
@@ -12,6 +13,10 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 if [ "$(id -u)" != 0 ]; then echo "SKIP: network namespaces need root"; exit 77; fi
 command -v ddsperf >/dev/null || { echo "FAIL: ddsperf missing (cyclonedds-tools; tools/setup.sh)"; exit 1; }
 python3 -c "import cyclonedds" || { echo "FAIL: the cyclonedds Python binding is missing (tools/setup.sh)"; exit 1; }
+# The commander runs on the binding 0.10.2 over Debian's libddsc (tools/setup.sh says why; docs/dds.md).
+PY010=${PHALANX_DDS_PY010:-/opt/phalanx/dds-py010}/bin/python
+"$PY010" -c "import cyclonedds" || { echo "FAIL: $PY010 has no cyclonedds 0.10.2 (tools/setup.sh --test)"; exit 1; }
+[ -x "$BIN/glove_press" ] || { echo "FAIL: $BIN/glove_press missing (the SDK example; build the examples)"; exit 1; }
 
 TAG=$$
 NA=phxddsA$TAG NB=phxddsB$TAG VA=vdA$TAG VB=vdB$TAG
@@ -21,7 +26,7 @@ cleanup() {
   for p in "${PIDS[@]:-}"; do [ -n "$p" ] && kill "$p" 2>/dev/null || true; done
   ip netns del "$NA" 2>/dev/null || true
   ip netns del "$NB" 2>/dev/null || true
-  rm -rf "$WORK"
+  [ -n "${KEEP_WORK:-}" ] && echo "kept $WORK" || rm -rf "$WORK"
 }
 trap cleanup EXIT
 ip netns add "$NA"
@@ -69,6 +74,107 @@ echo "== sim:glove5, bridge at 100 Hz =="
 run_session glove glove5 phalanx/glove5 --dds-state-rate 100
 echo "== sim:pantograph, bridge at 1 kHz, namespace lab/pen1 =="
 run_session pen pantograph lab/pen1 --dds-state-rate 1000 --dds-namespace lab/pen1
+
+# Commands over DDS (docs/dds.md §"Commands"): the peer in B commands the glove's index pad force through
+# rt/lab/glove_cmd/command (enabled in a config file, like a deployment), then is killed -9 mid-command.
+echo "== sim:glove5, commands from the peer: in limit, beyond it, NaN, then the peer killed =="
+cmd_session() {  # attempt
+  [ "$1" = 1 ] || echo "(attempt $1)"
+  rm -f "$WORK/cmd.armed" "$WORK/cmd.sent"
+  cat >"$WORK/cmd.yaml" <<EOF
+dds:
+    domain_id: $DOMAIN
+    interface: $VA
+    namespace: lab/glove_cmd
+    state_rate_hz: 10
+    commands: {enabled: true, deadline_ms: 250, fallback: safe}
+EOF
+  ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" "$PY010" "$HERE/command_peer.py" send --domain $DOMAIN \
+    --ns lab/glove_cmd --log "$WORK/cmd.sent" --armed "$WORK/cmd.armed" >"$WORK/cmd.peer" 2>&1 &
+  CMDPEER=$!
+  PIDS+=($CMDPEER)
+  rm -f "$WORK/c.sock"
+  ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 10 --mode transparent \
+    --scene none --scenario still --client-socket "$WORK/c.sock" --record "$WORK/cmd.csv" --json \
+    >"$WORK/cmd.json" 2>"$WORK/cmd.err" &
+  CMDD=$!
+  PIDS+=($CMDD)
+  for _ in $(seq 200); do [ -f "$WORK/cmd.armed" ] && break; sleep 0.05; done
+  [ -f "$WORK/cmd.armed" ] || { cat "$WORK/cmd.peer" "$WORK/cmd.err"; echo "FAIL: the commander never got through its phases"; exit 1; }
+  # One commander at a time: a local client (the SDK's glove_press) is refused while the DDS commander holds.
+  rc=0
+  "$BIN/glove_press" "$WORK/c.sock" 1 1 100 250 >"$WORK/press.out" 2>"$WORK/press.err" || rc=$?
+  if [ $rc -ne 3 ] || ! grep -q "another client" "$WORK/press.err"; then
+    cat "$WORK/press.out" "$WORK/press.err"; echo "FAIL: a local client was not refused (exit $rc) while DDS commanded"; exit 1
+  fi
+  echo "local client while the DDS commander holds: refused ($(head -c 120 "$WORK/press.err" | tr '\n' ' '))"
+  sleep 0.3
+  kill -9 $CMDPEER
+  rc=0
+  wait $CMDD || rc=$?
+  if [ $rc -ne 0 ]; then cat "$WORK/cmd.err"; echo "FAIL: phalanxd exited $rc"; exit 1; fi
+  python3 "$HERE/command_peer.py" check --log "$WORK/cmd.sent" --csv "$WORK/cmd.csv" --summary "$WORK/cmd.json"
+}
+# A session whose check exits 2 (the simulated device faulted: its current limit, or a command timeout when the
+# loop starved on a loaded machine) is run again, at most 3 times.
+retry3() {  # session function
+  local attempt rc
+  for attempt in 1 2 3; do
+    rc=0
+    "$1" $attempt || rc=$?
+    [ $rc -eq 2 ] || break
+  done
+  [ $rc -ne 2 ] || { echo "FAIL: the simulated device faulted in all 3 attempts"; exit 1; }
+  [ $rc -eq 0 ] || exit 1
+}
+retry3 cmd_session
+
+echo "== sim:glove5, the commander hands the device back (disposes its writer) =="
+rel_session() {  # attempt
+  [ "$1" = 1 ] || echo "(attempt $1)"
+  ip netns exec "$NB" env CYCLONEDDS_URI="$(uri "$VB")" "$PY010" "$HERE/command_peer.py" send --release \
+    --domain $DOMAIN --ns lab/glove_cmd --log "$WORK/rel.sent" --armed "$WORK/rel.armed" >"$WORK/rel.peer" 2>&1 &
+  PIDS+=($!)
+  ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 5 --mode transparent \
+    --scene none --scenario still --record "$WORK/rel.csv" --json >"$WORK/rel.json" 2>"$WORK/rel.err" ||
+    { cat "$WORK/rel.err" "$WORK/rel.peer"; echo "FAIL: phalanxd (release session)"; exit 1; }
+  python3 "$HERE/command_peer.py" check-release --csv "$WORK/rel.csv" --summary "$WORK/rel.json"
+}
+retry3 rel_session
+
+# Several devices on several "machines" (docs/dds.md §"Devices on the network"): two daemons in A, one in B; from
+# each namespace `phalanx devices` lists all three from their announcements on rt/phalanx/devices.
+echo "== phalanx devices: glove5 and pantograph in A, sea_finger in B =="
+DEVP=()
+for spec in "$NA $VA glove5 lab/glove_a" "$NA $VA pantograph lab/pen1" "$NB $VB sea_finger lab/sea1"; do
+  set -- $spec
+  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 8 --dds --dds-domain $DOMAIN --dds-interface "$2" \
+    --dds-namespace "$4" --dds-state-rate 10 --json >"$WORK/dev_$3.json" 2>"$WORK/dev_$3.err" &
+  DEVP+=($!)
+  PIDS+=($!)
+done
+sleep 3
+ip netns exec "$NB" "$BIN/phalanx" devices --domain $DOMAIN --interface "$VB" --seconds 2 --json >"$WORK/devices_B.json"
+ip netns exec "$NA" "$BIN/phalanx" devices --domain $DOMAIN --interface "$VA" --seconds 2 >"$WORK/devices_A.txt"
+for p in "${DEVP[@]}"; do wait "$p" || { cat "$WORK"/dev_*.err; echo "FAIL: a daemon of the devices session failed"; exit 1; }; done
+cat "$WORK/devices_A.txt"
+python3 - "$WORK/devices_B.json" "$WORK/devices_A.txt" <<'PY'
+import json, socket, sys
+seen = {d["name"]: d for d in json.load(open(sys.argv[1]))}
+want = {"lab/glove_a": "glove5", "lab/pen1": "pantograph", "lab/sea1": "sea_finger"}
+if set(seen) != set(want):
+    sys.exit("FAIL: phalanx devices in B listed %s, expected %s" % (sorted(seen), sorted(want)))
+for name, typ in want.items():
+    d = seen[name]
+    if d["type"] != typ or d["device"] != "sim:" + typ or d["rate_hz"] != 1000.0 or d["commands"]:
+        sys.exit("FAIL: %s announced as %s" % (name, d))
+    if not d["state"].startswith("running") or d["host"] != socket.gethostname():
+        sys.exit("FAIL: %s: state %r host %r" % (name, d["state"], d["host"]))
+table = open(sys.argv[2]).read()
+if not all(n in table for n in want):
+    sys.exit("FAIL: phalanx devices in A did not list all three:\n" + table)
+print("phalanx devices: from B and from A, all three devices (type, device, rate, state, host) as the daemons run them")
+PY
 
 echo "== the same pantograph session without the bridge (loop figures only) =="
 ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --seconds 5 --json >"$WORK/nodds.json" 2>"$WORK/nodds.err" ||

@@ -7,6 +7,9 @@ from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.annotations import final
 import cyclonedds.idl.types as t
 
+# An IDL octet: `byte` in the binding's 11.x, `uint8` in 0.10.x (which has no `byte`; its uint8 is an octet).
+BYTE = getattr(t, "byte", t.uint8)
+
 
 @final
 @dataclass
@@ -95,7 +98,7 @@ class KeyValue(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
 @final
 @dataclass
 class DiagnosticStatus(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
-    level: t.byte = 0  # ROS "byte" is an IDL octet
+    level: BYTE = 0  # ROS "byte" is an IDL octet
     name: str = ""
     message: str = ""
     hardware_id: str = ""
@@ -107,3 +110,13 @@ class DiagnosticStatus(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnost
 class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
     header: Header = field(default_factory=Header)
     status: t.sequence[DiagnosticStatus] = field(default_factory=list)
+
+
+@final
+@dataclass
+class Command(IdlStruct, typename="phalanx_msgs::msg::dds_::Command_"):
+    """The project's command message (docs/dds.md §"Commands"), written here from the documentation."""
+    header: Header = field(default_factory=Header)
+    mode: BYTE = 2  # ROS "byte", an IDL octet
+    kind: BYTE = 0
+    values: t.sequence[t.float32] = field(default_factory=list)

@@ -292,3 +292,51 @@ TEST(ClientPort, CyclesDoNotAllocate) {
 }
 
 }  // namespace
+
+// An in-process source (the DDS bridge's commands, docs/dds.md §"Commands"): the same checks, one commander at a
+// time, its commands through the same path, and a timeout recorded with its source.
+TEST(ClientPort, AnInProcessSourceIsAClientWithTheSameRulesAndItsTimeoutIsRecordedAsIts) {
+  hc::ClientOptions o;  // no socket: the shared memory only
+  hc::Server server(o, hc::DeviceIdentity{&phalanx::protocol::kGlove5Layout, 1000, 0});
+  ASSERT_EQ(server.start(), "");
+  hc::ClientPort port(server, phalanx::protocol::kGlove5Layout, 1000, nullptr);
+  std::string why;
+  EXPECT_EQ(server.attachInProcess(1, wire::Fallback::kSafe, hc::CommandSource::kDds, why), 0u);  // < 2 periods
+  EXPECT_NE(why.find("deadline_ms 1"), std::string::npos) << why;
+  const uint32_t g = server.attachInProcess(20, wire::Fallback::kSafe, hc::CommandSource::kDds, why);
+  ASSERT_NE(g, 0u) << why;
+  EXPECT_EQ(server.attachInProcess(20, wire::Fallback::kSafe, hc::CommandSource::kDds, why), 0u);
+  EXPECT_EQ(why, "another client holds this device");
+  EXPECT_EQ(server.counters().refused_busy.load(), 1u);
+  TelemetryFrame tel = gloveTelemetry(0.6);
+  uint64_t now = 1000000000ull;
+  Command cmd;
+  wire::CommandPayload p;
+  p.generation = g;
+  p.command_seq = 1;
+  p.setpoint[1] = 12.0f;  // beyond the glove's 10 N: the limits stage (after this port) saturates it
+  server.writeInProcess(p);
+  for (int c = 0; c < 40; ++c) {
+    tel.device_time_us += 1000;
+    ++tel.seq;
+    now += kPeriodNs;
+    cmd = Command{};
+    const bool commands = port.overrideCommand(tel, cmd, now);
+    EXPECT_TRUE(commands);
+    if (c == 0) {
+      EXPECT_EQ(cmd.setpoint[1], 12.0f);  // the source's command, before the limits stage
+    }
+    port.publish(tel, cmd, now, static_cast<uint64_t>(c));
+  }
+  EXPECT_EQ(cmd.mode, phalanx::protocol::Mode::kSafe);  // 20 ms without a new command: forced off
+  const nlohmann::json j = port.summaryJson(0);
+  ASSERT_EQ(j["force_off_records"].size(), 1u) << j.dump();
+  EXPECT_EQ(j["force_off_records"][0]["cause"], "client-timeout");
+  EXPECT_EQ(j["force_off_records"][0]["source"], "dds");
+  EXPECT_EQ(j["dds_attachments"], 1);
+  server.goneInProcess(g);  // its writer went away: another source may attach once the loop let go
+  tel.device_time_us += 1000;
+  port.overrideCommand(tel, cmd, now + kPeriodNs);
+  port.publish(tel, cmd, now + kPeriodNs, 41);
+  EXPECT_NE(server.attachInProcess(20, wire::Fallback::kSafe, hc::CommandSource::kDds, why), 0u) << why;
+}

@@ -1,12 +1,14 @@
 // The DDS bridge's parts that need no network: the `dds` configuration section, the model state it publishes
-// (against the device models it uses, in both directions), and the loop's hand-over ring (drops counted).
+// (the client channel's device-model stage, put into the ROS shapes; checked against the device models in both
+// directions), and the loop's hand-over ring (drops counted).
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "phalanx/host/config.h"
 #include "phalanx/host/dds/dds_bridge.h"
-#include "phalanx/host/model_state.h"
+#include "phalanx/host/client/device_model.h"
+#include "phalanx/host/dds/model_view.h"
 
 using namespace phalanx;
 using phalanx::host::loadConfigText;
@@ -34,6 +36,36 @@ TEST(DdsConfig, OffByDefaultAndEveryKeyApplies) {
   EXPECT_TRUE(o.dds.joint_states);
   EXPECT_FALSE(o.dds.poses);
   EXPECT_FALSE(o.dds.diagnostics);
+  EXPECT_FALSE(o.dds.commands);  // commands stay off unless enabled
+}
+
+TEST(DdsConfig, CommandsAreOffUnlessEnabledAndValidated) {
+  RunOptions o;
+  ASSERT_EQ(loadConfigText("dds:\n  commands: {deadline_ms: 100}\n", "t.yaml", o), "");
+  EXPECT_FALSE(o.dds.commands);
+  EXPECT_TRUE(o.dds.announce);  // rt/phalanx/devices unless turned off
+  ASSERT_EQ(loadConfigText("dds:\n  topics: {announce: false}\n", "t.yaml", o), "");
+  EXPECT_FALSE(o.dds.announce);
+  ASSERT_EQ(loadConfigText("dds:\n  commands: {enabled: true, deadline_ms: 100, fallback: transparent, depth: 8}\n",
+                           "t.yaml", o),
+            "");
+  EXPECT_TRUE(o.dds.commands);
+  EXPECT_EQ(o.dds.command_deadline_ms, 100u);
+  EXPECT_EQ(o.dds.command_fallback, "transparent");
+  EXPECT_EQ(o.dds.command_depth, 8u);
+  const auto err = [](const std::string& text) {
+    RunOptions r;
+    std::string e = loadConfigText(text, "t.yaml", r);
+    if (e.empty()) e = host::dds::validateDdsOptions(r.dds, 1000);
+    return e;
+  };
+  EXPECT_NE(err("dds: {commands: {enabled: true, deadline_ms: 1}}\n").find("dds.commands.deadline_ms: must be in [2, 1000]"),
+            std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: true, fallback: hold}}\n").find("dds.commands.fallback"), std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: true, depth: 0}}\n").find("dds.commands.depth"), std::string::npos);
+  EXPECT_NE(err("dds: {commands: {enabled: yes please}}\n").find("dds.commands.enabled: expected a boolean"),
+            std::string::npos);
+  EXPECT_NE(err("dds: {commands: {rate: 5}}\n").find("dds.commands.rate: unknown key"), std::string::npos);
 }
 
 TEST(DdsConfig, RefusesWhatIsWrongNamingTheKey) {
@@ -72,16 +104,20 @@ TEST(DdsConfig, ShippedConfigParses) {
 }
 
 namespace {
-std::array<glove::Model<double>, 5> defaultGlove() {
-  std::array<glove::Model<double>, 5> g;
-  for (std::size_t f = 0; f < 5; ++f) g[f] = glove::defaultModel<double>(static_cast<glove::FingerId>(f));
-  return g;
+std::array<glove::Model<double>, 5> defaultGlove() { return host::client::ModelGeometry::defaultGlove(); }
+
+/// What the bridge publishes for one telemetry frame: its own device-model stage, then the view.
+host::dds::ModelState viewOf(const protocol::DeviceLayout& layout, const host::TelemetryFrame& tel) {
+  host::client::DeviceModelStage stage(layout, host::client::ModelGeometry{});
+  stage.observe(tel);
+  host::dds::ModelState s;
+  host::dds::modelView(layout, stage, tel, s);
+  return s;
 }
 }  // namespace
 
 TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
   const auto glove_models = defaultGlove();
-  host::ModelStateComputer c(protocol::kGlove5Layout, glove_models, pen::defaultModel<double>());
   host::TelemetryFrame tel;
   tel.sample_count = 25;
   std::array<glove::Vec3<double>, 5> theta{};
@@ -92,8 +128,7 @@ TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
     for (std::size_t j = 0; j < 3; ++j) tel.value[3 * f + j] = static_cast<float>(alpha[j]);
     tel.value[15 + f] = 1.5f + static_cast<float>(f);
   }
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kGlove5Layout, tel);
   ASSERT_EQ(s.joint_count, 30);
   ASSERT_EQ(s.body_count, 5);
   for (std::size_t f = 0; f < 5; ++f) {
@@ -108,18 +143,16 @@ TEST(ModelState, GloveFlexionAndFingertipFromTheMechanismAngles) {
     EXPECT_EQ(s.wrench[f].force[1], 1.5 + static_cast<double>(f));
     EXPECT_TRUE(s.body_valid[f]);
   }
-  const host::ModelNames n = host::ModelStateComputer::names(protocol::DeviceType::kGlove5);
+  const host::dds::ModelNames n = host::dds::modelNames(protocol::DeviceType::kGlove5);
   EXPECT_STREQ(n.joints[3], "index_mcp");
   EXPECT_STREQ(n.joints[29], "little_mech3");
 }
 
 TEST(ModelState, GloveNaNIsNaNNotAPose) {
-  host::ModelStateComputer c(protocol::kGlove5Layout, defaultGlove(), pen::defaultModel<double>());
   host::TelemetryFrame tel;
   tel.value.fill(0.1f);
   tel.value[0] = std::nanf("");
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kGlove5Layout, tel);
   EXPECT_TRUE(std::isnan(s.position[0]));
   EXPECT_FALSE(s.body_valid[0]);
   EXPECT_TRUE(std::isnan(s.pose[0].position[0]));
@@ -127,7 +160,6 @@ TEST(ModelState, GloveNaNIsNaNNotAPose) {
 
 TEST(ModelState, PenPoseAndWrenchFromJointsAndMeasuredTorques) {
   const pen::Model<double> m = pen::defaultModel<double>();
-  host::ModelStateComputer c(protocol::kPantographLayout, defaultGlove(), m);
   pen::PenPose<double> pose;
   pose.centre_m = {0.01, -0.005, 0.2};
   pose.theta_x_rad = 0.2;
@@ -145,8 +177,7 @@ TEST(ModelState, PenPoseAndWrenchFromJointsAndMeasuredTorques) {
     tel.value[6 + i] = static_cast<float>(tb[i]);
     tel.value[9 + i] = static_cast<float>(tt[i]);
   }
-  host::ModelState s;
-  c.compute(tel, s);
+  const host::dds::ModelState s = viewOf(protocol::kPantographLayout, tel);
   ASSERT_TRUE(s.body_valid[0]);
   for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(s.pose[0].position[i], pose.centre_m[i], 1e-5);
   // Orientation: R·y_B is the pen axis.

@@ -113,6 +113,7 @@ void ClientPort::attach(uint32_t generation) {
   generation_ = generation;
   deadline_ns_ = static_cast<uint64_t>(a.deadline_ms.load(std::memory_order_relaxed)) * 1000000ull;
   fallback_ = static_cast<client_wire::Fallback>(a.fallback.load(std::memory_order_relaxed));
+  source_ = static_cast<CommandSource>(a.source.load(std::memory_order_relaxed));
   phase_ = Phase::kConnected;
   control_ = Control::kNotYet;
   cause_ = ForceOffCause::kNone;
@@ -209,7 +210,7 @@ void ClientPort::forceOff(ForceOffCause cause, uint64_t now_ns) {
   cause_ = cause;
   ++force_offs_;
   ++state_.force_offs;
-  if (record_count_ < kMaxForceOffRecords) records_[record_count_++] = {cause, generation_, now_ns, last_fresh_ns_};
+  if (record_count_ < kMaxForceOffRecords) records_[record_count_++] = {cause, generation_, source_, now_ns, last_fresh_ns_};
 }
 
 void ClientPort::publish(const TelemetryFrame& tel, const protocol::Command& sent, uint64_t now_ns, uint64_t cycle) {
@@ -312,7 +313,8 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
   nlohmann::json list = nlohmann::json::array();
   for (size_t i = 0; i < record_count_; ++i) {
     const ForceOffRecord& r = records_[i];
-    list.push_back({{"cause", client_wire::forceOffCauseName(r.cause)}, {"client", r.generation}, {"at_s", at_s(r.at_ns)},
+    list.push_back({{"cause", client_wire::forceOffCauseName(r.cause)}, {"client", r.generation},
+                    {"source", commandSourceName(r.source)}, {"at_s", at_s(r.at_ns)},
                     {"last_command_at_s", at_s(r.last_command_ns)}});
   }
   return {{"socket", server_.path()},
@@ -322,6 +324,7 @@ nlohmann::json ClientPort::summaryJson(uint64_t start_ns) const {
           {"refused_request", c.refused_request.load()},
           {"releases", c.releases.load()},
           {"disconnects_without_release", c.disconnects_without_release.load()},
+          {"dds_attachments", c.in_process_attachments.load()},
           {"cycles_commanded", cycles_commanded_},
           {"refused_invalid", refused_invalid_},
           {"refused_other_source", refused_other_source_},

@@ -118,6 +118,7 @@ void DeviceModelStage::observePen(const TelemetryFrame& tel, double dt) {
   pen_.valid = ok ? 1 : 0;
   if (!ok) {
     pen_ = client_wire::PenModelState{};
+    pen_wrench_ok_ = false;
     return;
   }
   const pp::Data<double>& k = pen_kin_;
@@ -142,8 +143,10 @@ void DeviceModelStage::observePen(const TelemetryFrame& tel, double dt) {
                                tel.value[kPenTorqueSample0 + 3 * p + 2]};
     fok = host::pen::tipForceFromTorques(k.pantograph[p].J, tau, f[p]) && fok;
   }
-  host::pen::PenWrench w{};
+  host::pen::PenWrench& w = pen_wrench_;
+  w = host::pen::PenWrench{};
   if (fok) host::pen::endForcesToWrench(k, f[pp::kBottom], f[pp::kTop], w);
+  pen_wrench_ok_ = fok;
   for (size_t i = 0; i < 3; ++i) {
     pen_.force_N[i] = f32(w.force_N[i]);
     pen_.torque_Nm[i] = f32(w.torque_Nm[i]);

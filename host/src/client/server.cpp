@@ -83,6 +83,7 @@ Server::Server(const ClientOptions& options, const DeviceIdentity& identity) : o
 Server::~Server() { stop(); }
 
 std::string Server::start() {
+  if (opt_.socket_path.empty()) return createSharedMemory();  // in-process sources only (DDS commands)
   if (!opt_.group.empty()) {
     const group* g = getgrnam(opt_.group.c_str());
     if (g == nullptr) return "client.group: no group named '" + opt_.group + "'";
@@ -244,8 +245,9 @@ void Server::negotiate(int fd) {
   client_wire::ConnectReply reply;
   const ssize_t got = ::recv(fd, &req, sizeof req, MSG_WAITALL);
   std::string why;
-  reply.status = checkConnectRequest(req, static_cast<long>(got), id_.rate_hz,
-                                     client_fd_ >= 0 || attach_.holding.load(std::memory_order_acquire) != 0, why);
+  std::lock_guard<std::mutex> lock(attach_mutex_);  // against an in-process source attaching meanwhile
+  const bool busy = client_fd_ >= 0 || in_process_generation_ != 0 || attach_.holding.load(std::memory_order_acquire) != 0;
+  reply.status = checkConnectRequest(req, static_cast<long>(got), id_.rate_hz, busy, why);
   const protocol::DeviceLayout& l = *id_.layout;
   reply.device_type = static_cast<uint8_t>(l.type);
   copyText(reply.device_name, sizeof reply.device_name, l.name);
@@ -267,6 +269,7 @@ void Server::negotiate(int fd) {
   reply.deadline_ms = req.deadline_ms;
   attach_.deadline_ms.store(req.deadline_ms, std::memory_order_relaxed);
   attach_.fallback.store(static_cast<uint8_t>(req.fallback), std::memory_order_relaxed);
+  attach_.source.store(static_cast<uint8_t>(CommandSource::kSocket), std::memory_order_relaxed);
   attach_.generation.store(generation, std::memory_order_release);  // the loop picks it up at its next cycle
   if (!sendWithFd(fd, &reply, sizeof reply, memfd_)) {
     attach_.gone.store(generation, std::memory_order_release);
@@ -277,6 +280,7 @@ void Server::negotiate(int fd) {
   setTimeouts(fd, 0);
   client_fd_ = fd;
   client_generation_ = generation;
+  socket_client_.store(true, std::memory_order_release);
 }
 
 void Server::watchClient() {
@@ -292,7 +296,52 @@ void Server::watchClient() {
     ++counters_.disconnects_without_release;
   }
   ::close(client_fd_);
+  std::lock_guard<std::mutex> lock(attach_mutex_);
   client_fd_ = -1;
+  socket_client_.store(false, std::memory_order_release);
+}
+
+uint32_t Server::attachInProcess(uint32_t deadline_ms, client_wire::Fallback fallback, CommandSource source,
+                                 std::string& why) {
+  client_wire::ConnectRequest req;  // the request a socket client would send: the same checks
+  req.deadline_ms = static_cast<uint16_t>(deadline_ms > 0xffff ? 0xffff : deadline_ms);
+  req.fallback = fallback;
+  std::lock_guard<std::mutex> lock(attach_mutex_);
+  const bool busy = socket_client_.load(std::memory_order_acquire) || in_process_generation_ != 0 ||
+                    attach_.holding.load(std::memory_order_acquire) != 0;
+  if (checkConnectRequest(req, static_cast<long>(sizeof req), id_.rate_hz, busy, why) != client_wire::ConnectStatus::kOk) {
+    ++(busy ? counters_.refused_busy : counters_.refused_request);
+    return 0;
+  }
+  const uint32_t generation = next_generation_++;
+  in_process_generation_ = generation;
+  attach_.deadline_ms.store(deadline_ms, std::memory_order_relaxed);
+  attach_.fallback.store(static_cast<uint8_t>(fallback), std::memory_order_relaxed);
+  attach_.source.store(static_cast<uint8_t>(source), std::memory_order_relaxed);
+  attach_.generation.store(generation, std::memory_order_release);
+  ++counters_.in_process_attachments;
+  return generation;
+}
+
+void Server::writeInProcess(const client_wire::CommandPayload& p) {
+  client_wire::CommandBlock& block = channel_->command;
+  client_wire::seqlockWrite(block.seq, block.payload, p);
+}
+
+void Server::releaseInProcess(uint32_t generation) {
+  std::lock_guard<std::mutex> lock(attach_mutex_);
+  if (generation == 0 || generation != in_process_generation_) return;
+  attach_.released.store(generation, std::memory_order_release);
+  ++counters_.releases;
+  in_process_generation_ = 0;
+}
+
+void Server::goneInProcess(uint32_t generation) {
+  std::lock_guard<std::mutex> lock(attach_mutex_);
+  if (generation == 0 || generation != in_process_generation_) return;
+  attach_.gone.store(generation, std::memory_order_release);  // the loop keeps its claim until its deadline
+  ++counters_.disconnects_without_release;
+  in_process_generation_ = 0;
 }
 
 }  // namespace phalanx::host::client

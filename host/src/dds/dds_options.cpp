@@ -37,8 +37,9 @@ bool validNamespace(const std::string& ns) {
 std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o) {
   static const std::set<std::string> kKeys = {"enabled", "domain_id", "interface", "namespace", "state_rate_hz",
                                               "diagnostics_rate_hz", "topics", "state_reliability", "state_depth",
-                                              "diagnostics_depth", "queue_slots"};
-  static const std::set<std::string> kTopics = {"joint_states", "poses", "wrenches", "diagnostics"};
+                                              "diagnostics_depth", "queue_slots", "commands"};
+  static const std::set<std::string> kCommands = {"enabled", "deadline_ms", "fallback", "depth"};
+  static const std::set<std::string> kTopics = {"joint_states", "poses", "wrenches", "diagnostics", "announce"};
   const auto allowed = [](const std::set<std::string>& s) {
     std::string l;
     for (const auto& k : s) l += (l.empty() ? "" : ", ") + k;
@@ -77,7 +78,24 @@ std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o) {
         if (key == "poses") o.poses = on;
         if (key == "wrenches") o.wrenches = on;
         if (key == "diagnostics") o.diagnostics = on;
+        if (key == "announce") o.announce = on;
       }
+    }
+    if (const YAML::Node c = node["commands"]) {
+      if (!c.IsMap()) throw Bad{"dds.commands: expected a mapping"};
+      for (const auto& kv : c) {
+        const std::string key = kv.first.as<std::string>();
+        if (kCommands.count(key) == 0) {
+          throw Bad{"dds.commands." + key + ": unknown key (allowed: " + allowed(kCommands) + ")"};
+        }
+      }
+      // Commands reach the motors: unlike the section, they are on only when `enabled: true` is written.
+      o.commands = c["enabled"] ? scalar<bool>(c["enabled"], "commands.enabled", "boolean") : false;
+      if (c["deadline_ms"]) {
+        o.command_deadline_ms = scalar<uint32_t>(c["deadline_ms"], "commands.deadline_ms", "positive integer");
+      }
+      if (c["fallback"]) o.command_fallback = scalar<std::string>(c["fallback"], "commands.fallback", "string");
+      if (c["depth"]) o.command_depth = scalar<uint32_t>(c["depth"], "commands.depth", "positive integer");
     }
   } catch (const Bad& b) {
     return b.message;
@@ -109,7 +127,19 @@ std::string validateDdsOptions(const DdsOptions& o, unsigned rate_hz) {
       return "dds.interface: '" + o.interface + "' is not an interface name or address";
     }
   }
-  if (!o.joint_states && !o.poses && !o.wrenches && !o.diagnostics) return "dds.topics: every topic is off";
+  if (!o.joint_states && !o.poses && !o.wrenches && !o.diagnostics && !o.commands) {
+    return "dds.topics: every topic is off";
+  }
+  // The deadline a local client may ask for (client channel: at least two daemon periods, at most 1 s).
+  const uint32_t min_deadline_ms = 2000 / rate_hz + ((2000 % rate_hz) != 0 ? 1 : 0);
+  if (o.command_deadline_ms < min_deadline_ms || o.command_deadline_ms > 1000) {
+    return "dds.commands.deadline_ms: must be in [" + std::to_string(min_deadline_ms) +
+           ", 1000] (at least two daemon periods)";
+  }
+  if (o.command_fallback != "safe" && o.command_fallback != "transparent") {
+    return "dds.commands.fallback: '" + o.command_fallback + "' is not safe or transparent";
+  }
+  if (o.command_depth < 1 || o.command_depth > 1000) return "dds.commands.depth: must be in [1, 1000]";
   return {};
 }
 

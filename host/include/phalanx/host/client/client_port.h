@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -45,7 +46,12 @@ struct Attachment {
   std::atomic<uint32_t> released{0};       ///< generation that sent Release (a clean hand-back)
   std::atomic<uint32_t> gone{0};           ///< generation whose socket closed
   std::atomic<uint32_t> holding{0};        ///< loop: the generation whose commands drive the device (0: none)
+  std::atomic<uint8_t> source{0};          ///< of `generation`: CommandSource
 };
+
+/// Where a client's commands come from: the local socket (docs/sdk.md) or DDS (docs/dds.md §"Commands").
+enum class CommandSource : uint8_t { kSocket = 0, kDds = 1 };
+inline const char* commandSourceName(CommandSource s) { return s == CommandSource::kDds ? "dds" : "socket"; }
 
 struct ServerCounters {
   std::atomic<uint64_t> connections{0};
@@ -54,6 +60,7 @@ struct ServerCounters {
   std::atomic<uint64_t> refused_request{0};      ///< version mismatch or out-of-range request
   std::atomic<uint64_t> releases{0};
   std::atomic<uint64_t> disconnects_without_release{0};
+  std::atomic<uint64_t> in_process_attachments{0};  ///< DDS commanders attached (attachInProcess)
 };
 
 /// The checks negotiate() applies to a connection request: `got` bytes were received into req (a short read is a
@@ -68,13 +75,25 @@ class Server {
   Server(const Server&) = delete;
   Server& operator=(const Server&) = delete;
 
-  /// Create the directory and socket, the shared memory, and start the thread. "" or the problem.
+  /// Create the directory and socket, the shared memory, and start the thread. "" or the problem. Without a
+  /// socket path: the shared memory only (commands come in-process alone, from the DDS bridge).
   std::string start();
   void stop();
   client_wire::SharedChannel& channel() { return *channel_; }
   Attachment& attachment() { return attach_; }
   const ServerCounters& counters() const { return counters_; }
   const std::string& path() const { return opt_.socket_path; }
+
+  /// An in-process command source (the DDS bridge, docs/dds.md §"Commands"), any thread: the checks a socket
+  /// client's request gets (deadline, fallback, one commander at a time) and the same attachment. Returns its
+  /// generation, or 0 with `why` (counted like a socket refusal).
+  uint32_t attachInProcess(uint32_t deadline_ms, client_wire::Fallback fallback, CommandSource source, std::string& why);
+  /// Its command, into the command block (its one writer while it is attached): the loop reads it like a socket
+  /// client's. p.generation and p.command_seq are the caller's.
+  void writeInProcess(const client_wire::CommandPayload& p);
+  /// A clean hand-back (the built-in controller commands again) / the source vanished (its deadline decides).
+  void releaseInProcess(uint32_t generation);
+  void goneInProcess(uint32_t generation);
 
  private:
   std::string prepareDirectory();
@@ -91,6 +110,9 @@ class Server {
   bool have_group_ = false;
   int listen_fd_ = -1, memfd_ = -1, client_fd_ = -1;
   uint32_t client_generation_ = 0, next_generation_ = 1;
+  std::mutex attach_mutex_;                 ///< negotiate() and attachInProcess(): one decision at a time
+  std::atomic<bool> socket_client_{false};  ///< a socket client is connected
+  uint32_t in_process_generation_ = 0;      ///< an attached in-process source (under attach_mutex_)
   client_wire::SharedChannel* channel_ = nullptr;
   std::atomic<bool> running_{false};
   std::thread thread_;
@@ -102,6 +124,7 @@ class Server {
 struct ForceOffRecord {
   client_wire::ForceOffCause cause = client_wire::ForceOffCause::kNone;
   uint32_t generation = 0;
+  CommandSource source = CommandSource::kSocket;
   uint64_t at_ns = 0;            ///< the cycle (wake time) that sent the fallback first
   uint64_t last_command_ns = 0;  ///< the cycle that last read a fresh command from this client
 };
@@ -153,6 +176,7 @@ class ClientPort {
   uint64_t period_ns_;
   Phase phase_ = Phase::kIdle;
   uint32_t generation_ = 0;
+  CommandSource source_ = CommandSource::kSocket;
   uint64_t deadline_ns_ = 0;
   client_wire::Fallback fallback_ = client_wire::Fallback::kSafe;
   client_wire::CommandPayload command_{};

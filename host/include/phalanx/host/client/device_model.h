@@ -50,6 +50,22 @@ class DeviceModelStage {
   /// Whether a command's model values (for its kind) are finite and its spring is finite with k, b ≥ 0.
   static bool finite(const client_wire::CommandPayload& c);
 
+  /// The models' double-precision results of the last observe(), for other outputs of the same state (the DDS
+  /// bridge, docs/dds.md, runs a stage of its own on its thread and publishes these).
+  bool gloveValid(size_t finger) const { return glove_.valid[finger] != 0; }
+  const phalanx::glove::Data<double>& gloveKinematics(size_t finger) const { return glove_data_[finger]; }
+  bool penValid() const { return pen_.valid != 0; }
+  /// The pen geometry made a model (else nothing of the pen is computed); penKinematics().q_rad holds the
+  /// joint angles even when the forward kinematics is not usable.
+  bool penModelOk() const { return pen_model_ok_; }
+  const phalanx::pen::Data<double>& penKinematics() const { return pen_kin_; }
+  /// The measured wrench at the pen centre; false when it is unknown this frame (no kinematics, or a
+  /// pantograph's Jacobian singular).
+  bool penWrench(host::pen::PenWrench& w) const {
+    w = pen_wrench_;
+    return pen_.valid != 0 && pen_wrench_ok_;
+  }
+
  private:
   void observeGlove(const TelemetryFrame& tel, double dt);
   void observeSea(const TelemetryFrame& tel);
@@ -68,6 +84,8 @@ class DeviceModelStage {
   client_wire::GloveModelState glove_{};
   client_wire::SeaModelState sea_state_{};
   client_wire::PenModelState pen_{};
+  host::pen::PenWrench pen_wrench_{};
+  bool pen_wrench_ok_ = false;
   std::array<double, 10> prev_{};     ///< previous positions for the velocity estimates
   bool have_prev_ = false;
   uint64_t last_device_time_us_ = 0;

@@ -13,12 +13,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "phalanx/glove/kinematics.h"
+#include "phalanx/host/client/model_geometry.h"
 #include "phalanx/host/dds/dds_options.h"
 #include "phalanx/host/record/spsc_queue.h"
 #include "phalanx/host/session.h"
-#include "phalanx/pen/kinematics.h"
 #include "phalanx/protocol/devices.h"
+
+namespace phalanx::host::client {
+class Server;
+}
 
 namespace phalanx::host::dds {
 
@@ -70,8 +73,8 @@ struct BridgeDevice {
   unsigned rate_hz = 1000;
   uint32_t firmware_build_id = 0;
   std::string device_spec;  ///< sim:glove5, serial:…, …
-  std::array<glove::Model<double>, 5> glove{};
-  pen::Model<double> pen{};
+  client::ModelGeometry geometry;  ///< the device models' geometry (the same as the client channel's)
+  client::Server* commands = nullptr;  ///< dds.commands: the client channel commands enter by (else none read)
 };
 
 /// The publishing side (Cyclone DDS). Created by startBridge().
