@@ -33,7 +33,7 @@ PACKAGES=(
   debootstrap lintian help2man libcap2-bin
   cyclonedds-dev cyclonedds-tools iproute2
   nanopb libnanopb-dev
-  pybind11-dev python3-dev python3-numpy
+  pybind11-dev python3-dev python3-numpy python3-venv
 )
 fi
 # Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.
