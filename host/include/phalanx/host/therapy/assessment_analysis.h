@@ -1,0 +1,66 @@
+#pragma once
+/// The instrumented assessments' figures, computed from a session's per-cycle series (the report and the tests
+/// use the same functions). docs/therapy.md "Instrumented assessments" gives the method and its tolerances.
+///  - Modified Tardieu (exercise `tardieu`): each imposed stretch (a run of decreasing target) gives its mean
+///    stretch velocity, its resistance, and the excess over the slowest stretch (the passive reference at the
+///    same angle); the catch angle is the first angle where that excess rises above its early-ramp level by
+///    more than the detection threshold; the reflex torque is the excess after the catch; a line through
+///    (velocity, reflex torque) of the stretches with a catch gives the reflex gain and its threshold velocity
+///    (the velocity intercept).
+///  - Passive ROM (exercise `passive-rom`): per joint, the flexion the relaxed finger settles at under the
+///    extending and the flexing test effort (mean of the last quarter of each).
+///  - Maximal voluntary force (exercise `max-force`): per channel, the peak of the 5 Hz low-passed measured
+///    effort while the device holds the pose.
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace phalanx::host::therapy {
+
+struct StretchFigures {
+  double nominal_rad_s = 0.0;     ///< the imposed (target) stretch velocity
+  double velocity_rad_s = 0.0;    ///< mean measured stretch (extension) velocity after the catch (or over the ramp)
+  double resistance = 0.0;        ///< mean measured effort over the ramp (+ resists flexion)
+  double catch_rad = 0.0;         ///< flexion at the catch; NaN: no catch
+  double reflex = 0.0;            ///< mean excess effort after the catch over the early-ramp excess; 0 without
+};
+
+struct TardieuFigures {
+  std::vector<StretchFigures> stretches;  ///< in the order performed (slowest first by default)
+  double catch_rad = 0.0;                 ///< at the fastest stretch with a catch (Tardieu R1); NaN: none
+  double threshold_rad_s = 0.0;           ///< reflex threshold velocity (NaN: fewer than 2 stretches with a catch)
+  double gain_per_rad_s = 0.0;            ///< reflex effort per rad/s above the threshold (NaN as above)
+  double detection = 0.0;                 ///< the catch-detection threshold used (effort)
+};
+
+/// t, q (the stretched channel's coordinate, rad), effort (measured), target (rad), in (cycles of the tardieu
+/// exercise). All the same length. "" or an error (no stretches, too few, lengths differ).
+std::string analyseTardieu(const std::vector<double>& t, const std::vector<double>& q,
+                           const std::vector<double>& effort, const std::vector<double>& target,
+                           const std::vector<char>& in, TardieuFigures& out);
+
+struct PassiveRomFigures {
+  double extension_rad = 0.0;  ///< flexion reached under the extending effort (NaN: no such phase)
+  double flexion_rad = 0.0;    ///< flexion reached under the flexing effort
+};
+/// One joint: its flexion, the commanded effort of its channel, and the cycles of the passive-rom exercise.
+PassiveRomFigures analysePassiveRom(const std::vector<double>& flexion, const std::vector<double>& effort_cmd,
+                                    const std::vector<char>& in);
+
+/// One channel: the peak of the 5 Hz low-passed effort over the cycles in `in` (NaN: none).
+double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& effort, const std::vector<char>& in);
+
+/// Every instrumented-assessment figure of a session's metrics (sessionMetrics()["instrumented"]) as
+/// (name, value) pairs in a fixed order: tardieu.catch_deg, tardieu.threshold_deg_s, tardieu.gain_per_rad_s,
+/// tardieu.reflex_at_<v>_deg_s (per stretch velocity), passive_rom.<joint>.{extension,flexion}_deg,
+/// max_force.<channel>, rom.<joint>.{min,max}_deg (active ROM). Non-finite figures are left out.
+std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::json& metrics);
+
+/// A repeatability file (JSON, docs/therapy.md "Repeatability"): {"version": 1, "figures": {name: {"icc",
+/// "sem", "mdc95", "subjects", "sessions"}}}. "" or "<path>: <problem>".
+std::string loadRepeatability(const std::string& path, nlohmann::json& out);
+
+}  // namespace phalanx::host::therapy

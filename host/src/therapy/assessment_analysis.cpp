@@ -1,0 +1,288 @@
+#include "phalanx/host/therapy/assessment_analysis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+namespace phalanx::host::therapy {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr std::size_t kMinStretchCycles = 20;  // 20 ms: shorter decreasing runs are not a stretch
+constexpr double kTailS = 0.1;                 // the finger still moves for a while after its target stopped
+constexpr std::size_t kSlopeHalf = 10;         // ±10 cycles: the rate's least-squares window (±10 ms at 1 kHz)
+constexpr std::size_t kCatchHold = 10;         // the excess must stay above the threshold for 10 cycles
+// The early-ramp window (the excess there is the stretch's viscous + inertial part, before any catch): 5–15°
+// into the stretch; and the margins kept from the catch and the ramp's end when averaging the reflex.
+constexpr double kBaselineFrom = 5.0 * kDeg, kBaselineTo = 15.0 * kDeg, kMargin = 3.0 * kDeg;
+
+struct Span {
+  std::size_t begin = 0, end = 0;  // [begin, end)
+};
+
+std::vector<Span> findStretches(const std::vector<double>& t, const std::vector<double>& target,
+                                const std::vector<char>& in) {
+  std::vector<Span> out;
+  std::size_t i = 1;
+  while (i < t.size()) {
+    if (!(in[i] && in[i - 1] && target[i] < target[i - 1])) {
+      ++i;
+      continue;
+    }
+    Span s{i - 1, i};
+    while (s.end < t.size() && in[s.end] && target[s.end] < target[s.end - 1]) ++s.end;
+    i = s.end;
+    while (s.end < t.size() && in[s.end] && t[s.end] - t[i - 1] < kTailS) ++s.end;
+    if (i - s.begin >= kMinStretchCycles) out.push_back(s);
+  }
+  return out;
+}
+
+double rateAt(const std::vector<double>& t, const std::vector<double>& q, const Span& s, std::size_t i) {
+  const std::size_t a = std::max(s.begin, i >= kSlopeHalf ? i - kSlopeHalf : 0);
+  const std::size_t b = std::min(s.end - 1, i + kSlopeHalf);
+  double mt = 0.0, mq = 0.0;
+  for (std::size_t k = a; k <= b; ++k) mt += t[k], mq += q[k];
+  mt /= static_cast<double>(b - a + 1);
+  mq /= static_cast<double>(b - a + 1);
+  double num = 0.0, den = 0.0;
+  for (std::size_t k = a; k <= b; ++k) num += (t[k] - mt) * (q[k] - mq), den += (t[k] - mt) * (t[k] - mt);
+  return den > 0.0 ? num / den : 0.0;
+}
+
+/// The passive reference: the slowest stretch's effort against q, in 1° bins (empty bins interpolated).
+struct Reference {
+  double lo = 0.0;
+  std::vector<double> bin;
+  double at(double q) const {
+    const double x = std::clamp((q - lo) / kDeg, 0.0, static_cast<double>(bin.size() - 1));
+    const auto i = static_cast<std::size_t>(x);
+    const std::size_t j = std::min(i + 1, bin.size() - 1);
+    return bin[i] + (bin[j] - bin[i]) * (x - static_cast<double>(i));
+  }
+};
+
+Reference makeReference(const std::vector<double>& q, const std::vector<double>& effort, const Span& s) {
+  Reference r;
+  double hi = -1e9;
+  r.lo = 1e9;
+  for (std::size_t i = s.begin; i < s.end; ++i) r.lo = std::min(r.lo, q[i]), hi = std::max(hi, q[i]);
+  const auto n = static_cast<std::size_t>((hi - r.lo) / kDeg) + 1;
+  std::vector<double> sum(n, 0.0), count(n, 0.0);
+  for (std::size_t i = s.begin; i < s.end; ++i) {
+    const auto b = std::min(n - 1, static_cast<std::size_t>((q[i] - r.lo) / kDeg));
+    sum[b] += effort[i];
+    count[b] += 1.0;
+  }
+  r.bin.assign(n, kNaN);
+  for (std::size_t b = 0; b < n; ++b) if (count[b] > 0) r.bin[b] = sum[b] / count[b];
+  for (std::size_t b = 0; b < n; ++b) {  // fill gaps from the nearest filled bin below, else above
+    if (!std::isnan(r.bin[b])) continue;
+    for (std::size_t d = 1; d < n && std::isnan(r.bin[b]); ++d) {
+      if (b >= d && !std::isnan(r.bin[b - d])) r.bin[b] = r.bin[b - d];
+      else if (b + d < n && !std::isnan(r.bin[b + d])) r.bin[b] = r.bin[b + d];
+    }
+  }
+  return r;
+}
+
+/// Per-stretch working data: excess over the reference, the rate, the start and the early-ramp statistics.
+struct StretchData {
+  Span span;
+  double q_start = 0.0, q_end = 0.0, base = 0.0, base_sd = 0.0;
+  std::vector<double> excess, rate;
+};
+
+StretchData prepare(const std::vector<double>& t, const std::vector<double>& q, const std::vector<double>& effort,
+                    const Span& s, const Reference& ref) {
+  StretchData d;
+  d.span = s;
+  d.q_start = q[s.begin];
+  d.q_end = *std::min_element(q.begin() + static_cast<long>(s.begin), q.begin() + static_cast<long>(s.end));
+  double sum = 0.0, sum2 = 0.0, n = 0.0;
+  for (std::size_t i = s.begin; i < s.end; ++i) {
+    d.excess.push_back(effort[i] - ref.at(q[i]));
+    d.rate.push_back(-rateAt(t, q, s, i));
+    const double into = d.q_start - q[i];
+    if (into >= kBaselineFrom && into <= kBaselineTo) sum += d.excess.back(), sum2 += d.excess.back() * d.excess.back(), n += 1;
+  }
+  d.base = n > 0 ? sum / n : 0.0;
+  d.base_sd = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - d.base * d.base)) : 0.0;
+  return d;
+}
+
+double findCatch(const StretchData& d, const std::vector<double>& q, double detection) {
+  std::size_t above = 0;
+  for (std::size_t k = 0; k < d.excess.size(); ++k) {
+    const double qi = q[d.span.begin + k];
+    if (d.q_start - qi <= kBaselineTo) continue;
+    above = d.excess[k] - d.base > detection ? above + 1 : 0;
+    if (above == kCatchHold) return q[d.span.begin + k + 1 - kCatchHold];
+  }
+  return kNaN;
+}
+
+StretchFigures figures(const StretchData& d, const std::vector<double>& q, const std::vector<double>& effort,
+                       double detection) {
+  StretchFigures f;
+  f.catch_rad = findCatch(d, q, detection);
+  const double upper = std::isnan(f.catch_rad) ? d.q_start - kBaselineFrom : f.catch_rad - kMargin;
+  double n = 0.0, v = 0.0, ex = 0.0, res = 0.0;
+  for (std::size_t k = 0; k < d.excess.size(); ++k) {
+    res += effort[d.span.begin + k] / static_cast<double>(d.excess.size());
+    const double qi = q[d.span.begin + k];
+    if (qi > upper || qi < d.q_end + kMargin) continue;
+    v += d.rate[k], ex += d.excess[k] - d.base, n += 1.0;
+  }
+  f.resistance = res;
+  f.velocity_rad_s = n > 0 ? v / n : kNaN;
+  f.reflex = !std::isnan(f.catch_rad) && n > 0 ? ex / n : 0.0;
+  return f;
+}
+
+/// Least-squares line reflex = g·(v − v_th) through the stretches with a catch.
+void fitReflex(TardieuFigures& out) {
+  double n = 0, sv = 0, sr = 0, svv = 0, svr = 0;
+  for (const auto& s : out.stretches) {
+    if (std::isnan(s.catch_rad) || std::isnan(s.velocity_rad_s)) continue;
+    n += 1, sv += s.velocity_rad_s, sr += s.reflex, svv += s.velocity_rad_s * s.velocity_rad_s,
+        svr += s.velocity_rad_s * s.reflex;
+    out.catch_rad = s.catch_rad;  // stretches run slowest first: the last one with a catch is the fastest
+  }
+  const double den = n * svv - sv * sv;
+  if (n < 2 || !(std::fabs(den) > 0.0)) return;
+  out.gain_per_rad_s = (n * svr - sv * sr) / den;
+  const double a = (sr - out.gain_per_rad_s * sv) / n;
+  out.threshold_rad_s = out.gain_per_rad_s > 0.0 ? -a / out.gain_per_rad_s : kNaN;
+}
+
+}  // namespace
+
+std::string analyseTardieu(const std::vector<double>& t, const std::vector<double>& q,
+                           const std::vector<double>& effort, const std::vector<double>& target,
+                           const std::vector<char>& in, TardieuFigures& out) {
+  const std::size_t n = t.size();
+  if (q.size() != n || effort.size() != n || target.size() != n || in.size() != n) {
+    return "tardieu: the series differ in length";
+  }
+  const std::vector<Span> spans = findStretches(t, target, in);
+  if (spans.size() < 3) return "tardieu: " + std::to_string(spans.size()) + " stretches found, need 3 or more";
+  // The slowest stretch (the lowest mean target rate) is the passive reference.
+  std::size_t slowest = 0;
+  std::vector<double> nominal;
+  for (const Span& s : spans) {
+    std::size_t last = s.begin;  // the last cycle of the ramp itself (the tail holds the target)
+    while (last + 1 < s.end && target[last + 1] < target[last]) ++last;
+    nominal.push_back((target[s.begin] - target[last]) / std::max(t[last] - t[s.begin], 1e-9));
+    if (nominal.back() < nominal[slowest]) slowest = nominal.size() - 1;
+  }
+  const Reference ref = makeReference(q, effort, spans[slowest]);
+  std::vector<StretchData> data;
+  double max_effort = 0.0, noise = 0.0;
+  for (const Span& s : spans) {
+    data.push_back(prepare(t, q, effort, s, ref));
+    noise = std::max(noise, data.back().base_sd);
+    for (std::size_t i = s.begin; i < s.end; ++i) max_effort = std::max(max_effort, std::fabs(effort[i]));
+  }
+  TardieuFigures f;
+  // 5 SD of the noisiest early ramp, and at least 5 % of the largest effort (a catch is a clear rise).
+  f.detection = std::max(5.0 * noise, 0.05 * max_effort);
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    f.stretches.push_back(figures(data[i], q, effort, f.detection));
+    f.stretches.back().nominal_rad_s = nominal[i];
+    if (i == slowest) f.stretches.back().catch_rad = kNaN, f.stretches.back().reflex = 0.0;
+  }
+  f.catch_rad = f.threshold_rad_s = f.gain_per_rad_s = kNaN;
+  fitReflex(f);
+  out = f;
+  return "";
+}
+
+PassiveRomFigures analysePassiveRom(const std::vector<double>& flexion, const std::vector<double>& effort_cmd,
+                                    const std::vector<char>& in) {
+  PassiveRomFigures f{kNaN, kNaN};
+  for (int sign : {1, -1}) {
+    std::vector<double> v;
+    for (std::size_t i = 0; i < flexion.size(); ++i) {
+      if (in[i] && effort_cmd[i] * sign > 0.0 && std::isfinite(flexion[i])) v.push_back(flexion[i]);
+    }
+    if (v.size() < 4) continue;
+    double sum = 0.0;
+    for (std::size_t i = v.size() * 3 / 4; i < v.size(); ++i) sum += v[i];
+    (sign > 0 ? f.extension_rad : f.flexion_rad) = sum / static_cast<double>(v.size() - v.size() * 3 / 4);
+  }
+  return f;
+}
+
+double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& effort, const std::vector<char>& in) {
+  double y = 0.0, peak = kNaN, t_prev = kNaN;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    if (!in[i] || !std::isfinite(effort[i])) continue;
+    const double dt = std::isnan(t_prev) ? 0.0 : std::clamp(t[i] - t_prev, 0.0, 0.1);
+    const double a = 1.0 - std::exp(-2.0 * M_PI * 5.0 * dt);  // 5 Hz one-pole low-pass
+    y = std::isnan(t_prev) ? effort[i] : y + a * (effort[i] - y);
+    t_prev = t[i];
+    peak = std::isnan(peak) ? y : std::max(peak, y);
+  }
+  return peak;
+}
+
+namespace {
+void addFigure(std::vector<std::pair<std::string, double>>& out, const std::string& name, const nlohmann::json& v) {
+  if (v.is_number() && std::isfinite(v.get<double>())) out.emplace_back(name, v.get<double>());
+}
+}  // namespace
+
+std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::json& m) {
+  std::vector<std::pair<std::string, double>> out;
+  const nlohmann::json in = m.value("instrumented", nlohmann::json::object());
+  if (in.contains("tardieu")) {
+    const auto& t = in["tardieu"];
+    for (const char* k : {"catch_deg", "threshold_deg_s", "gain_per_rad_s"}) addFigure(out, std::string("tardieu.") + k, t.value(k, nlohmann::json()));
+    const nlohmann::json stretches = t.value("stretches", nlohmann::json::array());
+    for (const auto& s : stretches) {
+      addFigure(out, "tardieu.reflex_at_" + std::to_string(s.value("nominal_deg_s", 0)) + "_deg_s", s.value("reflex", nlohmann::json()));
+    }
+  }
+  const nlohmann::json passive = in.value("passive_rom_deg", nlohmann::json::object());
+  const nlohmann::json force = in.value("max_force", nlohmann::json::object());
+  const nlohmann::json rom = m.value("rom_deg", nlohmann::json::object());
+  for (const auto& [joint, r] : passive.items()) {
+    addFigure(out, "passive_rom." + joint + ".extension_deg", r.value("extension", nlohmann::json()));
+    addFigure(out, "passive_rom." + joint + ".flexion_deg", r.value("flexion", nlohmann::json()));
+  }
+  for (const auto& [ch, v] : force.items()) addFigure(out, "max_force." + ch, v);
+  for (const auto& [joint, r] : rom.items()) {
+    if (!r.is_array() || r.size() != 2) continue;
+    addFigure(out, "rom." + joint + ".min_deg", r[0]);
+    addFigure(out, "rom." + joint + ".max_deg", r[1]);
+  }
+  return out;
+}
+
+std::string loadRepeatability(const std::string& path, nlohmann::json& out) {
+  std::ifstream f(path);
+  if (!f) return path + ": cannot read";
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::exception& e) {
+    return path + ": not JSON: " + e.what();
+  }
+  if (!j.is_object() || j.value("version", 0) != 1) return path + ": version: must be 1";
+  if (!j.contains("figures") || !j["figures"].is_object()) return path + ": figures: missing or not an object";
+  for (const auto& [name, v] : j["figures"].items()) {
+    for (const char* k : {"icc", "sem", "mdc95"}) {
+      if (!v.is_object() || !v.contains(k) || !v[k].is_number() || !std::isfinite(v[k].get<double>())) {
+        return path + ": figures." + name + "." + k + ": missing or not a finite number";
+      }
+    }
+  }
+  out = j;
+  return "";
+}
+
+}  // namespace phalanx::host::therapy
