@@ -14,10 +14,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr std::size_t kMinStretchCycles = 20;  // 20 ms: shorter decreasing runs are not a stretch
 constexpr double kTailS = 0.1;                 // the finger still moves for a while after its target stopped
 constexpr std::size_t kSlopeHalf = 10;         // ±10 cycles: the rate's least-squares window (±10 ms at 1 kHz)
-constexpr std::size_t kCatchHold = 10;         // the excess must stay above the threshold for 10 cycles
-// The early-ramp window (the excess there is the stretch's viscous + inertial part, before any catch): 5–15°
-// into the stretch; and the margins kept from the catch and the ramp's end when averaging the reflex.
-constexpr double kBaselineFrom = 5.0 * kDeg, kBaselineTo = 15.0 * kDeg, kMargin = 3.0 * kDeg;
+// The samples fitted leave out the first 5° of a stretch (the device accelerating the finger) and its last 3°
+// (decelerating it).
+constexpr double kBaselineFrom = 5.0 * kDeg, kMargin = 3.0 * kDeg;
 
 struct Span {
   std::size_t begin = 0, end = 0;  // [begin, end)
@@ -89,10 +88,10 @@ Reference makeReference(const std::vector<double>& q, const std::vector<double>&
   return r;
 }
 
-/// Per-stretch working data: excess over the reference, the rate, the start and the early-ramp statistics.
+/// Per-stretch working data: excess over the reference, the stretch velocity, the start and end angles.
 struct StretchData {
   Span span;
-  double q_start = 0.0, q_end = 0.0, base = 0.0, base_sd = 0.0;
+  double q_start = 0.0, q_end = 0.0;
   std::vector<double> excess, rate;
 };
 
@@ -102,61 +101,95 @@ StretchData prepare(const std::vector<double>& t, const std::vector<double>& q, 
   d.span = s;
   d.q_start = q[s.begin];
   d.q_end = *std::min_element(q.begin() + static_cast<long>(s.begin), q.begin() + static_cast<long>(s.end));
-  double sum = 0.0, sum2 = 0.0, n = 0.0;
   for (std::size_t i = s.begin; i < s.end; ++i) {
     d.excess.push_back(effort[i] - ref.at(q[i]));
     d.rate.push_back(-rateAt(t, q, s, i));
-    const double into = d.q_start - q[i];
-    if (into >= kBaselineFrom && into <= kBaselineTo) sum += d.excess.back(), sum2 += d.excess.back() * d.excess.back(), n += 1;
   }
-  d.base = n > 0 ? sum / n : 0.0;
-  d.base_sd = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - d.base * d.base)) : 0.0;
   return d;
 }
 
-double findCatch(const StretchData& d, const std::vector<double>& q, double detection) {
-  std::size_t above = 0;
-  for (std::size_t k = 0; k < d.excess.size(); ++k) {
-    const double qi = q[d.span.begin + k];
-    if (d.q_start - qi <= kBaselineTo) continue;
-    above = d.excess[k] - d.base > detection ? above + 1 : 0;
-    if (above == kCatchHold) return q[d.span.begin + k + 1 - kCatchHold];
+/// One sample of a (non-reference) stretch: angle, stretch velocity, excess effort over the reference.
+struct Sample {
+  double q, v, excess;
+};
+
+/// The model every stretch sample is fitted to (least squares): excess = a + b·v + G·(v − v_th)⁺·[q < φ_c]
+/// (a, b: the offset and viscous part of the excess; G, v_th, φ_c: the reflex). For a given (φ_c, v_th) it is
+/// linear in (a, b, G); the pair is found by a grid search (0.25°, 1°/s).
+struct ReflexModel {
+  double a = 0.0, b = 0.0, gain = 0.0, threshold = 0.0, catch_q = 0.0, sse = 1e300;
+};
+
+bool solve3(double m[3][3], double r[3], double x[3]) {
+  const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                     m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+  if (!(std::fabs(det) > 1e-18)) return false;
+  for (int c = 0; c < 3; ++c) {
+    double mc[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) mc[i][j] = j == c ? r[i] : m[i][j];
+    x[c] = (mc[0][0] * (mc[1][1] * mc[2][2] - mc[1][2] * mc[2][1]) - mc[0][1] * (mc[1][0] * mc[2][2] - mc[1][2] * mc[2][0]) +
+            mc[0][2] * (mc[1][0] * mc[2][1] - mc[1][1] * mc[2][0])) / det;
   }
-  return kNaN;
+  return true;
 }
 
+/// Least squares in (a, b, G) for one (φ_c, v_th); updates best when its residual is lower.
+void fitAt(const std::vector<Sample>& s, double catch_q, double threshold, ReflexModel& best) {
+  double m[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, r[3] = {0, 0, 0}, x[3];
+  for (const Sample& p : s) {
+    const double f[3] = {1.0, p.v, p.q < catch_q ? std::max(0.0, p.v - threshold) : 0.0};
+    for (int i = 0; i < 3; ++i) {
+      r[i] += f[i] * p.excess;
+      for (int j = 0; j < 3; ++j) m[i][j] += f[i] * f[j];
+    }
+  }
+  if (!solve3(m, r, x) || !(x[2] > 0.0)) return;
+  double sse = 0.0;
+  for (const Sample& p : s) {
+    const double e = p.excess - x[0] - x[1] * p.v - x[2] * (p.q < catch_q ? std::max(0.0, p.v - threshold) : 0.0);
+    sse += e * e;
+  }
+  if (sse < best.sse) best = {x[0], x[1], x[2], threshold, catch_q, sse};
+}
+
+ReflexModel fitReflexModel(const std::vector<Sample>& s, double q_lo, double q_hi, double v_max) {
+  ReflexModel best;
+  for (double c = q_lo; c <= q_hi; c += 0.25 * kDeg) {
+    for (double v = 0.0; v <= v_max; v += kDeg) fitAt(s, c, v, best);
+  }
+  return best;
+}
+
+/// The samples of a stretch inside its steady part (margins from its start and end).
+void collect(const StretchData& d, const std::vector<double>& q, std::vector<Sample>& out) {
+  for (std::size_t k = 0; k < d.excess.size(); ++k) {
+    const double qi = q[d.span.begin + k];
+    if (qi > d.q_start - kBaselineFrom || qi < d.q_end + kMargin) continue;
+    out.push_back({qi, d.rate[k], d.excess[k]});
+  }
+}
+
+/// A stretch's figures under the fitted model: the first angle past φ_c with v > v_th (its catch), the mean
+/// velocity and the mean reflex excess (excess − a − b·v) past the catch.
 StretchFigures figures(const StretchData& d, const std::vector<double>& q, const std::vector<double>& effort,
-                       double detection) {
+                       const ReflexModel& m) {
   StretchFigures f;
-  f.catch_rad = findCatch(d, q, detection);
-  const double upper = std::isnan(f.catch_rad) ? d.q_start - kBaselineFrom : f.catch_rad - kMargin;
-  double n = 0.0, v = 0.0, ex = 0.0, res = 0.0;
+  f.catch_rad = kNaN;
+  double n = 0.0, v = 0.0, ex = 0.0, res = 0.0, nv = 0.0, all_v = 0.0;
   for (std::size_t k = 0; k < d.excess.size(); ++k) {
     res += effort[d.span.begin + k] / static_cast<double>(d.excess.size());
     const double qi = q[d.span.begin + k];
-    if (qi > upper || qi < d.q_end + kMargin) continue;
-    v += d.rate[k], ex += d.excess[k] - d.base, n += 1.0;
+    if (qi > d.q_start - kBaselineFrom || qi < d.q_end + kMargin) continue;
+    all_v += d.rate[k], nv += 1.0;
+    if (qi >= m.catch_q) continue;
+    if (std::isnan(f.catch_rad) && d.rate[k] > m.threshold) f.catch_rad = qi;
+    v += d.rate[k], ex += d.excess[k] - m.a - m.b * d.rate[k], n += 1.0;
   }
   f.resistance = res;
-  f.velocity_rad_s = n > 0 ? v / n : kNaN;
+  f.velocity_rad_s = n > 0 ? v / n : (nv > 0 ? all_v / nv : kNaN);
   f.reflex = !std::isnan(f.catch_rad) && n > 0 ? ex / n : 0.0;
   return f;
-}
-
-/// Least-squares line reflex = g·(v − v_th) through the stretches with a catch.
-void fitReflex(TardieuFigures& out) {
-  double n = 0, sv = 0, sr = 0, svv = 0, svr = 0;
-  for (const auto& s : out.stretches) {
-    if (std::isnan(s.catch_rad) || std::isnan(s.velocity_rad_s)) continue;
-    n += 1, sv += s.velocity_rad_s, sr += s.reflex, svv += s.velocity_rad_s * s.velocity_rad_s,
-        svr += s.velocity_rad_s * s.reflex;
-    out.catch_rad = s.catch_rad;  // stretches run slowest first: the last one with a catch is the fastest
-  }
-  const double den = n * svv - sv * sv;
-  if (n < 2 || !(std::fabs(den) > 0.0)) return;
-  out.gain_per_rad_s = (n * svr - sv * sr) / den;
-  const double a = (sr - out.gain_per_rad_s * sv) / n;
-  out.threshold_rad_s = out.gain_per_rad_s > 0.0 ? -a / out.gain_per_rad_s : kNaN;
 }
 
 }  // namespace
@@ -181,22 +214,33 @@ std::string analyseTardieu(const std::vector<double>& t, const std::vector<doubl
   }
   const Reference ref = makeReference(q, effort, spans[slowest]);
   std::vector<StretchData> data;
-  double max_effort = 0.0, noise = 0.0;
-  for (const Span& s : spans) {
-    data.push_back(prepare(t, q, effort, s, ref));
-    noise = std::max(noise, data.back().base_sd);
-    for (std::size_t i = s.begin; i < s.end; ++i) max_effort = std::max(max_effort, std::fabs(effort[i]));
-  }
-  TardieuFigures f;
-  // 5 SD of the noisiest early ramp, and at least 5 % of the largest effort (a catch is a clear rise).
-  f.detection = std::max(5.0 * noise, 0.05 * max_effort);
+  for (const Span& s : spans) data.push_back(prepare(t, q, effort, s, ref));
+  std::vector<Sample> samples;
+  double v_max = 0.0, q_lo = 1e300, q_hi = -1e300;
   for (std::size_t i = 0; i < data.size(); ++i) {
-    f.stretches.push_back(figures(data[i], q, effort, f.detection));
+    if (i == slowest) continue;
+    collect(data[i], q, samples);
+    q_lo = std::min(q_lo, data[i].q_end + kMargin);
+    q_hi = std::max(q_hi, data[i].q_start - kBaselineFrom);
+  }
+  for (const Sample& p : samples) v_max = std::max(v_max, p.v);
+  TardieuFigures f;
+  f.catch_rad = f.threshold_rad_s = f.gain_per_rad_s = kNaN;
+  const ReflexModel m = fitReflexModel(samples, q_lo, q_hi, v_max);
+  f.residual = samples.size() > 3 ? std::sqrt(m.sse / static_cast<double>(samples.size() - 3)) : kNaN;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    f.stretches.push_back(figures(data[i], q, effort, m));
     f.stretches.back().nominal_rad_s = nominal[i];
     if (i == slowest) f.stretches.back().catch_rad = kNaN, f.stretches.back().reflex = 0.0;
   }
-  f.catch_rad = f.threshold_rad_s = f.gain_per_rad_s = kNaN;
-  fitReflex(f);
+  // No reflex: the fit found none, or a gain whose effect stays within the residual at the fastest stretch.
+  if (m.sse < 1e300 && m.gain * (v_max - m.threshold) > 3.0 * f.residual) {
+    f.catch_rad = m.catch_q;
+    f.threshold_rad_s = m.threshold;
+    f.gain_per_rad_s = m.gain;
+  } else {
+    for (auto& st : f.stretches) st.catch_rad = kNaN, st.reflex = 0.0;
+  }
   out = f;
   return "";
 }
@@ -218,16 +262,22 @@ PassiveRomFigures analysePassiveRom(const std::vector<double>& flexion, const st
 }
 
 double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& effort, const std::vector<char>& in) {
-  double y = 0.0, peak = kNaN, t_prev = kNaN;
+  // The peak of the 5 Hz low-passed effort, less the relaxed baseline: the mean effort of the first
+  // kMaxForceBaselineS of the phase (the patient is asked to push only after it; the hold may need some effort
+  // against the passive torque of the pose).
+  constexpr double kMaxForceBaselineS = 0.3;
+  double y = 0.0, peak = kNaN, t_prev = kNaN, t_first = kNaN, base = 0.0, n_base = 0.0;
   for (std::size_t i = 0; i < t.size(); ++i) {
     if (!in[i] || !std::isfinite(effort[i])) continue;
+    if (std::isnan(t_first)) t_first = t[i];
     const double dt = std::isnan(t_prev) ? 0.0 : std::clamp(t[i] - t_prev, 0.0, 0.1);
     const double a = 1.0 - std::exp(-2.0 * M_PI * 5.0 * dt);  // 5 Hz one-pole low-pass
     y = std::isnan(t_prev) ? effort[i] : y + a * (effort[i] - y);
     t_prev = t[i];
+    if (t[i] - t_first < kMaxForceBaselineS) base += effort[i], n_base += 1.0;
     peak = std::isnan(peak) ? y : std::max(peak, y);
   }
-  return peak;
+  return n_base > 0 ? peak - base / n_base : kNaN;
 }
 
 namespace {

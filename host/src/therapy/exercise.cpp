@@ -351,19 +351,21 @@ class Tardieu : public Exercise {
 /// relaxed finger settles where its passive torque balances the test effort (a torque-defined passive ROM).
 class PassiveRom : public Exercise {
  public:
-  PassiveRom(std::size_t channels, double effort, double hold_s) : channels_(channels), effort_(effort), hold_s_(hold_s) {}
+  PassiveRom(std::size_t channels, int only, double effort, double hold_s)
+      : channels_(channels), only_(only), effort_(effort), hold_s_(hold_s) {}
   ExerciseId id() const override { return ExerciseId::kPassiveRom; }
   void start(const Observation&, double t_s) override { t0_s_ = t_s; }
   void update(const TelemetryFrame&, const Observation&, double t_s, double, ExerciseOutput& out) override {
     out.mode = protocol::Mode::kSetpoint;
     const double t = t_s - t0_s_;
     const double e = t < hold_s_ ? effort_ : (t < 2.0 * hold_s_ ? -effort_ : 0.0);
-    for (std::size_t c = 0; c < channels_; ++c) out.effort[c] = e;
+    for (std::size_t c = 0; c < channels_; ++c) out.effort[c] = only_ < 0 || c == static_cast<std::size_t>(only_) ? e : 0.0;
   }
-  nlohmann::json params() const override { return {{"effort", effort_}, {"hold_s", hold_s_}}; }
+  nlohmann::json params() const override { return {{"effort", effort_}, {"hold_s", hold_s_}, {"channel", only_}}; }
 
  private:
   std::size_t channels_;
+  int only_;  // −1: every channel
   double effort_, hold_s_;
   double t0_s_ = 0.0;
 };
@@ -423,15 +425,18 @@ std::unique_ptr<Exercise> makeInstrumented(const std::string& name, const nlohma
   const double emax = device.effortLimit(0);
   const std::size_t n = device.channelCount();
   if (name == "passive-rom") {
-    if (!readParams(params, {{"effort", {0.5 * emax, 0.05 * emax, emax, "effort"}}, {"hold_s", {2.0, 0.5, 10.0, "s"}}},
+    if (!readParams(params, {{"effort", {0.3 * emax, 0.05 * emax, emax, "effort"}}, {"hold_s", {2.0, 0.5, 10.0, "s"}},
+                             {"channel", {-1.0, -1.0, static_cast<double>(n) - 1.0, "index (-1: all)"}}},
                     p, error)) {
       return nullptr;
     }
-    return std::make_unique<PassiveRom>(n, p["effort"], p["hold_s"]);
+    return std::make_unique<PassiveRom>(n, static_cast<int>(p["channel"]), p["effort"], p["hold_s"]);
   }
   if (name == "max-force") {
-    if (!readParams(params, {{"stiffness_per_rad", {10.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
-                             {"integral_per_rad_s", {100.0 * emax, 0.0, 1000.0 * emax, "effort/(rad·s)"}}},
+    // 1·E/rad and 3·E/(rad·s): on the SEA finger 3·E/rad with 20·E/(rad·s) on both channels is a limit cycle
+    // (measured in therapy_assessment_test); these hold the pose to the MVF within 1 % there.
+    if (!readParams(params, {{"stiffness_per_rad", {1.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
+                             {"integral_per_rad_s", {3.0 * emax, 0.0, 1000.0 * emax, "effort/(rad·s)"}}},
                     p, error)) {
       return nullptr;
     }
@@ -443,11 +448,11 @@ std::unique_ptr<Exercise> makeInstrumented(const std::string& name, const nlohma
                    {"v2_deg_s", {90.0, 5.0, 400.0, "deg/s"}},
                    {"v3_deg_s", {150.0, 0.0, 400.0, "deg/s (0: unused)"}},
                    {"v4_deg_s", {210.0, 0.0, 400.0, "deg/s (0: unused)"}},
-                   {"from_deg", {60.0, -30.0, 120.0, "deg"}},
-                   {"to_deg", {0.0, -30.0, 120.0, "deg"}},
+                   {"from_deg", {50.0, -30.0, 120.0, "deg"}},
+                   {"to_deg", {5.0, -30.0, 120.0, "deg"}},
                    {"hold_s", {1.0, 0.2, 10.0, "s"}},
-                   {"stiffness_per_rad", {10.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
-                   {"damping_s_per_rad", {0.1 * emax, 0.0, 2.0 * emax, "effort·s/rad"}}},
+                   {"stiffness_per_rad", {3.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
+                   {"damping_s_per_rad", {0.05 * emax, 0.0, 2.0 * emax, "effort·s/rad"}}},
                   p, error)) {
     return nullptr;
   }

@@ -328,7 +328,7 @@ nlohmann::json tardieuMetrics(const TherapyDevice& dev, const Series& s, const s
     }
     return {{"channel", dev.channelName(c)}, {"stretches", st}, {"catch_deg", num(f.catch_rad * kDeg)},
             {"threshold_deg_s", num(f.threshold_rad_s * kDeg)}, {"gain_per_rad_s", num(f.gain_per_rad_s)},
-            {"detection", f.detection}};
+            {"fit_residual", f.residual}};
   }
   return {{"error", "tardieu: no channel had a target"}};
 }

@@ -1,16 +1,19 @@
 #pragma once
 /// The instrumented assessments' figures, computed from a session's per-cycle series (the report and the tests
 /// use the same functions). docs/therapy.md "Instrumented assessments" gives the method and its tolerances.
-///  - Modified Tardieu (exercise `tardieu`): each imposed stretch (a run of decreasing target) gives its mean
-///    stretch velocity, its resistance, and the excess over the slowest stretch (the passive reference at the
-///    same angle); the catch angle is the first angle where that excess rises above its early-ramp level by
-///    more than the detection threshold; the reflex torque is the excess after the catch; a line through
-///    (velocity, reflex torque) of the stretches with a catch gives the reflex gain and its threshold velocity
-///    (the velocity intercept).
+///  - Modified Tardieu (exercise `tardieu`): each imposed stretch is a run of decreasing target; the slowest is
+///    the passive reference (its effort against angle, 1° bins). Every sample of the other stretches (5° after
+///    the start to 3° before the end) gives its excess effort over the reference at the same angle and its
+///    stretch velocity v (least-squares slope over ±10 ms); one model is fitted to all of them by least squares:
+///        excess = a + b·v + G·(v − v_th)⁺ · [q < φ_c]
+///    (a, b: offset and viscous part; G: reflex gain, v_th: threshold velocity, φ_c: catch angle; grid search
+///    over φ_c and v_th, linear in the rest). A reflex is reported only when G·(v_max − v_th) exceeds 3× the fit's
+///    RMS residual. Per stretch: its mean velocity past the catch, its catch (the first angle past φ_c with
+///    v > v_th — Tardieu's R1 at that velocity; none if never), its mean reflex excess, its mean effort.
 ///  - Passive ROM (exercise `passive-rom`): per joint, the flexion the relaxed finger settles at under the
 ///    extending and the flexing test effort (mean of the last quarter of each).
 ///  - Maximal voluntary force (exercise `max-force`): per channel, the peak of the 5 Hz low-passed measured
-///    effort while the device holds the pose.
+///    effort while the device holds the pose, less the relaxed baseline (the mean of the phase's first 0.3 s).
 #include <cstddef>
 #include <string>
 #include <utility>
@@ -33,7 +36,7 @@ struct TardieuFigures {
   double catch_rad = 0.0;                 ///< at the fastest stretch with a catch (Tardieu R1); NaN: none
   double threshold_rad_s = 0.0;           ///< reflex threshold velocity (NaN: fewer than 2 stretches with a catch)
   double gain_per_rad_s = 0.0;            ///< reflex effort per rad/s above the threshold (NaN as above)
-  double detection = 0.0;                 ///< the catch-detection threshold used (effort)
+  double residual = 0.0;                  ///< RMS residual of the model fit (effort)
 };
 
 /// t, q (the stretched channel's coordinate, rad), effort (measured), target (rad), in (cycles of the tardieu
@@ -50,7 +53,8 @@ struct PassiveRomFigures {
 PassiveRomFigures analysePassiveRom(const std::vector<double>& flexion, const std::vector<double>& effort_cmd,
                                     const std::vector<char>& in);
 
-/// One channel: the peak of the 5 Hz low-passed effort over the cycles in `in` (NaN: none).
+/// One channel: the peak of the 5 Hz low-passed effort over the cycles in `in` less the mean of their first
+/// 0.3 s (NaN: none).
 double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& effort, const std::vector<char>& in);
 
 /// Every instrumented-assessment figure of a session's metrics (sessionMetrics()["instrumented"]) as
