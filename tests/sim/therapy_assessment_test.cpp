@@ -11,7 +11,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -86,7 +85,6 @@ SessionRun runSession(const Patient& p, uint32_t seed, double donning_sd_rad, co
   EXPECT_EQ(rig.handshake(), "");
   EXPECT_EQ(session.onStart(protocol::kSeaFingerLayout, {{"sim", true}}), "");
   const double t0 = rig.timeS();
-  FILE* debug_csv = std::getenv("ASSESS_CSV") ? std::fopen(std::getenv("ASSESS_CSV"), "w") : nullptr;
   uint64_t ns = 0;
   int stage = 0;
   while (rig.timeS() - t0 < t_force + kForceS) {
@@ -110,19 +108,8 @@ SessionRun runSession(const Patient& p, uint32_t seed, double donning_sd_rad, co
       if (tt < 2.0) out.true_ext[j] = -f.theta_rad[j];
       else if (tt < 4.0) out.true_flex[j] = -f.theta_rad[j];
     }
-    if (debug_csv != nullptr && stage == (std::getenv("ASSESS_STAGE") ? std::atoi(std::getenv("ASSESS_STAGE")) : 1)) {
-      std::fprintf(debug_csv, "%.4f,%.4f,%.4f,%.5f,%.5f,%.4f\n", tt, -f.theta_rad[0] / kDeg, -f.theta_rate_rad_s[0] / kDeg,
-                   f.applied_Nm[0], f.applied_Nm[1], static_cast<double>(rig.lastCommand().setpoint[0]));
-    }
-    if (std::getenv("ASSESS_DEBUG") && (static_cast<long>(tt * 1000) % 250 == 0)) {
-      std::printf("t %.3f ex %s flex %.2f %.2f applied %.4f %.4f passive %.4f %.4f reflex %.4f cmd %.3f %.3f\n", tt,
-                  session.statusJson().value("exercise", nlohmann::json()).dump().c_str(), -f.theta_rad[0] / kDeg,
-                  -f.theta_rad[1] / kDeg, f.applied_Nm[0], f.applied_Nm[1], f.passive_Nm[0], f.passive_Nm[1],
-                  f.reflex_Nm[0], static_cast<double>(rig.lastCommand().setpoint[0]), static_cast<double>(rig.lastCommand().setpoint[1]));
-    }
     session.housekeeping();
   }
-  if (debug_csv != nullptr) std::fclose(debug_csv);
   session.finish({{"sim", true}});
   host::record::SessionRecord rec;
   EXPECT_EQ(host::record::readRecord(cfg.record_path, rec), "");
@@ -142,7 +129,7 @@ double passiveEquilibrium(const sim::SeaPlant& plant, int joint, double applied_
   return 0.5 * (lo + hi);
 }
 
-[[maybe_unused]] double figure(const nlohmann::json& m, const std::string& name) {
+double figure(const nlohmann::json& m, const std::string& name) {
   for (const auto& [n, v] : assessmentFigures(m)) {
     if (n == name) return v;
   }
@@ -209,4 +196,66 @@ TEST(TherapyAssessment, RecoversTheSimulatedFingersTruth) {
     }
   }
   std::remove(r.record.c_str());
+}
+
+// A cohort of simulated patients (different reflex, catch angle, strength and passive stiffness), each in three
+// sessions with different seeds (sensor noise, and a donning offset of every joint sensor drawn with σ = 1°):
+// ICC(2,1) and MDC95 for every figure. The reflex figures, the passive ROM and the maximal force must be
+// repeatable as instrumented assessments are in the literature (ICC > 0.9; J NeuroEng Rehabil 2019,
+// doi 10.1186/s12984-019-0634-5). The repeatability file then puts them beside the figures in a report.
+TEST(TherapyAssessment, RepeatabilityOfEveryFigureAcrossSessions) {
+  const std::vector<Patient> cohort = {
+      {0.03, 45.0, 15.0, 0.08, 0.04, 0.8}, {0.05, 60.0, 20.0, 0.12, 0.06, 1.0}, {0.07, 80.0, 28.0, 0.10, 0.05, 1.2},
+      {0.04, 70.0, 24.0, 0.14, 0.07, 0.9}, {0.06, 50.0, 32.0, 0.09, 0.05, 1.1}};
+  constexpr int kSessions = 3;
+  const double donning_sd = 1.0 * kDeg;
+  const std::string stem = ::testing::TempDir() + "/assess_rep_" + std::to_string(::getpid());
+  std::vector<std::vector<nlohmann::json>> sessions(cohort.size());
+  std::string kept_record;
+  for (size_t i = 0; i < cohort.size(); ++i) {
+    for (int k = 0; k < kSessions; ++k) {
+      const SessionRun r = runSession(cohort[i], static_cast<uint32_t>(100 + 10 * i + k), donning_sd,
+                                      stem + "-" + std::to_string(i) + "-" + std::to_string(k));
+      sessions[i].push_back(r.metrics);
+      if (i == 1 && k == 0) kept_record = r.record;
+      else std::remove(r.record.c_str());
+      std::printf("patient %zu session %d: passive MCP %.2f…%.2f°, catch %.2f°, v_th %.1f°/s, G %.4f, MVF mcp %.4f\n", i, k,
+                  figure(r.metrics, "passive_rom.mcp.extension_deg"), figure(r.metrics, "passive_rom.mcp.flexion_deg"),
+                  figure(r.metrics, "tardieu.catch_deg"), figure(r.metrics, "tardieu.threshold_deg_s"),
+                  figure(r.metrics, "tardieu.gain_per_rad_s"), figure(r.metrics, "max_force.mcp"));
+    }
+  }
+  std::string err;
+  const nlohmann::json rep = repeatabilityOf(sessions, "therapy_assessment_test: 5 simulated patients x 3 sessions", err);
+  ASSERT_EQ(err, "");
+  std::printf("%-36s %8s %8s %8s\n", "figure", "ICC(2,1)", "SEM", "MDC95");
+  for (const auto& [name, v] : rep["figures"].items()) {
+    std::printf("%-36s %8.3f %8.4f %8.4f\n", name.c_str(), v["icc"].get<double>(), v["sem"].get<double>(),
+                v["mdc95"].get<double>());
+  }
+  // Measured, not required: the torque-defined passive flexion end (0.08 N·m) lies where eq 14 is flat
+  // (0.28 N·m/rad at 52°), so the few mN·m by which a donning offset changes the finger torque J_nᵀ applies move
+  // it by several degrees (ICC 0.08, MDC95 12.4° here; docs/therapy.md). The active ROM of the short transparent
+  // rest is no designed measurement either.
+  ASSERT_TRUE(rep["figures"].contains("passive_rom.mcp.flexion_deg"));
+  for (const char* name : {"tardieu.catch_deg", "tardieu.threshold_deg_s", "tardieu.gain_per_rad_s",
+                           "tardieu.reflex_at_150_deg_s", "tardieu.reflex_at_210_deg_s",
+                           "passive_rom.mcp.extension_deg", "max_force.mcp", "max_force.pip"}) {
+    ASSERT_TRUE(rep["figures"].contains(name)) << name << " missing: " << rep.dump(1);
+    EXPECT_GT(rep["figures"][name]["icc"].get<double>(), 0.9) << name;
+    EXPECT_GT(rep["figures"][name]["mdc95"].get<double>(), 0.0) << name;  // noise and donning are there
+  }
+  // The report shows each figure with its ICC and MDC95.
+  const std::string rep_path = stem + "-repeatability.json", html = stem + ".html";
+  std::ofstream(rep_path) << rep.dump(1);
+  ASSERT_EQ(writeReport(kept_record, "", html, nullptr, "", rep_path), "");
+  std::stringstream ss;
+  ss << std::ifstream(html).rdbuf();
+  const std::string page = ss.str();
+  EXPECT_NE(page.find("Assessment figures and their repeatability"), std::string::npos);
+  char cell[64];
+  std::snprintf(cell, sizeof cell, "<td>%.3f</td>", rep["figures"]["tardieu.catch_deg"]["icc"].get<double>());
+  EXPECT_NE(page.find("<td>tardieu.catch_deg</td>"), std::string::npos);
+  EXPECT_NE(page.find(cell), std::string::npos) << cell;
+  for (const std::string& f : {kept_record, rep_path, html}) std::remove(f.c_str());
 }

@@ -1,5 +1,9 @@
 #include "phalanx/host/therapy/assessment_analysis.h"
 
+#include <map>
+
+#include "phalanx/host/therapy/repeatability.h"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -309,6 +313,38 @@ std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::js
     if (!r.is_array() || r.size() != 2) continue;
     addFigure(out, "rom." + joint + ".min_deg", r[0]);
     addFigure(out, "rom." + joint + ".max_deg", r[1]);
+  }
+  return out;
+}
+
+nlohmann::json repeatabilityOf(const std::vector<std::vector<nlohmann::json>>& sessions, const std::string& source,
+                               std::string& error) {
+  // figure → [patient][session], kept only when every session has it.
+  std::map<std::string, std::vector<std::vector<double>>> y;
+  std::map<std::string, std::size_t> seen;
+  std::size_t total = 0;
+  for (std::size_t p = 0; p < sessions.size(); ++p) {
+    for (const nlohmann::json& m : sessions[p]) {
+      ++total;
+      for (const auto& [name, v] : assessmentFigures(m)) {
+        auto& rows = y[name];
+        rows.resize(sessions.size());
+        rows[p].push_back(v);
+        ++seen[name];
+      }
+    }
+  }
+  nlohmann::json out = {{"version", 1}, {"source", source}, {"figures", nlohmann::json::object()}};
+  for (const auto& [name, rows] : y) {
+    if (seen[name] != total) continue;
+    Repeatability r;
+    if (std::string e = computeRepeatability(rows, r); !e.empty()) {
+      if (e.find("undefined") != std::string::npos) continue;  // a constant figure has no ICC
+      error = name + ": " + e;
+      return nullptr;
+    }
+    out["figures"][name] = {{"icc", r.icc}, {"sem", r.sem}, {"mdc95", r.mdc95}, {"sd", r.sd},
+                            {"subjects", r.subjects}, {"sessions", r.sessions}};
   }
   return out;
 }

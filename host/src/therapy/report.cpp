@@ -322,7 +322,8 @@ nlohmann::json tardieuMetrics(const TherapyDevice& dev, const Series& s, const s
     }
     nlohmann::json st = nlohmann::json::array();
     for (const auto& x : f.stretches) {
-      st.push_back({{"nominal_deg_s", static_cast<int>(std::lround(x.nominal_rad_s * kDeg))},
+      // Nominal velocity to the nearest 5°/s (the target is a float in the record: 210 reads as 208.x).
+      st.push_back({{"nominal_deg_s", 5 * static_cast<int>(std::lround(x.nominal_rad_s * kDeg / 5.0))},
                     {"velocity_deg_s", num(x.velocity_rad_s * kDeg)}, {"resistance", num(x.resistance)},
                     {"catch_deg", num(x.catch_rad * kDeg)}, {"reflex", num(x.reflex)}});
     }

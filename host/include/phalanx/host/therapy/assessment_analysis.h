@@ -63,6 +63,13 @@ double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& 
 /// max_force.<channel>, rom.<joint>.{min,max}_deg (active ROM). Non-finite figures are left out.
 std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::json& metrics);
 
+/// The repeatability of every assessment figure from sessions[patient][session] = that session's metrics
+/// (sessionMetrics()): for each figure present in every session, ICC(2,1), SEM, MDC95 (repeatability.h).
+/// Every patient must have the same number (≥ 2) of sessions, and there must be ≥ 2 patients. Returns the
+/// repeatability file's JSON (loadRepeatability's format, with `source`) or sets error.
+nlohmann::json repeatabilityOf(const std::vector<std::vector<nlohmann::json>>& sessions, const std::string& source,
+                               std::string& error);
+
 /// A repeatability file (JSON, docs/therapy.md "Repeatability"): {"version": 1, "figures": {name: {"icc",
 /// "sem", "mdc95", "subjects", "sessions"}}}. "" or "<path>: <problem>".
 std::string loadRepeatability(const std::string& path, nlohmann::json& out);
