@@ -47,8 +47,13 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
     cfg.seed = options.seed;
     cfg.noise = options.noise;
     cfg.variant = name == "sea_rig" ? sim::SeaVariant::kRig : sim::SeaVariant::kFinger;
-    if (!parseSeaUserMotion(options.scenario, cfg.motion)) {
-      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random)";
+    if (options.scenario == "spastic" && name == "sea_finger") {
+      // The relaxed finger with a stretch reflex (the instrumented Tardieu test's simulated patient).
+      cfg.motion = sim::SeaUserMotion::kRelaxed;
+      cfg.params.finger = sim::withStretchReflex(cfg.params.finger);
+    } else if (!parseSeaUserMotion(options.scenario, cfg.motion)) {
+      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random" +
+              (name == "sea_finger" ? ", spastic)" : ")");
       return nullptr;
     }
     try {

@@ -97,6 +97,16 @@ struct SeaFingerParams {
   double max_effort_duration_s = 3.0;
 };
 
+/// The spastic finger of firmware-sim's `--scenario spastic` (sea_finger; docs/sea-plant.md "Stretch reflex"):
+/// f with the stretch reflex on, G = 0.05 N·m·s/rad at the MCP and 0.015 at the PIP (the MCP value scaled by the
+/// PIP/MCP ratio of eq 14's A), v_th = 60°/s, φ_catch = 20° MCP / 30° PIP. Chosen values, not measured ones:
+/// 0.05 N·m·s/rad gives 0.1 N·m at 175°/s, a third of the device's 0.3 N·m finger-torque limit, so the device can
+/// stretch through it.
+inline SeaFingerParams withStretchReflex(SeaFingerParams f) {
+  f.reflex_gain_Nm_s_per_rad = {0.05, 0.015};
+  return f;
+}
+
 /// Constants of one SEA channel (MCP or PIP).
 struct SeaChannelParams {
   double spring_stiffness_N_per_m = 2816.0;  ///< k of each of the two compression springs (§6.2)
