@@ -18,6 +18,7 @@
 #include "phalanx/host/lockstep.h"
 #include "phalanx/host/record/record_reader.h"
 #include "phalanx/host/therapy/assessment_analysis.h"
+#include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/repeatability.h"
 #include "phalanx/host/therapy/report.h"
 #include "phalanx/host/therapy/therapy_session.h"
@@ -66,9 +67,15 @@ struct SessionRun {
   std::string record;
 };
 
-SessionRun runSession(const Patient& p, uint32_t seed, double donning_sd_rad, const std::string& stem) {
+SessionRun runSession(const Patient& p, uint32_t seed, double donning_sd_rad, const std::string& stem,
+                      const std::string& patient_id = "") {
   SessionRun out;
   TherapySessionConfig cfg;
+  if (!patient_id.empty()) {
+    const std::string text = "version: 1\npatient: " + patient_id + "\ndevice: sea_finger\nlimits: {effort_max: 0.3}\n";
+    cfg.have_profile = loadProfileText(text, patient_id + ".yaml", cfg.profile).empty();
+    EXPECT_TRUE(cfg.have_profile);
+  }
   cfg.record_path = stem + ".phrec";
   cfg.exercise = "passive-rom";
   cfg.exercise_params = {{"effort", kPassiveEffort_Nm}, {"hold_s", 2.0}, {"channel", 0}};  // MCP (the PIP's passive
@@ -210,24 +217,25 @@ TEST(TherapyAssessment, RepeatabilityOfEveryFigureAcrossSessions) {
   constexpr int kSessions = 3;
   const double donning_sd = 1.0 * kDeg;
   const std::string stem = ::testing::TempDir() + "/assess_rep_" + std::to_string(::getpid());
-  std::vector<std::vector<nlohmann::json>> sessions(cohort.size());
-  std::string kept_record;
+  std::vector<std::string> records;
   for (size_t i = 0; i < cohort.size(); ++i) {
     for (int k = 0; k < kSessions; ++k) {
       const SessionRun r = runSession(cohort[i], static_cast<uint32_t>(100 + 10 * i + k), donning_sd,
-                                      stem + "-" + std::to_string(i) + "-" + std::to_string(k));
-      sessions[i].push_back(r.metrics);
-      if (i == 1 && k == 0) kept_record = r.record;
-      else std::remove(r.record.c_str());
+                                      stem + "-" + std::to_string(i) + "-" + std::to_string(k), "sim-" + std::to_string(i));
+      records.push_back(r.record);
       std::printf("patient %zu session %d: passive MCP %.2f…%.2f°, catch %.2f°, v_th %.1f°/s, G %.4f, MVF mcp %.4f\n", i, k,
                   figure(r.metrics, "passive_rom.mcp.extension_deg"), figure(r.metrics, "passive_rom.mcp.flexion_deg"),
                   figure(r.metrics, "tardieu.catch_deg"), figure(r.metrics, "tardieu.threshold_deg_s"),
                   figure(r.metrics, "tardieu.gain_per_rad_s"), figure(r.metrics, "max_force.mcp"));
     }
   }
-  std::string err;
-  const nlohmann::json rep = repeatabilityOf(sessions, "therapy_assessment_test: 5 simulated patients x 3 sessions", err);
-  ASSERT_EQ(err, "");
+  // The records, grouped by the patient in their headers (phalanx record repeatability).
+  const std::string rep_path = stem + "-repeatability.json", html = stem + ".html";
+  nlohmann::json rep;
+  ASSERT_EQ(writeRepeatability(records, rep_path, rep), "");
+  EXPECT_EQ(rep["source"], "5 patients x 3 sessions");
+  nlohmann::json back;
+  ASSERT_EQ(loadRepeatability(rep_path, back), "");
   std::printf("%-36s %8s %8s %8s\n", "figure", "ICC(2,1)", "SEM", "MDC95");
   for (const auto& [name, v] : rep["figures"].items()) {
     std::printf("%-36s %8.3f %8.4f %8.4f\n", name.c_str(), v["icc"].get<double>(), v["sem"].get<double>(),
@@ -246,9 +254,7 @@ TEST(TherapyAssessment, RepeatabilityOfEveryFigureAcrossSessions) {
     EXPECT_GT(rep["figures"][name]["mdc95"].get<double>(), 0.0) << name;  // noise and donning are there
   }
   // The report shows each figure with its ICC and MDC95.
-  const std::string rep_path = stem + "-repeatability.json", html = stem + ".html";
-  std::ofstream(rep_path) << rep.dump(1);
-  ASSERT_EQ(writeReport(kept_record, "", html, nullptr, "", rep_path), "");
+  ASSERT_EQ(writeReport(records[3], "", html, nullptr, "", rep_path), "");
   std::stringstream ss;
   ss << std::ifstream(html).rdbuf();
   const std::string page = ss.str();
@@ -257,5 +263,10 @@ TEST(TherapyAssessment, RepeatabilityOfEveryFigureAcrossSessions) {
   std::snprintf(cell, sizeof cell, "<td>%.3f</td>", rep["figures"]["tardieu.catch_deg"]["icc"].get<double>());
   EXPECT_NE(page.find("<td>tardieu.catch_deg</td>"), std::string::npos);
   EXPECT_NE(page.find(cell), std::string::npos) << cell;
-  for (const std::string& f : {kept_record, rep_path, html}) std::remove(f.c_str());
+  // Unequal numbers of sessions are refused, naming the patients.
+  nlohmann::json unused;
+  const std::string uneven = writeRepeatability({records[0], records[1], records[3]}, rep_path, unused);
+  EXPECT_NE(uneven.find("same number of sessions"), std::string::npos) << uneven;
+  for (const std::string& f : records) std::remove(f.c_str());
+  for (const std::string& f : {rep_path, html}) std::remove(f.c_str());
 }

@@ -795,4 +795,39 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   return out.commit();
 }
 
+std::string writeRepeatability(const std::vector<std::string>& records, const std::string& out_path,
+                               nlohmann::json& result) {
+  std::vector<std::string> patients;
+  std::vector<std::vector<nlohmann::json>> sessions;
+  for (const std::string& path : records) {
+    if (std::string err = record::refuseSameFile(path, out_path); !err.empty()) return err;
+    record::SessionRecord rec;
+    if (std::string err = record::readRecord(path, rec); !err.empty()) return err;
+    const std::string patient = recordPatient(rec);
+    if (patient.empty()) return path + ": the record names no patient (a session without a profile)";
+    nlohmann::json m = sessionMetrics(rec);
+    if (m.contains("error")) return path + ": " + m["error"].get<std::string>();
+    const auto it = std::find(patients.begin(), patients.end(), patient);
+    if (it == patients.end()) patients.push_back(patient), sessions.emplace_back();
+    sessions[static_cast<std::size_t>(std::find(patients.begin(), patients.end(), patient) - patients.begin())]
+        .push_back(std::move(m));
+  }
+  for (std::size_t p = 0; p < patients.size(); ++p) {
+    if (sessions[p].size() != sessions[0].size()) {
+      return "patient '" + patients[p] + "' has " + std::to_string(sessions[p].size()) + " records, '" + patients[0] +
+             "' has " + std::to_string(sessions[0].size()) + ": every patient needs the same number of sessions";
+    }
+  }
+  std::string error;
+  result = repeatabilityOf(sessions, std::to_string(patients.size()) + " patients x " +
+                                         std::to_string(sessions.empty() ? 0 : sessions[0].size()) + " sessions",
+                           error);
+  if (!error.empty()) return error;
+  result["patients"] = patients;
+  std::ofstream f(out_path);
+  f << result.dump(1) << "\n";
+  f.close();
+  return f ? "" : out_path + ": cannot write";
+}
+
 }  // namespace phalanx::host::therapy

@@ -35,4 +35,12 @@ std::string writeReport(const std::string& record_path, const std::string& previ
                         const std::function<void(const std::string&)>& progress = nullptr,
                         const std::string& reference_path = "", const std::string& repeatability_path = "");
 
+/// Repeatability from session records (`phalanx record repeatability`): the records are grouped by the patient in
+/// their headers (every patient needs the same number ≥ 2 of sessions, and ≥ 2 patients — ICC(2,1) needs
+/// between-patient spread); each record's assessment figures (sessionMetrics) give ICC(2,1), SEM and MDC95 per
+/// figure (assessment_analysis.h repeatabilityOf), written to out_path as the report's repeatability file.
+/// "" or an error naming the record or the problem.
+std::string writeRepeatability(const std::vector<std::string>& records, const std::string& out_path,
+                               nlohmann::json& result);
+
 }  // namespace phalanx::host::therapy
