@@ -78,7 +78,7 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   client("stop", "stop the session (device left safe; record closed; report written)");
   for (const char* name : {"exercise", "mode"}) {
     CLI::App* sc = client(name, "switch the running session's exercise");
-    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp")->required();
+    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp|tardieu|passive-rom|max-force")->required();
     sc->add_option("--params", t.params, "exercise parameters (JSON object)");
   }
   client("reset", "clear latched faults (e-stop reset) on the device");
