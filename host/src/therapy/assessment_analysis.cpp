@@ -2,6 +2,7 @@
 
 #include <map>
 
+#include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/repeatability.h"
 
 #include <algorithm>
@@ -304,12 +305,15 @@ std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::js
   const nlohmann::json passive = in.value("passive_rom_deg", nlohmann::json::object());
   const nlohmann::json force = in.value("max_force", nlohmann::json::object());
   const nlohmann::json rom = m.value("rom_deg", nlohmann::json::object());
-  for (const auto& [joint, r] : passive.items()) {
+  // Joints and channels in anatomical order (the JSON objects keep theirs alphabetical).
+  for (const std::string& joint : anatomicalKeys(passive)) {
+    const nlohmann::json& r = passive[joint];
     addFigure(out, "passive_rom." + joint + ".extension_deg", r.value("extension", nlohmann::json()));
     addFigure(out, "passive_rom." + joint + ".flexion_deg", r.value("flexion", nlohmann::json()));
   }
-  for (const auto& [ch, v] : force.items()) addFigure(out, "max_force." + ch, v);
-  for (const auto& [joint, r] : rom.items()) {
+  for (const std::string& ch : anatomicalKeys(force)) addFigure(out, "max_force." + ch, force[ch]);
+  for (const std::string& joint : anatomicalKeys(rom)) {
+    const nlohmann::json& r = rom[joint];
     if (!r.is_array() || r.size() != 2) continue;
     addFigure(out, "rom." + joint + ".min_deg", r[0]);
     addFigure(out, "rom." + joint + ".max_deg", r[1]);

@@ -60,7 +60,8 @@ double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& 
 /// Every instrumented-assessment figure of a session's metrics (sessionMetrics()["instrumented"]) as
 /// (name, value) pairs in a fixed order: tardieu.catch_deg, tardieu.threshold_deg_s, tardieu.gain_per_rad_s,
 /// tardieu.reflex_at_<v>_deg_s (per stretch velocity), passive_rom.<joint>.{extension,flexion}_deg,
-/// max_force.<channel>, rom.<joint>.{min,max}_deg (active ROM). Non-finite figures are left out.
+/// max_force.<channel>, rom.<joint>.{min,max}_deg (active ROM), joints and channels in anatomical order.
+/// Non-finite figures are left out.
 std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::json& metrics);
 
 /// The repeatability of every assessment figure from sessions[patient][session] = that session's metrics
