@@ -214,6 +214,9 @@ std::string validate(const RunOptions& opt) {
       opt.scenario != "spastic") {
     return "scenario: '" + opt.scenario + "' is not one of still, close-open, grasp, random, spastic";
   }
+  if (opt.scenario == "spastic" && opt.device.rfind("sim:", 0) == 0 && opt.device != "sim:sea_finger") {
+    return "scenario: 'spastic' (a finger with a stretch reflex) is for sim:sea_finger only, not " + opt.device;
+  }
   if (opt.scene != "none" && opt.scene != "rigid-ball" && opt.scene != "soft-ball" && opt.scene != "wall") {
     return "scene: '" + opt.scene + "' is not one of none, rigid-ball, soft-ball, wall";
   }
