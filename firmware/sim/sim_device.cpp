@@ -127,6 +127,8 @@ std::vector<std::string> SeaFingerSimDevice::truthColumns() const {
     c.push_back(std::string("finger_torque_") + j + "_Nm");
   }
   for (const char* j : {"mcp", "pip", "dip"}) c.push_back(std::string("finger_angle_") + j + "_rad");
+  // The stretch reflex's share of the finger's torque (0 unless the simulated patient is spastic).
+  for (const char* j : {"mcp", "pip"}) c.push_back(std::string("finger_reflex_") + j + "_Nm");
   return c;
 }
 
@@ -137,6 +139,7 @@ void SeaFingerSimDevice::truthValues(double* out) const {
     *out++ = plant_.finger().applied_Nm[static_cast<size_t>(s)];
   }
   for (double a : plant_.finger().theta_rad) *out++ = a;
+  for (double r : plant_.finger().reflex_Nm) *out++ = r;
 }
 
 // The six motor torques after the amplifier (what the joints receive), the pen pose x = (c, theta_x, theta_z) and the
