@@ -47,8 +47,13 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
     cfg.seed = options.seed;
     cfg.noise = options.noise;
     cfg.variant = name == "sea_rig" ? sim::SeaVariant::kRig : sim::SeaVariant::kFinger;
-    if (!parseSeaUserMotion(options.scenario, cfg.motion)) {
-      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random)";
+    if (options.scenario == "spastic" && name == "sea_finger") {
+      // The relaxed finger with a stretch reflex (the instrumented Tardieu test's simulated patient).
+      cfg.motion = sim::SeaUserMotion::kRelaxed;
+      cfg.params.finger = sim::withStretchReflex(cfg.params.finger);
+    } else if (!parseSeaUserMotion(options.scenario, cfg.motion)) {
+      error = "unknown scenario '" + options.scenario + "' (still, close-open, grasp, random" +
+              (name == "sea_finger" ? ", spastic)" : ")");
       return nullptr;
     }
     try {
@@ -122,6 +127,8 @@ std::vector<std::string> SeaFingerSimDevice::truthColumns() const {
     c.push_back(std::string("finger_torque_") + j + "_Nm");
   }
   for (const char* j : {"mcp", "pip", "dip"}) c.push_back(std::string("finger_angle_") + j + "_rad");
+  // The stretch reflex's share of the finger's torque (0 unless the simulated patient is spastic).
+  for (const char* j : {"mcp", "pip"}) c.push_back(std::string("finger_reflex_") + j + "_Nm");
   return c;
 }
 
@@ -132,6 +139,7 @@ void SeaFingerSimDevice::truthValues(double* out) const {
     *out++ = plant_.finger().applied_Nm[static_cast<size_t>(s)];
   }
   for (double a : plant_.finger().theta_rad) *out++ = a;
+  for (double r : plant_.finger().reflex_Nm) *out++ = r;
 }
 
 // The six motor torques after the amplifier (what the joints receive), the pen pose x = (c, theta_x, theta_z) and the

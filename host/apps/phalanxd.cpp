@@ -40,7 +40,7 @@ void addDaemonOptions(CLI::App& app, DaemonArgs& a) {
                  "crash-safe session record (.phrec) of every cycle, setpoint and event (must not exist)");
   app.add_option("--profile", a.profile_path, "patient profile (YAML); its limits are enforced")->check(CLI::ExistingFile);
   app.add_option("--exercise", a.tcfg.exercise,
-                 "therapy exercise: idle|assessment|resistance|assistance|record-pattern|playback|grasp");
+                 "therapy exercise: idle|assessment|resistance|assistance|record-pattern|playback|grasp|tardieu|passive-rom|max-force");
   app.add_option("--exercise-params", a.exercise_params, "exercise parameters as a JSON object");
   app.add_option("--report", a.tcfg.report_path, "HTML report written at session end (needs --session-record)");
   app.add_option("--previous-record", a.tcfg.previous_record, "previous session's record, for the report's comparison");

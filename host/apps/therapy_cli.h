@@ -49,7 +49,9 @@ struct TherapyCli {
   CLI::App* rec_fhir = nullptr;
   CLI::App* rec_replay = nullptr;
   std::vector<std::string> replay_set;  // KEY=VALUE
-  std::string rec_file, rec_out, rec_previous, rec_reference;
+  std::string rec_file, rec_out, rec_previous, rec_reference, rec_repeatability;
+  CLI::App* rec_repeat = nullptr;
+  std::vector<std::string> rec_files;
   bool csv = false;
   bool mcap = false;
 };
@@ -79,7 +81,7 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   client("stop", "stop the session (device left safe; record closed; report written)");
   for (const char* name : {"exercise", "mode"}) {
     CLI::App* sc = client(name, "switch the running session's exercise");
-    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp")->required();
+    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp|tardieu|passive-rom|max-force")->required();
     sc->add_option("--params", t.params, "exercise parameters (JSON object)");
   }
   client("reset", "clear latched faults (e-stop reset) on the device");
@@ -113,6 +115,14 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_report->add_option("--reference", t.rec_reference,
                            "device-free recording of the same motion (CSV t_s,<joint>_deg,...): transparency Pearson r")
       ->check(CLI::ExistingFile);
+  t.rec_report->add_option("--repeatability", t.rec_repeatability,
+                           "repeatability file (phalanx record repeatability): ICC(2,1) and MDC95 beside each figure")
+      ->check(CLI::ExistingFile);
+  t.rec_repeat = t.record->add_subcommand(
+      "repeatability", "ICC(2,1) and MDC95 of every assessment figure from repeated sessions of several patients");
+  t.rec_repeat->add_option("files", t.rec_files, "records: the same number of sessions of each patient (2 or more)")
+      ->required()->check(CLI::ExistingFile);
+  t.rec_repeat->add_option("--out", t.rec_out, "output JSON file")->required();
   t.rec_fhir = t.record->add_subcommand("fhir", "export a record's results as a FHIR R4 Bundle of Observations (JSON)");
   t.rec_fhir->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_fhir->add_option("--out", t.rec_out, "output file (default: FILE with .fhir.json; never the record itself)");
@@ -414,12 +424,26 @@ inline int runTherapyCommands(TherapyCli& t) {
       const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".html") : t.rec_out;
       const std::string err = therapy::writeReport(t.rec_file, t.rec_previous, out,
                                                    [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); },
-                                                   t.rec_reference);
+                                                   t.rec_reference, t.rec_repeatability);
       if (!err.empty()) {
         std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
         return 1;
       }
       std::printf("report: %s\n", out.c_str());
+      return 0;
+    }
+    if (t.rec_repeat->parsed()) {
+      nlohmann::json rep;
+      if (const std::string err = therapy::writeRepeatability(t.rec_files, t.rec_out, rep); !err.empty()) {
+        std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+        return 1;
+      }
+      std::printf("%-36s %9s %9s %9s\n", "figure", "ICC(2,1)", "SEM", "MDC95");
+      for (const auto& [name, v] : rep["figures"].items()) {
+        std::printf("%-36s %9s %9s %9s\n", name.c_str(), humanNumber(v["icc"].get<double>(), 3).c_str(),
+                    humanNumber(v["sem"].get<double>(), 3).c_str(), humanNumber(v["mdc95"].get<double>(), 3).c_str());
+      }
+      std::printf("repeatability: %s (%s)\n", t.rec_out.c_str(), rep["source"].get<std::string>().c_str());
       return 0;
     }
     if (t.rec_fhir->parsed()) {

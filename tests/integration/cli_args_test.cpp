@@ -84,6 +84,8 @@ TEST(CliArgs, PhalanxdRangeConversionAndUnknownOptionErrorsExitTwoNamingTheOptio
       {{"--command-timeout-ms", "1"}, "--command-timeout-ms"},
       {{"--seed", "abc"}, "--seed: expected a non-negative integer, got 'abc'"},
       {{"--scenario", "dance"}, "--scenario"},
+      {{"--device", "sim:glove5", "--scenario", "spastic"},
+       "scenario: 'spastic' (a finger with a stretch reflex) is for sim:sea_finger only, not sim:glove5"},
       {{"--secnds", "1"}, "unknown option --secnds; did you mean --seconds?"},
       {{"--rate", "500"}, "unknown option --rate; did you mean --rate-hz?"},
       {{"--device"}, "--device"},

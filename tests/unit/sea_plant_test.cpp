@@ -341,3 +341,84 @@ TEST(SeaPlant, AdvanceIsBitIdenticalToSteppingEachSubstep) {
     }
   }
 }
+
+// ---- Stretch reflex, maximal effort, donning variation (instrumented assessments, docs/sea-plant.md) ---------
+
+TEST(SeaPlantFinger, StretchReflexIsOffByDefault) {
+  sim::SeaPlant plant(fingerConfig());
+  for (double rate : {0.0, 2.0, 10.0}) EXPECT_EQ(plant.reflexTorque_Nm(0, 0.0, rate), 0.0);
+  for (double off : plant.donningOffsets()) EXPECT_EQ(off, 0.0);
+}
+
+// τ_reflex = −G·(θ̇ − v_th)⁺ while the flexion is below the catch angle; nothing above it or below v_th.
+TEST(SeaPlantFinger, StretchReflexGrowsWithVelocityAboveTheThresholdBeyondTheCatchAngle) {
+  sim::SeaPlantConfig c = fingerConfig();
+  c.params.finger = sim::withStretchReflex(c.params.finger);
+  sim::SeaPlant plant(c);
+  const auto& f = c.params.finger;
+  const double v_th = f.reflex_threshold_rad_s[0], catch_flexion = f.reflex_catch_flexion_rad[0];
+  const double stretched = -(catch_flexion - 0.05);  // θ: 0.05 rad less flexed than the catch angle
+  EXPECT_EQ(plant.reflexTorque_Nm(0, stretched, 0.9 * v_th), 0.0);
+  EXPECT_NEAR(plant.reflexTorque_Nm(0, stretched, v_th + 1.0), -f.reflex_gain_Nm_s_per_rad[0] * 1.0, 1e-12);
+  EXPECT_NEAR(plant.reflexTorque_Nm(0, stretched, v_th + 2.0), -f.reflex_gain_Nm_s_per_rad[0] * 2.0, 1e-12);
+  EXPECT_EQ(plant.reflexTorque_Nm(0, -(catch_flexion + 0.05), v_th + 2.0), 0.0);  // not yet at the catch
+  EXPECT_EQ(plant.reflexTorque_Nm(0, stretched, -(v_th + 2.0)), 0.0);             // flexing: no stretch
+}
+
+TEST(SeaPlantFinger, ReflexAndMaximalEffortParametersAreValidated) {
+  sim::SeaPlantConfig c = fingerConfig();
+  c.params.finger.reflex_gain_Nm_s_per_rad[1] = -0.1;
+  EXPECT_THROW(sim::SeaPlant{c}, std::invalid_argument);
+  c = fingerConfig();
+  c.params.finger.reflex_catch_flexion_rad[0] = NAN;
+  EXPECT_THROW(sim::SeaPlant{c}, std::invalid_argument);
+  c = fingerConfig();
+  c.params.finger.max_voluntary_Nm[0] = -1.0;
+  EXPECT_THROW(sim::SeaPlant{c}, std::invalid_argument);
+  c = fingerConfig();
+  c.params.donning_offset_sd_rad = INFINITY;
+  EXPECT_THROW(sim::SeaPlant{c}, std::invalid_argument);
+}
+
+// A maximal effort scheduled at 0.2 s: no muscle torque before, −max_voluntary_Nm (flexing) once risen.
+TEST(SeaPlantFinger, MaximalEffortRisesToTheMaximalVoluntaryTorque) {
+  sim::SeaPlantConfig c = fingerConfig();
+  c.params.finger.max_effort_start_s = 0.2;
+  c.params.finger.max_effort_duration_s = 2.0;
+  sim::SeaPlant plant(c);
+  sim::SimIo io{};
+  for (int i = 0; i < 150; ++i) plant.step(1e-3, io);
+  EXPECT_EQ(plant.finger().muscle_Nm[0], 0.0);
+  for (int i = 0; i < 700; ++i) plant.step(1e-3, io);
+  EXPECT_NEAR(plant.finger().muscle_Nm[0], -c.params.finger.max_voluntary_Nm[0], 1e-9);
+  EXPECT_NEAR(plant.finger().muscle_Nm[1], -c.params.finger.max_voluntary_Nm[1], 1e-9);
+}
+
+// Donning offsets: fixed per seed, different between seeds, of the configured size, and on their own stream
+// (the noise-free sensor readings shift by exactly the offset).
+TEST(SeaPlantFinger, DonningOffsetsAreSeededAndShiftTheSensors) {
+  sim::SeaPlantConfig c = fingerConfig();
+  c.params.donning_offset_sd_rad = 0.02;
+  c.seed = 5;
+  sim::SeaPlant a(c), a2(c);
+  c.seed = 6;
+  sim::SeaPlant b(c);
+  double sq = 0.0;
+  for (size_t s = 0; s < 5; ++s) {
+    EXPECT_EQ(a.donningOffsets()[s], a2.donningOffsets()[s]);
+    EXPECT_NE(a.donningOffsets()[s], b.donningOffsets()[s]);
+    sq += a.donningOffsets()[s] * a.donningOffsets()[s];
+  }
+  EXPECT_LT(std::sqrt(sq / 5.0), 0.06);  // 3σ
+  sim::SeaPlantConfig none = fingerConfig();
+  none.seed = 5;
+  sim::SeaPlant plain(none);
+  sim::SimIo io_a{}, io_p{};
+  a.step(1e-3, io_a);
+  plain.step(1e-3, io_p);
+  const double counts_per_rad = static_cast<double>(board::kJointCountsPerRad);
+  for (int s = 0; s < board::kJointSensorCount; ++s) {
+    const auto i = static_cast<size_t>(board::kAdcFirstJoint + s);
+    EXPECT_NEAR(io_a.adc[i] - io_p.adc[i], a.donningOffsets()[static_cast<size_t>(s)] * counts_per_rad, 1.0) << s;
+  }
+}

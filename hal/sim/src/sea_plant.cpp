@@ -32,11 +32,15 @@ void validate(const SeaPlantConfig& c) {
     for (double v : pos) require(finitePositive(v), "SeaFingerParams: A, B, C, D and exo_inertia must be > 0");
     const double nonneg[] = {f.finger_damping_Nm_s_per_rad[j], f.exo_damping_Nm_s_per_rad[j],
                              f.muscle_stiffness_Nm_per_rad[j], f.muscle_damping_Nm_s_per_rad[j],
-                             f.random_amplitude_rad[j], f.close_open_amplitude_rad[j]};
+                             f.random_amplitude_rad[j], f.close_open_amplitude_rad[j],
+                             f.reflex_gain_Nm_s_per_rad[j], f.reflex_threshold_rad_s[j], f.max_voluntary_Nm[j]};
     for (double v : nonneg) require(finiteNonNegative(v), "SeaFingerParams: a value that must be >= 0 is not");
+    require(std::isfinite(f.reflex_catch_flexion_rad[j]), "SeaFingerParams: reflex_catch_flexion_rad must be finite");
     require(std::isfinite(f.E_rad[j]) && std::isfinite(f.F_rad[j]) && f.E_rad[j] < f.F_rad[j],
             "SeaFingerParams: E and F must be finite with E < F");
   }
+  require(std::isfinite(f.max_effort_start_s) && finiteNonNegative(f.max_effort_duration_s),
+          "SeaFingerParams: max_effort_start_s must be finite and max_effort_duration_s >= 0");
   require(std::isfinite(f.dip_pip_coupling), "SeaFingerParams: dip_pip_coupling must be finite");
   require(finitePositive(f.close_open_hz), "SeaFingerParams: close_open_hz must be > 0");
   for (const SeaChannelParams& s : p.channel) {
@@ -57,7 +61,8 @@ void validate(const SeaPlantConfig& c) {
   for (double v : positive) require(finitePositive(v), "SeaPlantParams: a value that must be > 0 is not");
   require(p.gear_efficiency <= 1.0, "SeaPlantParams: gear_efficiency must be <= 1");
   const double non_negative[] = {p.bridge_on_resistance_Ohm, p.no_load_current_A, p.output_inertia_kg_m2,
-                                 p.joint_noise_counts, p.current_noise_counts, p.load_cell_noise_counts};
+                                 p.joint_noise_counts, p.current_noise_counts, p.load_cell_noise_counts,
+                                 p.donning_offset_sd_rad};
   for (double v : non_negative) require(finiteNonNegative(v), "SeaPlantParams: a value that must be >= 0 is not");
 }
 
@@ -111,9 +116,40 @@ SeaPlant::SeaPlant(const SeaPlantConfig& config) : config_(config), rng_(config.
       for (auto& a : random_.amp[j]) a *= f.random_amplitude_rad[j] / total;  // peak ≤ the configured amplitude
       for (size_t k = 0; k < random_.phase[j].size(); ++k) random_.sin_phase[j][k] = std::sin(random_.phase[j][k]);
     }
+    drawDonning();
     fingerDynamics(0.0);
     fingerSensors();
   }
+}
+
+// A third random stream (noise and motion keep theirs), so donning variation changes nothing else.
+void SeaPlant::drawDonning() {
+  const double sd = config_.params.donning_offset_sd_rad;
+  if (sd <= 0.0) return;
+  std::mt19937 rng(config_.seed * 104729u + 31u);
+  const auto u = [&rng] { return (static_cast<double>(rng()) + 0.5) * (1.0 / 4294967296.0); };
+  for (double& off : donning_rad_) off = sd * std::sqrt(-2.0 * std::log(u())) * std::cos(2.0 * kPi * u());
+}
+
+double SeaPlant::reflexTorque_Nm(int joint, double theta_rad, double theta_rate_rad_s) const {
+  const SeaFingerParams& f = config_.params.finger;
+  const auto j = static_cast<size_t>(joint);
+  if (f.reflex_gain_Nm_s_per_rad[j] <= 0.0 || -theta_rad >= f.reflex_catch_flexion_rad[j]) return 0.0;
+  // Stretch velocity of the flexors = extension rate = +θ̇.
+  return -f.reflex_gain_Nm_s_per_rad[j] * std::max(0.0, theta_rate_rad_s - f.reflex_threshold_rad_s[j]);
+}
+
+// The user's muscle torque (+θ) on joint j: an impedance around the intent, or a maximal flexion effort.
+double SeaPlant::muscleTorque_Nm(size_t j, double th_d, double th_d_dot, double wf) const {
+  const SeaFingerParams& f = config_.params.finger;
+  if (config_.motion == SeaUserMotion::kRelaxed) {
+    const double t = time_s_ - f.max_effort_start_s;
+    if (f.max_effort_start_s < 0.0 || t < 0.0 || t > f.max_effort_duration_s) return 0.0;
+    return -f.max_voluntary_Nm[j] * std::min(1.0, t / kMaxEffortRiseS);
+  }
+  // The user drives the intended motion: cancels their own passive torque at θ_d, plus an impedance.
+  return -passiveTorque_Nm(static_cast<int>(j), th_d) + f.muscle_stiffness_Nm_per_rad[j] * (th_d - finger_.theta_rad[j]) +
+         f.muscle_damping_Nm_s_per_rad[j] * (th_d_dot - wf);
 }
 
 double SeaPlant::passiveTorque_Nm(int joint, double theta_rad) const {
@@ -174,12 +210,9 @@ void SeaPlant::fingerDynamics(double h) {
   std::array<double, 2> damping{};  // finger-coordinate damping (finger + muscle)
   for (size_t j = 0; j < 2; ++j) {
     finger_.passive_Nm[j] = passiveTorque_Nm(static_cast<int>(j), finger_.theta_rad[j]);
-    // The user drives the intended motion: cancels their own passive torque at θ_d, plus an impedance.
-    finger_.muscle_Nm[j] = active ? -passiveTorque_Nm(static_cast<int>(j), th_d[j]) +
-                                        f.muscle_stiffness_Nm_per_rad[j] * (th_d[j] - finger_.theta_rad[j]) +
-                                        f.muscle_damping_Nm_s_per_rad[j] * (th_d_dot[j] - wf[j])
-                                  : 0.0;
-    tau_fin[j] = finger_.passive_Nm[j] + finger_.muscle_Nm[j] +
+    finger_.muscle_Nm[j] = muscleTorque_Nm(j, th_d[j], th_d_dot[j], wf[j]);
+    finger_.reflex_Nm[j] = reflexTorque_Nm(static_cast<int>(j), finger_.theta_rad[j], wf[j]);
+    tau_fin[j] = finger_.passive_Nm[j] + finger_.muscle_Nm[j] + finger_.reflex_Nm[j] +
                  (active ? f.muscle_damping_Nm_s_per_rad[j] * wf[j] : 0.0);  // the −D·θ̇_f part goes implicit
     damping[j] = f.finger_damping_Nm_s_per_rad[j] + (active ? f.muscle_damping_Nm_s_per_rad[j] : 0.0);
     finger_.intent_rad[j] = th_d[j];
@@ -414,7 +447,7 @@ void SeaPlant::sample(SimIo& io) {
   for (int s = 0; s < board::kJointSensorCount; ++s) {
     const auto si = static_cast<size_t>(s);
     const double centre = asDouble(board::kJointCentre_rad[si]);
-    const double angle = rig ? centre + (s < 2 ? ch_[si].theta_j : 0.0) : finger_.sensors_rad[si];
+    const double angle = rig ? centre + (s < 2 ? ch_[si].theta_j : 0.0) : finger_.sensors_rad[si] + donning_rad_[si];
     const double counts = mid + (angle - centre) * asDouble(board::kJointCountsPerRad);
     io.adc[static_cast<size_t>(board::kAdcFirstJoint + s)] = toCounts(counts + noise * p.joint_noise_counts * gaussian());
   }

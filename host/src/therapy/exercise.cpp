@@ -16,6 +16,9 @@ const char* exerciseName(ExerciseId id) {
     case ExerciseId::kRecordPattern: return "record-pattern";
     case ExerciseId::kPlayback: return "playback";
     case ExerciseId::kGrasp: return "grasp";
+    case ExerciseId::kTardieu: return "tardieu";
+    case ExerciseId::kPassiveRom: return "passive-rom";
+    case ExerciseId::kMaxForce: return "max-force";
   }
   return "unknown";
 }
@@ -36,6 +39,48 @@ double AssistLaw::step(double target_rad, double q_rad, double dt_s) {
   gain = std::clamp(gain, gain_min, 1.0);
   // Needs more flexion (e > 0) → negative effort (assists flexion).
   return -gain * stiffness * std::copysign(outside, e);
+}
+
+namespace {
+
+// One ramp from a to b at |rate|, then a hold: writes the target if t falls in it; returns its length.
+double segment(double t, double a, double b, double rate, double hold, double& q, double& q_dot, bool& done) {
+  const double ramp = std::fabs(b - a) / rate;
+  if (!done && t < ramp) {
+    q = a + std::copysign(rate * t, b - a);
+    q_dot = std::copysign(rate, b - a);
+    done = true;
+  } else if (!done && t < ramp + hold) {
+    q = b;
+    q_dot = 0.0;
+    done = true;
+  }
+  return ramp + hold;
+}
+
+}  // namespace
+
+void TardieuPlan::targetAt(double t_s, double q0_rad, double& q_rad, double& q_dot_rad_s) const {
+  bool done = false;
+  double start = q0_rad;
+  q_rad = to_rad;
+  q_dot_rad_s = 0.0;
+  for (std::size_t i = 0; i < count && !done; ++i) {
+    t_s -= segment(t_s, start, from_rad, kApproach_rad_s, hold_s, q_rad, q_dot_rad_s, done);
+    if (done) break;
+    t_s -= segment(t_s, from_rad, to_rad, velocity_rad_s[i], 0.5 * hold_s, q_rad, q_dot_rad_s, done);
+    start = to_rad;
+  }
+}
+
+double TardieuPlan::durationS(double q0_rad) const {
+  double t = 0.0, start = q0_rad;
+  for (std::size_t i = 0; i < count; ++i) {
+    t += std::fabs(from_rad - start) / kApproach_rad_s + hold_s;
+    t += std::fabs(to_rad - from_rad) / velocity_rad_s[i] + 0.5 * hold_s;
+    start = to_rad;
+  }
+  return t;
 }
 
 namespace {
@@ -269,6 +314,151 @@ class Grasp : public Exercise {
   protocol::Command cmd_{};
 };
 
+nlohmann::json toJson(const std::map<std::string, double>& p);
+
+/// Position control of one channel coordinate: effort = k·(q − q*) + b·(q̇ − q̇*) (+ resists flexion, so a
+/// finger more flexed than its target is pushed towards extension).
+double trackEffort(const Observation& obs, std::size_t c, double target, double target_dot, double k, double b) {
+  return k * (obs.q_rad[c] - target) + b * (obs.q_dot_rad_per_s[c] - target_dot);
+}
+
+class Tardieu : public Exercise {
+ public:
+  Tardieu(const TardieuPlan& plan, double k, double b, nlohmann::json params)
+      : plan_(plan), k_(k), b_(b), params_(std::move(params)) {}
+  ExerciseId id() const override { return ExerciseId::kTardieu; }
+  void start(const Observation& obs, double t_s) override {
+    t0_s_ = t_s;
+    q0_rad_ = obs.channel_valid[plan_.channel] ? obs.q_rad[plan_.channel] : plan_.from_rad;
+  }
+  void update(const TelemetryFrame&, const Observation& obs, double t_s, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSetpoint;  // the other channels: zero effort
+    double q = 0.0, q_dot = 0.0;
+    plan_.targetAt(t_s - t0_s_, q0_rad_, q, q_dot);
+    out.target_q_rad[plan_.channel] = q;
+    if (obs.channel_valid[plan_.channel]) out.effort[plan_.channel] = trackEffort(obs, plan_.channel, q, q_dot, k_, b_);
+  }
+  nlohmann::json params() const override { return params_; }
+
+ private:
+  TardieuPlan plan_;
+  double k_, b_;
+  nlohmann::json params_;
+  double t0_s_ = 0.0, q0_rad_ = 0.0;
+};
+
+/// Extends every channel with +effort for hold_s, then flexes it with −effort for hold_s, then effort 0: the
+/// relaxed finger settles where its passive torque balances the test effort (a torque-defined passive ROM).
+class PassiveRom : public Exercise {
+ public:
+  PassiveRom(std::size_t channels, int only, double effort, double hold_s)
+      : channels_(channels), only_(only), effort_(effort), hold_s_(hold_s) {}
+  ExerciseId id() const override { return ExerciseId::kPassiveRom; }
+  void start(const Observation&, double t_s) override { t0_s_ = t_s; }
+  void update(const TelemetryFrame&, const Observation&, double t_s, double, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSetpoint;
+    const double t = t_s - t0_s_;
+    const double e = t < hold_s_ ? effort_ : (t < 2.0 * hold_s_ ? -effort_ : 0.0);
+    for (std::size_t c = 0; c < channels_; ++c) out.effort[c] = only_ < 0 || c == static_cast<std::size_t>(only_) ? e : 0.0;
+  }
+  nlohmann::json params() const override { return {{"effort", effort_}, {"hold_s", hold_s_}, {"channel", only_}}; }
+
+ private:
+  std::size_t channels_;
+  int only_;  // −1: every channel
+  double effort_, hold_s_;
+  double t0_s_ = 0.0;
+};
+
+/// Holds every channel at the pose it started in (PI on q, the integral bounded by the effort limit), so the
+/// effort it takes is the patient's isometric effort; the report takes its peak as the maximal voluntary force.
+class MaxForce : public Exercise {
+ public:
+  MaxForce(std::size_t channels, double k, double ki, double i_max) : channels_(channels), k_(k), ki_(ki), i_max_(i_max) {}
+  ExerciseId id() const override { return ExerciseId::kMaxForce; }
+  void start(const Observation& obs, double) override {
+    q0_ = obs.q_rad;
+    integral_.fill(0.0);
+  }
+  void update(const TelemetryFrame&, const Observation& obs, double, double dt_s, ExerciseOutput& out) override {
+    out.mode = protocol::Mode::kSetpoint;
+    for (std::size_t c = 0; c < channels_; ++c) {
+      out.target_q_rad[c] = q0_[c];
+      if (!obs.channel_valid[c]) continue;
+      const double e = obs.q_rad[c] - q0_[c];
+      integral_[c] = std::clamp(integral_[c] + ki_ * e * dt_s, -i_max_, i_max_);
+      out.effort[c] = k_ * e + integral_[c];
+    }
+  }
+  nlohmann::json params() const override { return {{"stiffness_per_rad", k_}, {"integral_per_rad_s", ki_}}; }
+
+ private:
+  std::size_t channels_;
+  double k_, ki_, i_max_;
+  std::array<double, kMaxChannels> q0_{}, integral_{};
+};
+
+std::unique_ptr<Exercise> makeTardieu(const std::map<std::string, double>& p, const TherapyDevice& device,
+                                      std::string& error) {
+  TardieuPlan plan;
+  plan.channel = static_cast<std::size_t>(p.at("channel"));
+  if (plan.channel >= device.channelCount()) {
+    error = "params.channel: " + std::to_string(plan.channel) + " is not a channel of " + device.name();
+    return nullptr;
+  }
+  for (const char* k : {"v1_deg_s", "v2_deg_s", "v3_deg_s", "v4_deg_s"}) {
+    if (p.at(k) > 0.0) plan.velocity_rad_s[plan.count++] = p.at(k) * kDeg;
+  }
+  plan.from_rad = p.at("from_deg") * kDeg;
+  plan.to_rad = p.at("to_deg") * kDeg;
+  plan.hold_s = p.at("hold_s");
+  if (plan.count < 2 || plan.from_rad - plan.to_rad < 10.0 * kDeg) {
+    error = "params: the tardieu test needs at least 2 velocities and from_deg at least 10° above to_deg";
+    return nullptr;
+  }
+  return std::make_unique<Tardieu>(plan, p.at("stiffness_per_rad"), p.at("damping_s_per_rad"), toJson(p));
+}
+
+std::unique_ptr<Exercise> makeInstrumented(const std::string& name, const nlohmann::json& params,
+                                           const TherapyDevice& device, std::string& error) {
+  std::map<std::string, double> p;
+  const double emax = device.effortLimit(0);
+  const std::size_t n = device.channelCount();
+  if (name == "passive-rom") {
+    if (!readParams(params, {{"effort", {0.3 * emax, 0.05 * emax, emax, "effort"}}, {"hold_s", {2.0, 0.5, 10.0, "s"}},
+                             {"channel", {-1.0, -1.0, static_cast<double>(n) - 1.0, "index (-1: all)"}}},
+                    p, error)) {
+      return nullptr;
+    }
+    return std::make_unique<PassiveRom>(n, static_cast<int>(p["channel"]), p["effort"], p["hold_s"]);
+  }
+  if (name == "max-force") {
+    // 1·E/rad and 3·E/(rad·s): on the SEA finger 3·E/rad with 20·E/(rad·s) on both channels is a limit cycle
+    // (measured in therapy_assessment_test); these hold the pose to the MVF within 1 % there.
+    if (!readParams(params, {{"stiffness_per_rad", {1.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
+                             {"integral_per_rad_s", {3.0 * emax, 0.0, 1000.0 * emax, "effort/(rad·s)"}}},
+                    p, error)) {
+      return nullptr;
+    }
+    return std::make_unique<MaxForce>(n, p["stiffness_per_rad"], p["integral_per_rad_s"], emax);
+  }
+  if (!readParams(params,
+                  {{"channel", {0.0, 0.0, static_cast<double>(kMaxChannels - 1), "index"}},
+                   {"v1_deg_s", {15.0, 5.0, 400.0, "deg/s"}},
+                   {"v2_deg_s", {90.0, 5.0, 400.0, "deg/s"}},
+                   {"v3_deg_s", {150.0, 0.0, 400.0, "deg/s (0: unused)"}},
+                   {"v4_deg_s", {210.0, 0.0, 400.0, "deg/s (0: unused)"}},
+                   {"from_deg", {50.0, -30.0, 120.0, "deg"}},
+                   {"to_deg", {5.0, -30.0, 120.0, "deg"}},
+                   {"hold_s", {1.0, 0.2, 10.0, "s"}},
+                   {"stiffness_per_rad", {3.0 * emax, 0.0, 50.0 * emax, "effort/rad"}},
+                   {"damping_s_per_rad", {0.05 * emax, 0.0, 2.0 * emax, "effort·s/rad"}}},
+                  p, error)) {
+    return nullptr;
+  }
+  return makeTardieu(p, device, error);
+}
+
 AssistLaw assistLawFrom(const std::map<std::string, double>& p) {
   AssistLaw law;
   law.stiffness = p.at("stiffness_per_rad");
@@ -374,7 +564,10 @@ std::unique_ptr<Exercise> makeExercise(const std::string& name, const nlohmann::
     if (!inner) return nullptr;
     return std::make_unique<Grasp>(std::move(inner), device, scene);
   }
-  error = "exercise: '" + name + "' is not one of idle, assessment, resistance, assistance, record-pattern, playback, grasp";
+  if (name == "tardieu" || name == "passive-rom" || name == "max-force") return makeInstrumented(name, params, device, error);
+  error = "exercise: '" + name +
+          "' is not one of idle, assessment, resistance, assistance, record-pattern, playback, grasp, tardieu, "
+          "passive-rom, max-force";
   return nullptr;
 }
 

@@ -16,6 +16,7 @@
 #include "phalanx/host/metrics.h"
 #include "phalanx/host/record/output_file.h"
 #include "phalanx/host/session.h"
+#include "phalanx/host/therapy/assessment_analysis.h"
 #include "phalanx/host/therapy/device.h"
 #include "phalanx/host/therapy/exercise.h"
 #include "phalanx/host/therapy/guidance.h"
@@ -299,6 +300,58 @@ std::pair<std::string, std::string> describeRequest(const nlohmann::json& e, con
   return {kind.substr(kind.rfind("api-", 0) == 0 ? 4 : 0), rest.empty() ? "" : rest.dump()};
 }
 
+std::vector<char> phaseMask(const Series& s, ExerciseId id) {
+  std::vector<char> in(s.t.size(), 0);
+  for (std::size_t i = 0; i < s.t.size(); ++i) in[i] = s.exercise[i] == static_cast<int>(id) && !s.excluded[i];
+  return in;
+}
+
+bool any(const std::vector<char>& v) { return std::find(v.begin(), v.end(), 1) != v.end(); }
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+/// The tardieu phase's figures; the stretched channel is the one with a target in it.
+nlohmann::json tardieuMetrics(const TherapyDevice& dev, const Series& s, const std::vector<char>& in) {
+  for (std::size_t c = 0; c < dev.channelCount(); ++c) {
+    bool has_target = false;
+    for (std::size_t i = 0; i < s.t.size() && !has_target; ++i) has_target = in[i] && std::isfinite(s.target[c][i]);
+    if (!has_target) continue;
+    TardieuFigures f;
+    if (std::string err = analyseTardieu(s.t, s.q[c], s.effort[c], s.target[c], in, f); !err.empty()) {
+      return {{"channel", dev.channelName(c)}, {"error", err}};
+    }
+    nlohmann::json st = nlohmann::json::array();
+    for (const auto& x : f.stretches) {
+      // Nominal velocity to the nearest 5°/s (the target is a float in the record: 210 reads as 208.x).
+      st.push_back({{"nominal_deg_s", 5 * static_cast<int>(std::lround(x.nominal_rad_s * kDeg / 5.0))},
+                    {"velocity_deg_s", num(x.velocity_rad_s * kDeg)}, {"resistance", num(x.resistance)},
+                    {"catch_deg", num(x.catch_rad * kDeg)}, {"reflex", num(x.reflex)}});
+    }
+    return {{"channel", dev.channelName(c)}, {"stretches", st}, {"catch_deg", num(f.catch_rad * kDeg)},
+            {"threshold_deg_s", num(f.threshold_rad_s * kDeg)}, {"gain_per_rad_s", num(f.gain_per_rad_s)},
+            {"fit_residual", f.residual}};
+  }
+  return {{"error", "tardieu: no channel had a target"}};
+}
+
+/// Instrumented assessments (assessment_analysis.h) of the phases present.
+nlohmann::json instrumentedMetrics(const TherapyDevice& dev, const Series& s) {
+  nlohmann::json out = nlohmann::json::object();
+  const std::vector<char> tardieu = phaseMask(s, ExerciseId::kTardieu), passive = phaseMask(s, ExerciseId::kPassiveRom),
+                          force = phaseMask(s, ExerciseId::kMaxForce);
+  if (any(tardieu)) out["tardieu"] = tardieuMetrics(dev, s, tardieu);
+  if (any(passive)) {
+    for (std::size_t j = 0; j < dev.jointCount(); ++j) {
+      const PassiveRomFigures f = analysePassiveRom(s.flex[j], s.effort_cmd[dev.jointChannel(j)], passive);
+      out["passive_rom_deg"][dev.jointName(j)] = {{"extension", num(f.extension_rad * kDeg)}, {"flexion", num(f.flexion_rad * kDeg)}};
+    }
+  }
+  if (any(force)) {
+    for (std::size_t c = 0; c < dev.channelCount(); ++c) out["max_force"][dev.channelName(c)] = num(analyseMaxForce(s.t, s.effort[c], force));
+  }
+  return out;
+}
+
 nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, Series& s,
                          const TransparencyReference* reference) {
   nlohmann::json m;
@@ -355,6 +408,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
     if (lo <= hi) rom[dev.jointName(j)] = {lo * kDeg, hi * kDeg};
   }
   m["rom_deg"] = rom;
+  m["instrumented"] = instrumentedMetrics(dev, s);
   // Tracking (assistance, playback): RMS error and Pearson r between the target and the channel coordinate.
   nlohmann::json tracking = nlohmann::json::object(), transparency = nlohmann::json::object(),
                  effort = nlohmann::json::object();
@@ -475,6 +529,41 @@ nlohmann::json sessionMetrics(const record::SessionRecord& rec, const Transparen
 }
 
 namespace {
+std::string figureUnit(const std::string& name, const std::string& unit) {
+  if (name.find("_deg_s") != std::string::npos && name.rfind("tardieu.reflex", 0) != 0) return "°/s";
+  if (name.find("_deg") != std::string::npos && name.rfind("tardieu.reflex", 0) != 0) return "°";
+  if (name.rfind("tardieu.gain", 0) == 0) return unit + "·s/rad";
+  return unit;
+}
+
+/// Every instrumented-assessment figure with its repeatability (ICC(2,1), MDC95) beside it.
+std::string instrumentedHtml(const nlohmann::json& m, const nlohmann::json& rep, const std::string& unit) {
+  const auto figures = assessmentFigures(m);
+  std::ostringstream h;
+  h << "<h2>Assessment figures and their repeatability</h2><p class='note'>ICC(2,1): Shrout &amp; Fleiss two-way "
+       "random, absolute agreement, single measures; MDC95 = 1.96·√2·SEM, SEM = SD·√(1 − ICC): a change smaller than "
+       "the MDC95 between two sessions is within the measurement's own repeatability. "
+    << (rep.is_object() ? "Repeatability from " + esc(rep.value("source", std::string("the repeatability file"))) + "."
+                        : "No repeatability file given (phalanx record report --repeatability FILE): ICC and MDC "
+                          "unknown.")
+    << "</p>";
+  const nlohmann::json in = m.value("instrumented", nlohmann::json::object());
+  if (in.contains("tardieu") && in["tardieu"].contains("error")) {
+    h << "<p class='warn'>Tardieu test not analysed: " << esc(in["tardieu"]["error"].get<std::string>()) << "</p>";
+  }
+  h << "<table><tr><th>figure</th><th>value</th><th>unit</th><th>ICC(2,1)</th><th>MDC95</th></tr>";
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& rf = rep.is_object() ? rep["figures"] : none;
+  for (const auto& [name, v] : figures) {
+    h << "<tr><td>" << esc(name) << "</td><td>" << fmt(v, 3) << "</td><td>" << esc(figureUnit(name, unit)) << "</td>";
+    if (rf.contains(name)) h << "<td>" << fmt(rf[name]["icc"].get<double>(), 3) << "</td><td>" << fmt(rf[name]["mdc95"].get<double>(), 3) << "</td>";
+    else h << "<td>–</td><td>–</td>";
+    h << "</tr>";
+  }
+  h << "</table>";
+  return h.str();
+}
+
 /// The header's patient id ("" for a session without a profile).
 std::string recordPatient(const record::SessionRecord& rec) {
   return rec.header.is_object() && rec.header.contains("patient") && rec.header["patient"].is_string()
@@ -484,11 +573,12 @@ std::string recordPatient(const record::SessionRecord& rec) {
 }  // namespace
 
 std::string writeReport(const std::string& record_path, const std::string& previous_path, const std::string& html_path,
-                        const std::function<void(const std::string&)>& progress, const std::string& reference_path) {
+                        const std::function<void(const std::string&)>& progress, const std::string& reference_path,
+                        const std::string& repeatability_path) {
   auto say = [&](const std::string& m) {
     if (progress) progress(m);
   };
-  for (const std::string* input : {&record_path, &previous_path, &reference_path}) {
+  for (const std::string* input : {&record_path, &previous_path, &reference_path, &repeatability_path}) {
     if (input->empty()) continue;
     if (std::string err = record::refuseSameFile(*input, html_path); !err.empty()) return err;
   }
@@ -501,6 +591,11 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   if (!reference_path.empty()) {
     say("reading the device-free reference " + reference_path);
     if (std::string err = loadTransparencyReference(reference_path, reference); !err.empty()) return err;
+  }
+  nlohmann::json rep;
+  if (!repeatability_path.empty()) {
+    say("reading the repeatability file " + repeatability_path);
+    if (std::string err = loadRepeatability(repeatability_path, rep); !err.empty()) return err;
   }
   say("computing metrics over " + std::to_string(rec.cycles.size()) + " cycles");
   Series s = extract(rec, *l.device);
@@ -581,6 +676,7 @@ std::string writeReport(const std::string& record_path, const std::string& previ
     h << "</tr>";
   }
   h << "</table>";
+  h << instrumentedHtml(m, rep, unit);
   // Transparency.
   h << "<h2>Transparency</h2>";
   if (m["transparency"].empty()) {
@@ -697,6 +793,41 @@ std::string writeReport(const std::string& record_path, const std::string& previ
   if (std::string err = out.open(html_path); !err.empty()) return err;
   out.write(h.str());
   return out.commit();
+}
+
+std::string writeRepeatability(const std::vector<std::string>& records, const std::string& out_path,
+                               nlohmann::json& result) {
+  std::vector<std::string> patients;
+  std::vector<std::vector<nlohmann::json>> sessions;
+  for (const std::string& path : records) {
+    if (std::string err = record::refuseSameFile(path, out_path); !err.empty()) return err;
+    record::SessionRecord rec;
+    if (std::string err = record::readRecord(path, rec); !err.empty()) return err;
+    const std::string patient = recordPatient(rec);
+    if (patient.empty()) return path + ": the record names no patient (a session without a profile)";
+    nlohmann::json m = sessionMetrics(rec);
+    if (m.contains("error")) return path + ": " + m["error"].get<std::string>();
+    const auto it = std::find(patients.begin(), patients.end(), patient);
+    if (it == patients.end()) patients.push_back(patient), sessions.emplace_back();
+    sessions[static_cast<std::size_t>(std::find(patients.begin(), patients.end(), patient) - patients.begin())]
+        .push_back(std::move(m));
+  }
+  for (std::size_t p = 0; p < patients.size(); ++p) {
+    if (sessions[p].size() != sessions[0].size()) {
+      return "patient '" + patients[p] + "' has " + std::to_string(sessions[p].size()) + " records, '" + patients[0] +
+             "' has " + std::to_string(sessions[0].size()) + ": every patient needs the same number of sessions";
+    }
+  }
+  std::string error;
+  result = repeatabilityOf(sessions, std::to_string(patients.size()) + " patients x " +
+                                         std::to_string(sessions.empty() ? 0 : sessions[0].size()) + " sessions",
+                           error);
+  if (!error.empty()) return error;
+  result["patients"] = patients;
+  std::ofstream f(out_path);
+  f << result.dump(1) << "\n";
+  f.close();
+  return f ? "" : out_path + ": cannot write";
 }
 
 }  // namespace phalanx::host::therapy

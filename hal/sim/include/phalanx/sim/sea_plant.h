@@ -75,7 +75,37 @@ struct SeaFingerParams {
   std::array<double, 2> random_amplitude_rad = {0.30, 0.42};          ///< kRandom: ±17° MCP, ±24° PIP peak
   std::array<double, 2> close_open_amplitude_rad = {0.30, 0.40};      ///< kCloseOpen
   double close_open_hz = 0.5;
+  /// Stretch reflex of the finger flexors (spasticity; off while reflex_gain is 0, the default). Stretching a
+  /// flexor = extending the joint (flexion φ = −θ decreasing). With the stretch velocity v = θ̇_f = −φ̇:
+  ///     τ_reflex = −G·(v − v_th)⁺   (+θ direction: it resists the extension)   while φ < φ_catch,
+  /// i.e. a reflex torque growing linearly with the stretch velocity above a threshold velocity v_th, in the
+  /// stretched part of the range beyond the catch angle φ_catch (the angle of the Tardieu "catch", R1).
+  /// The linear growth with velocity: Kamper & Rymer 2000 (Muscle Nerve 23:954, doi 10.1002/(SICI)1097-4598
+  /// (200006)23:6<954::AID-MUS17>3.0.CO;2-0): the reflex work of imposed MCP extension grew proportionally
+  /// with the stretch velocity in stroke subjects; a threshold angle that varies little with velocity:
+  /// McPherson et al. 2018 (Exp Brain Res 237:121, doi 10.1007/s00221-018-5389-x: ~15 % of the velocity
+  /// dependence from the threshold angle, ~74 % from reflex stiffness). The numbers are chosen (docs/sea-plant.md
+  /// "Stretch reflex"): no finger value of v_th or G was found in the seeds.
+  std::array<double, 2> reflex_gain_Nm_s_per_rad = {0.0, 0.0};      ///< G; 0: no reflex (every default test)
+  std::array<double, 2> reflex_threshold_rad_s = {1.047, 1.047};    ///< v_th (60°/s)
+  std::array<double, 2> reflex_catch_flexion_rad = {0.349, 0.524};  ///< φ_catch (20° MCP, 30° PIP flexion)
+  /// A maximal voluntary flexion effort (as a therapist asks "push as hard as you can, now"): from
+  /// max_effort_start_s (plant time; < 0: never, the default) for max_effort_duration_s, the relaxed user's
+  /// muscle torque rises to max_voluntary_Nm (flexing) over kMaxEffortRiseS and holds. kRelaxed only.
+  std::array<double, 2> max_voluntary_Nm = {0.2, 0.1};
+  double max_effort_start_s = -1.0;
+  double max_effort_duration_s = 3.0;
 };
+
+/// The spastic finger of firmware-sim's `--scenario spastic` (sea_finger; docs/sea-plant.md "Stretch reflex"):
+/// f with the stretch reflex on, G = 0.05 N·m·s/rad at the MCP and 0.015 at the PIP (the MCP value scaled by the
+/// PIP/MCP ratio of eq 14's A), v_th = 60°/s, φ_catch = 20° MCP / 30° PIP. Chosen values, not measured ones:
+/// 0.05 N·m·s/rad gives 0.1 N·m at 175°/s, a third of the device's 0.3 N·m finger-torque limit, so the device can
+/// stretch through it.
+inline SeaFingerParams withStretchReflex(SeaFingerParams f) {
+  f.reflex_gain_Nm_s_per_rad = {0.05, 0.015};
+  return f;
+}
 
 /// Constants of one SEA channel (MCP or PIP).
 struct SeaChannelParams {
@@ -119,6 +149,10 @@ struct SeaPlantParams {
   double joint_noise_counts = 2.0;           ///< KMA210 + ADC noise, ≈ 0.1°
   double current_noise_counts = 3.0;         ///< PWM ripple residue + amplifier, ≈ 6 mA
   double load_cell_noise_counts = 1.5;       ///< ≈ 0.4 mN·m
+  /// Donning variation (finger variant): each session (seed) mounts the five joint sensors with a constant
+  /// offset drawn from N(0, σ²) on its own random stream — the fit of straps and links shifts between
+  /// donnings. 0 (default): none. Applied with or without SeaPlantConfig::noise.
+  double donning_offset_sd_rad = 0.0;
   // Integration.
   double max_substep_s = 1e-4;
 };
@@ -159,6 +193,7 @@ struct SeaFingerTruth {
   std::array<double, 2> intent_rad{};         ///< the user's intended MCP, PIP (kRandom, kCloseOpen)
   std::array<double, 2> passive_Nm{};         ///< eq 14 in the +θ direction
   std::array<double, 2> muscle_Nm{};
+  std::array<double, 2> reflex_Nm{};          ///< stretch-reflex torque in the +θ direction (≤ 0)
   /// Finger joint torques the exoskeleton applies (+θ = extension): J_n^{-T} τ_j (eq 9 on the true state).
   std::array<double, 2> applied_Nm{};
   std::array<std::array<double, 2>, 2> J_n{};  ///< eq 10 at the true pose
@@ -186,6 +221,10 @@ class SeaPlant final : public Plant {
   /// Passive finger joint torque of eq 14 for joint 0 (MCP) / 1 (PIP) at angle θ (kinematics.h convention), in
   /// the +θ direction.
   double passiveTorque_Nm(int joint, double theta_rad) const;
+  /// Stretch-reflex torque (+θ direction) of joint 0/1 at angle θ and rate θ̇ (kinematics.h convention).
+  double reflexTorque_Nm(int joint, double theta_rad, double theta_rate_rad_s) const;
+  /// The donning offsets of the five joint sensors for this seed (rad; zeros without donning variation).
+  const std::array<double, 5>& donningOffsets() const { return donning_rad_; }
   /// The ideal SEA law of eq 2 evaluated on the true state: 2k(r_m θ_m − r_j(θ_j − θ_j0)) r_j — what a perfect
   /// estimator (eq 7, noise-free sensors) would report. Differs from truth().joint_torque_Nm by the cable play.
   double idealSeaTorque_Nm(int sea) const;
@@ -212,6 +251,9 @@ class SeaPlant final : public Plant {
   void solveJoint(Channel& c) const;
   void motorMechanics(Channel& c, double h);
   void fingerDynamics(double h);
+  static constexpr double kMaxEffortRiseS = 0.5;  ///< a maximal effort ramps to its maximum over 0.5 s
+  void drawDonning();
+  double muscleTorque_Nm(size_t j, double th_d, double th_d_dot, double wf) const;
   void intent(double t, std::array<double, 2>& theta_d, std::array<double, 2>& theta_d_dot) const;
   void fingerSensors();
   void stepPhysics(double dt_s, bool bridge_on, const std::array<double, 2>& duty);
@@ -226,6 +268,7 @@ class SeaPlant final : public Plant {
   sea::Data<double> kin_{};
   std::array<double, 2> rest_theta_{};  ///< finger rest pose (eq 14 zero), MCP and PIP
   RandomMotion random_{};
+  std::array<double, 5> donning_rad_{};
   std::mt19937 rng_;
 };
 

@@ -10,6 +10,8 @@
 ///  - record-pattern / playback: record the patient's own grip/release pattern (transparent), then play it back
 ///    as the assistance target (000 §5).
 ///  - grasp: the device's virtual-object rendering (glove: GloveController, 000 eq 1).
+///  - tardieu / passive-rom / max-force: the instrumented assessments (docs/therapy.md "Instrumented
+///    assessments"); their figures are computed from the record (assessment_analysis.h).
 /// Every exercise's update() runs in the 1 kHz loop: no allocation, no blocking.
 #include <array>
 #include <atomic>
@@ -35,6 +37,9 @@ enum class ExerciseId : uint8_t {
   kRecordPattern = 4,
   kPlayback = 5,
   kGrasp = 6,
+  kTardieu = 7,     ///< instrumented Modified Tardieu: imposed stretches of one channel at several velocities
+  kPassiveRom = 8,  ///< passive ROM: a constant test effort extends, then flexes every channel
+  kMaxForce = 9,    ///< maximal voluntary force: the device holds the pose, the patient pushes as hard as they can
 };
 const char* exerciseName(ExerciseId id);
 
@@ -94,6 +99,20 @@ class Pattern {
 std::unique_ptr<Exercise> makeExercise(const std::string& name, const nlohmann::json& params,
                                        const TherapyDevice& device, const Profile& profile,
                                        const std::shared_ptr<Pattern>& pattern, std::string& error);
+
+/// The imposed-stretch schedule of the tardieu exercise (exposed for its analysis and tests): for each
+/// velocity, approach `from` at kApproach_rad_s, hold, stretch to `to` at the velocity, hold.
+struct TardieuPlan {
+  static constexpr std::size_t kMaxStretches = 4;
+  static constexpr double kApproach_rad_s = 0.5;  ///< ≈ 29°/s: slow, below any stretch-reflex threshold
+  std::size_t channel = 0;
+  std::size_t count = 0;                           ///< stretches used
+  std::array<double, kMaxStretches> velocity_rad_s{};
+  double from_rad = 0.0, to_rad = 0.0, hold_s = 1.0;
+  /// Target coordinate and rate at time t after the exercise started from q0. No allocation.
+  void targetAt(double t_s, double q0_rad, double& q_rad, double& q_dot_rad_s) const;
+  double durationS(double q0_rad) const;
+};
 
 /// The assist-as-needed law of one channel (001 §9 / Cai et al. 2006), exposed for tests.
 struct AssistLaw {

@@ -28,9 +28,19 @@ std::string loadTransparencyReference(const std::string& path, TransparencyRefer
 /// the Pearson r between the joint flexion recorded during assessment and the reference at the same times.
 nlohmann::json sessionMetrics(const record::SessionRecord& rec, const TransparencyReference* reference = nullptr);
 
-/// Reads record_path (and previous_path / reference_path if not empty), writes html_path. "" or an error.
+/// Reads record_path (and previous_path / reference_path / repeatability_path if not empty), writes html_path.
+/// The repeatability file (assessment_analysis.h loadRepeatability) puts each assessment figure's ICC(2,1) and
+/// MDC95 beside it. "" or an error.
 std::string writeReport(const std::string& record_path, const std::string& previous_path, const std::string& html_path,
                         const std::function<void(const std::string&)>& progress = nullptr,
-                        const std::string& reference_path = "");
+                        const std::string& reference_path = "", const std::string& repeatability_path = "");
+
+/// Repeatability from session records (`phalanx record repeatability`): the records are grouped by the patient in
+/// their headers (every patient needs the same number ≥ 2 of sessions, and ≥ 2 patients — ICC(2,1) needs
+/// between-patient spread); each record's assessment figures (sessionMetrics) give ICC(2,1), SEM and MDC95 per
+/// figure (assessment_analysis.h repeatabilityOf), written to out_path as the report's repeatability file.
+/// "" or an error naming the record or the problem.
+std::string writeRepeatability(const std::vector<std::string>& records, const std::string& out_path,
+                               nlohmann::json& result);
 
 }  // namespace phalanx::host::therapy
