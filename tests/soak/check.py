@@ -66,6 +66,11 @@ class Result:
         self.episodes = 0
         self.kinds = {}
         self.worst_kill_gap_ms = 0.0
+        self.counted = {}  # what the daemons themselves counted (their summaries), beside what was injected
+
+    def count(self, k, v):
+        if isinstance(v, (int, float)) and v:
+            self.counted[k] = self.counted.get(k, 0) + v
 
     def check(self, inv, ok, where, what):
         self.checks[inv] += 1
@@ -198,6 +203,19 @@ def check_daemon(res, ep_dir, meta, d, limits):
     if summary is not None and "final_mode" in summary and rc != 6:
         res.check("exit-report", summary["final_mode"] == "safe", where,
                   f"device left safe (final_mode {summary.get('final_mode')})")
+    if summary is not None:
+        for k, v in (summary.get("host_rx_errors") or {}).items():
+            res.count("host_rx_errors." + k, v)
+        for k in ("refused_by_host_limits", "limited_by_device_limits", "limited_by_patient_limits",
+                  "rejected_by_device"):
+            res.count("commands." + k, (summary.get("commands") or {}).get(k))
+        for k in ("refused_invalid", "force_offs"):
+            res.count("client." + k, (summary.get("client") or {}).get(k))
+        for k in ("exceptions", "writes_accepted", "command_timeouts"):
+            res.count("modbus." + k, (summary.get("modbus") or {}).get(k))
+        res.count("daemon_exit." + str(rc), 1)
+    elif killed:
+        res.count("daemon_exit.SIGKILL", 1)
     if summary is not None and rc == 6:
         res.check("exit-report", bool(summary.get("link_error")), where, "exit 6 names the link error")
     if summary is not None and rc == 7:
@@ -301,6 +319,7 @@ def main(argv):
         return 2
     print(f"check: {res.episodes} episodes, kinds {json.dumps(res.kinds, sort_keys=True)}")
     print(f"check: faults injected {json.dumps(res.injected, sort_keys=True)}")
+    print(f"check: daemons counted {json.dumps(res.counted, sort_keys=True)}")
     for inv in INVARIANTS:
         nv = sum(1 for v in res.violations if v[0] == inv)
         print(f"check: {inv:15s} {res.checks[inv]:6d} checks, {nv} violations")
@@ -308,7 +327,7 @@ def main(argv):
     for inv, where, what in res.violations:
         print(f"VIOLATION {inv}: {where}: {what}")
     with open(os.path.join(out_dir, "report.json"), "w") as f:
-        json.dump({"episodes": res.episodes, "kinds": res.kinds, "injected": res.injected, "checks": res.checks,
+        json.dump({"episodes": res.episodes, "kinds": res.kinds, "injected": res.injected, "counted": res.counted, "checks": res.checks,
                    "violations": res.violations, "worst_kill_gap_ms": res.worst_kill_gap_ms}, f, indent=1)
     return 1 if res.violations else 0
 

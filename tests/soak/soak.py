@@ -585,6 +585,8 @@ def main():
             ap.error(f"--kinds: unknown fault kind '{k}' (known: {', '.join(KINDS)})")
     out = a.out or tempfile.mkdtemp(prefix="phalanx-soak-")
     os.makedirs(out, exist_ok=True)
+    if any(e.startswith("ep") for e in os.listdir(out)):
+        ap.error(f"--out {out}: holds another soak's episodes (the checker would read them too); use a new directory")
     rng = random.Random(a.seed)
     t_end = time.monotonic() + a.minutes * 60.0
     t0 = time.monotonic()
