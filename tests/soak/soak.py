@@ -225,7 +225,8 @@ def ep_kill9_daemon(ep, b, device):
     MCAP record holds data to within 100 ms of the kill, and a new daemon on the same port takes over."""
     fw = Firmware(ep, b, device, ep.rng.randrange(1, 10000))
     d = Daemon(ep, b, COMMON + ["--device", f"serial:{fw.pty}", "--json", "--mode", "transparent", "--seconds", "0",
-                                "--record", ep.path("record.mcap")], "daemon", ["SIGKILL"], record="record.mcap")
+                                "--record", ep.path("record.mcap")], "daemon", ["SIGKILL"], record="record.mcap",
+               truth="truth.csv")
     time.sleep(ep.rng.uniform(1.5, 4.0))
     if d.p.poll() is None:
         ep.meta["firmware"]["log_offset_at_kill"] = os.path.getsize(ep.path("firmware.stderr"))
@@ -235,7 +236,8 @@ def ep_kill9_daemon(ep, b, device):
     time.sleep(0.4)  # the watchdog trips 100 ms after the last command; the firmware logs it
     ep.inject("restart_daemon")
     d2 = Daemon(ep, b, COMMON + ["--device", f"serial:{fw.pty}", "--json", "--mode", "transparent", "--seconds", "1.5",
-                                 "--record", ep.path("record2.csv")], "daemon2", [0], record="record2.csv")
+                                 "--record", ep.path("record2.csv")], "daemon2", [0], record="record2.csv",
+                truth="truth.csv")
     d2.wait(60)
     fw.stop()
 
@@ -251,9 +253,7 @@ def ep_kill9_firmware(ep, b, device):
         d.info["firmware_kill_wall_ns"] = time.time_ns()
     else:
         ep.meta["notes"].append("no firmware-sim child found")
-    rc = d.wait(10)
-    if rc is None or d.p.returncode is None:
-        d.p.send_signal(signal.SIGTERM)
+    d.wait(10)
     ep.inject("restart_after_firmware_kill")
     d2 = Daemon(ep, b, COMMON + ["--device", f"sim:{device}", "--seconds", "1", "--json",
                                  "--record", ep.path("record2.csv")], "daemon2", [0], record="record2.csv")
@@ -269,8 +269,7 @@ def ep_link(ep, b, device, kind):
     seconds = round(ep.rng.uniform(3, 5), 2)
     d = Daemon(ep, b, COMMON + ["--device", f"serial:{px.slave_path}", "--json", "--mode", "transparent",
                                 "--seconds", str(seconds), "--record", ep.path("record.csv")], "daemon",
-               [6] if stall_long else [0], record="record.csv", truth=None)
-    ep.meta["firmware"]["truth"] = "truth.csv"
+               [6] if stall_long else [0], record="record.csv", truth="truth.csv")
     t_end = time.monotonic() + seconds - 0.8
     time.sleep(1.0)
     while time.monotonic() < t_end and d.p.poll() is None:
