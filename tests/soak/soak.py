@@ -590,7 +590,7 @@ def main():
     t_end = time.monotonic() + a.minutes * 60.0
     t0 = time.monotonic()
     n = 0
-    print(f"soak: seed {a.seed}, {a.minutes} min, evidence in {out}", flush=True)
+    print(f"soak: seed {a.seed}, {a.minutes} min, evidence in {out}; load average {os.getloadavg()}", flush=True)
     for kind, device in schedule(rng, kinds):
         if time.monotonic() >= t_end:
             break
@@ -605,7 +605,7 @@ def main():
         print(f"  ep{n:04d} {kind:18s} {device:10s} {ep.meta['wall_s']:6.1f} s  exits "
               f"{[x.get('exit') for x in ep.meta['daemons']]}  injected {ep.meta['injected']}", flush=True)
         n += 1
-    print(f"soak: {n} episodes in {(time.monotonic() - t0) / 60:.1f} min", flush=True)
+    print(f"soak: {n} episodes in {(time.monotonic() - t0) / 60:.1f} min; load average {os.getloadavg()}", flush=True)
     return check.main([out])
 
 
