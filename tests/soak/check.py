@@ -16,7 +16,7 @@ fails on any broken invariant.
                    the cause (link_error for 6, the recording's error for 7); damaged frames are all counted;
                    the API answers after every bad request
 
-Usage: check.py OUT_DIR [--json]      exit 0: no violation; 1: violations (listed); 2: no episode found
+Usage: check.py OUT_DIR      exit 0: no violation; 1: violations (listed); 2: no episode found
 """
 
 import csv
@@ -262,7 +262,31 @@ def check_daemon(res, ep_dir, meta, d, limits):
         res.check("record-loss", want == rows, where, f"{rec}: {rows} rows in the file, the summary says {want}")
 
 
+def merge_pruned(res, ep_dir):
+    """An episode checked during the soak and pruned (soak.py --prune): its records are gone, its result kept."""
+    done = json.load(open(os.path.join(ep_dir, "checked.json")))
+    res.episodes += 1
+    res.kinds[done["kind"]] = res.kinds.get(done["kind"], 0) + 1
+    for table, src in ((res.checks, done["checks"]), (res.injected, done["injected"]), (res.counted, done["counted"])):
+        for k, v in src.items():
+            table[k] = table.get(k, 0) + v
+    res.violations += [tuple(v) for v in done["violations"]]
+    res.worst_kill_gap_ms = max(res.worst_kill_gap_ms, done["worst_kill_gap_ms"])
+
+
+def episode_result(ep_dir, limits):
+    """One episode checked on its own (soak.py --prune stores it as checked.json before deleting the records)."""
+    r = Result()
+    check_episode(r, ep_dir, limits)
+    kind = next(iter(r.kinds))
+    return {"kind": kind, "checks": r.checks, "injected": r.injected, "counted": r.counted,
+            "violations": r.violations, "worst_kill_gap_ms": r.worst_kill_gap_ms}
+
+
 def check_episode(res, ep_dir, limits):
+    if os.path.exists(os.path.join(ep_dir, "checked.json")):
+        merge_pruned(res, ep_dir)
+        return
     meta = json.load(open(os.path.join(ep_dir, "meta.json")))
     res.episodes += 1
     res.kinds[meta["kind"]] = res.kinds.get(meta["kind"], 0) + 1

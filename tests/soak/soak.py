@@ -561,6 +561,19 @@ RUNNERS = {
 }
 
 
+def prune(ep_dir, limits):
+    """Check the episode now; without a violation keep its result (checked.json) and drop the bulky evidence."""
+    result = check.episode_result(ep_dir, limits)
+    if result["violations"]:
+        return
+    with open(os.path.join(ep_dir, "checked.json"), "w") as f:
+        json.dump(result, f)
+    for root, _, files in os.walk(ep_dir):
+        for name in files:
+            if name.endswith((".csv", ".mcap", ".phrec", ".html")):
+                os.remove(os.path.join(root, name))
+
+
 def schedule(rng, kinds):
     """Rounds of every (kind, device) pair in a seeded order: a short run still covers every kind early."""
     while True:
@@ -577,6 +590,9 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--kinds", default=",".join(KINDS))
+    ap.add_argument("--prune", action="store_true",
+                    help="check each episode as it ends and delete the records of those without a violation "
+                         "(summaries, logs and meta kept): an hours-long soak then keeps ~30 KB per episode")
     a = ap.parse_args()
     kinds = [k for k in a.kinds.split(",") if k]
     for k in kinds:
@@ -586,6 +602,7 @@ def main():
     os.makedirs(out, exist_ok=True)
     if any(e.startswith("ep") for e in os.listdir(out)):
         ap.error(f"--out {out}: holds another soak's episodes (the checker would read them too); use a new directory")
+    limits = check.device_limits()
     rng = random.Random(a.seed)
     t_end = time.monotonic() + a.minutes * 60.0
     t0 = time.monotonic()
@@ -602,6 +619,8 @@ def main():
             ep.meta["harness_error"] = repr(e)
         ep.meta["wall_s"] = round(time.monotonic() - t, 2)
         ep.save()
+        if a.prune:
+            prune(ep.dir, limits)
         print(f"  ep{n:04d} {kind:18s} {device:10s} {ep.meta['wall_s']:6.1f} s  exits "
               f"{[x.get('exit') for x in ep.meta['daemons']]}  injected {ep.meta['injected']}", flush=True)
         n += 1
