@@ -833,12 +833,21 @@ class SessionRunner {
     if (have_safety_io_) safety_->shutdown();
     if (io_.have_sync) io_.sync.stop();
     makeSafe(cmd_);
-    for (int i = 0; i < 3; ++i) {
+    // At least three safe commands, then more until the device reports its safe state (at most 250 ms): a
+    // firmware that lags its host (a loaded machine: the soak saw 150 ticks behind) must have applied one before
+    // final_mode is read, or the summary would report the mode of a frame sent before it. A lost link is not
+    // waited for.
+    const uint64_t confirm_until_ns = linux_hal::monotonicNs() + 250000000ull;
+    for (int i = 0;; ++i) {
       session_->sendCommand(cmd_, linux_hal::monotonicNs());
       link_->push();
       usleep(2000);
+      session_->poll(linux_hal::monotonicNs());
+      if (i < 2) continue;
+      if (summary_.contains("link_error") || session_->latest().mode == protocol::Mode::kSafe ||
+          linux_hal::monotonicNs() > confirm_until_ns)
+        break;
     }
-    session_->poll(linux_hal::monotonicNs());
     recorder_.close();
     link_->close();
     if (mb_server_) {

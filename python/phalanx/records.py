@@ -356,7 +356,10 @@ def load_mcap(path: str) -> Record:
                     row = _flatten(_decode_ros2(schemas.get(channel.schema_id, ""), rec.data))
                 row["log_time_ns"] = rec.log_time
                 per_topic.setdefault(channel.topic, []).append(row)
-        except EndOfFile:  # no footer: the recording was not closed (the daemon killed); keep what was read
+        except (EndOfFile, struct.error):
+            # No footer: the recording was not closed (the daemon killed), or the file ends inside a record (cut
+            # at any byte: a crash mid-write, a truncated copy; the mcap package then fails to unpack the
+            # record's header): keep what was read.
             torn = True
     topics: Dict[str, Dict[str, np.ndarray]] = {}
     for topic, rows in per_topic.items():
