@@ -26,7 +26,8 @@ struct In {
     if (!ok || n - at < k) ok = false;
     return ok;
   }
-  uint64_t le(std::size_t k) {
+  uint64_t le(std::size_t k) {  // k <= 8: a little-endian unsigned integer of k bytes
+    if (k > 8) ok = false;
     if (!need(k)) return 0;
     uint64_t v = 0;
     for (std::size_t i = 0; i < k; ++i) v |= static_cast<uint64_t>(p[at + i]) << (8 * i);
@@ -126,7 +127,8 @@ class Parser {
   }
 
   std::string chunk(In& b) {
-    b.le(16);  // message start and end time
+    b.le(8);  // message start time
+    b.le(8);  // message end time
     const uint64_t size = b.le(8);
     const auto crc = static_cast<uint32_t>(b.le(4));
     const std::string compression = b.str();
