@@ -118,6 +118,39 @@ class LogObserver : public phalanx::fw::CoreObserver {
   }
 };
 
+/// At exit: the USB or CAN link's own counters (nullptr: that link was not used).
+void printLinkStats(const phalanx::linux_hal::FfsLink* ffs, const phalanx::linux_hal::CanLink* can) {
+  using namespace phalanx;
+  if (ffs != nullptr) {
+    const auto& f = ffs->stats();
+    const auto& r = ffs->rxStats();
+    std::fprintf(stderr,
+                 "firmware-sim: usb tx_submitted=%llu tx_completed=%llu tx_dropped_full=%llu tx_dropped_offline=%llu "
+                 "tx_failed=%llu rx_transfers=%llu rx_overflow=%llu enables=%llu disables=%llu rx_bad_id=%u "
+                 "rx_bad_length=%u rx_crc=%u\n",
+                 static_cast<unsigned long long>(f.tx_submitted), static_cast<unsigned long long>(f.tx_completed),
+                 static_cast<unsigned long long>(f.tx_dropped_full), static_cast<unsigned long long>(f.tx_dropped_offline),
+                 static_cast<unsigned long long>(f.tx_failed), static_cast<unsigned long long>(f.rx_transfers),
+                 static_cast<unsigned long long>(f.rx_overflow), static_cast<unsigned long long>(f.enables),
+                 static_cast<unsigned long long>(f.disables), r.bad_id, r.bad_length, r.crc);
+  }
+  if (can != nullptr) {
+    const auto& c = can->stats();
+    const auto& m = can->mapperStats();
+    std::fprintf(stderr,
+                 "firmware-sim: can state=%s tx_frames=%llu tx_would_block=%llu tx_superseded=%llu tx_dropped_full=%llu "
+                 "tx_dropped_bus_off=%llu rx_frames=%llu rx_kernel_dropped=%llu error_frames=%llu bus_off=%llu "
+                 "restarts=%llu rx_bad_id=%u rx_bad_length=%u rx_crc=%u rx_sequence=%u\n",
+                 linux_hal::canBusStateName(can->state()), static_cast<unsigned long long>(c.tx_frames),
+                 static_cast<unsigned long long>(c.tx_would_block), static_cast<unsigned long long>(c.tx_superseded),
+                 static_cast<unsigned long long>(c.tx_dropped_full),
+                 static_cast<unsigned long long>(c.tx_dropped_bus_off), static_cast<unsigned long long>(c.rx_frames),
+                 static_cast<unsigned long long>(c.rx_kernel_dropped), static_cast<unsigned long long>(c.error_frames),
+                 static_cast<unsigned long long>(c.bus_off_events), static_cast<unsigned long long>(c.restarts),
+                 m.bad_id, m.bad_length, m.crc, m.sequence);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -304,33 +337,6 @@ int main(int argc, char** argv) {
                core.counters().frames_wrong_direction, core.counters().tx_dropped, core.faultBits());
   tick_times.print();
   if (!truth.close()) std::fprintf(stderr, "firmware-sim: error: --truth %s: a write failed; the file is incomplete\n", truth_path.c_str());
-  if (use_ffs) {
-    const auto& f = ffs.stats();
-    const auto& r = ffs.rxStats();
-    std::fprintf(stderr,
-                 "firmware-sim: usb tx_submitted=%llu tx_completed=%llu tx_dropped_full=%llu tx_dropped_offline=%llu "
-                 "tx_failed=%llu rx_transfers=%llu rx_overflow=%llu enables=%llu disables=%llu rx_bad_id=%u "
-                 "rx_bad_length=%u rx_crc=%u\n",
-                 static_cast<unsigned long long>(f.tx_submitted), static_cast<unsigned long long>(f.tx_completed),
-                 static_cast<unsigned long long>(f.tx_dropped_full), static_cast<unsigned long long>(f.tx_dropped_offline),
-                 static_cast<unsigned long long>(f.tx_failed), static_cast<unsigned long long>(f.rx_transfers),
-                 static_cast<unsigned long long>(f.rx_overflow), static_cast<unsigned long long>(f.enables),
-                 static_cast<unsigned long long>(f.disables), r.bad_id, r.bad_length, r.crc);
-  }
-  if (use_can) {
-    const auto& c = can.stats();
-    const auto& m = can.mapperStats();
-    std::fprintf(stderr,
-                 "firmware-sim: can state=%s tx_frames=%llu tx_would_block=%llu tx_superseded=%llu tx_dropped_full=%llu "
-                 "tx_dropped_bus_off=%llu rx_frames=%llu rx_kernel_dropped=%llu error_frames=%llu bus_off=%llu "
-                 "restarts=%llu rx_bad_id=%u rx_bad_length=%u rx_crc=%u rx_sequence=%u\n",
-                 linux_hal::canBusStateName(can.state()), static_cast<unsigned long long>(c.tx_frames),
-                 static_cast<unsigned long long>(c.tx_would_block), static_cast<unsigned long long>(c.tx_superseded),
-                 static_cast<unsigned long long>(c.tx_dropped_full),
-                 static_cast<unsigned long long>(c.tx_dropped_bus_off), static_cast<unsigned long long>(c.rx_frames),
-                 static_cast<unsigned long long>(c.rx_kernel_dropped), static_cast<unsigned long long>(c.error_frames),
-                 static_cast<unsigned long long>(c.bus_off_events), static_cast<unsigned long long>(c.restarts),
-                 m.bad_id, m.bad_length, m.crc, m.sequence);
-  }
+  printLinkStats(use_ffs ? &ffs : nullptr, use_can ? &can : nullptr);
   return 0;
 }
