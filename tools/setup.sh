@@ -34,6 +34,7 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools iproute2
   nanopb libnanopb-dev
   pybind11-dev python3-dev python3-numpy python3-venv
+  gdb-multiarch openocd dfu-util   # phalanx flash --via gdb|openocd|dfu (docs/firmware-mcu.md "Flashing")
 )
 fi
 # Python tools of the test set, pinned, from PyPI (independent peers and readers in the tests). Append here.

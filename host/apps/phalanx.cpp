@@ -3,6 +3,7 @@
 //   phalanx run            start a session (the simulated firmware too, for sim:* devices) and print a summary
 //   phalanx version        protocol and build information
 //   phalanx mcu-diag       an MCU board's control-tick statistics through the protocol
+//   phalanx flash          check a firmware image and write it into a board (flash_cli.cpp)
 //   phalanx can            CAN bus-load budget and measurement
 //   phalanx devices        the devices the daemons on the network announce over DDS
 //   phalanx bench          single benches and bench plans (bench_cli.cpp)
@@ -16,6 +17,7 @@
 #include "cli_args.h"
 #include "common_options.h"
 #include "design_cli.h"
+#include "flash_cli.h"
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/dds/dds_options.h"
@@ -217,6 +219,7 @@ int main(int argc, char** argv) {
   RunCommand run(app);
   CLI::App* version = app.add_subcommand("version", "print version information");
   McuDiagCommand mcu_diag(app);
+  FlashCommand flash(app);
   CanCommands can(app);
   DevicesCommand devices(app);
   BenchCommands bench(app);
@@ -235,6 +238,7 @@ int main(int argc, char** argv) {
   if (devices.app->parsed()) return devices.run();
   if (const int rc = cli::runTherapyCommands(therapy); rc >= 0) return rc;
   if (mcu_diag.app->parsed()) return mcu_diag.run();
+  if (flash.app->parsed()) return flash.run();
   if (version->parsed()) return runVersion();
   return run.run(app, argc, argv);
 }

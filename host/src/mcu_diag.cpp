@@ -29,13 +29,8 @@ constexpr DiagName kDiagNames[] = {
 };
 }  // namespace
 
-nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std::string& error) {
-  linux_hal::SerialLink link;
-  if (std::string err = link.open(path, 115200); !err.empty()) {
-    error = err;
-    return {};
-  }
-  HostSession session(link);
+std::string handshakeBoard(linux_hal::FdLink& link, HostSession& session, double timeout_s,
+                           protocol::DeviceType expected, const std::string& what) {
   std::random_device rd;
   const uint32_t session_id = rd();
   const uint64_t timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
@@ -43,22 +38,31 @@ nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std
   uint64_t last_hello = 0;
   while (session.handshake() == HandshakeResult::kPending) {
     const uint64_t now = linux_hal::monotonicNs();
-    if (now - t0 > timeout_ns) {
-      error = "device did not answer the handshake on " + path;
-      return {};
-    }
+    if (now - t0 > timeout_ns) return "device did not answer the handshake on " + what;
     // A board whose link is backed up (telemetry nobody read, an emulated UART) may miss the first Hello: repeat
     // it every 500 ms until answered.
     if (last_hello == 0 || now - last_hello > 500000000ull) {
-      session.sendHello(session_id, protocol::DeviceType::kAny);
+      session.sendHello(session_id, expected);
       link.flush();
       last_hello = now;
     }
     usleep(1000);
     session.poll(linux_hal::monotonicNs());
   }
-  if (session.handshake() != HandshakeResult::kOk) {
-    error = session.handshakeError();
+  if (session.handshake() != HandshakeResult::kOk) return session.handshakeError();
+  return "";
+}
+
+nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std::string& error) {
+  linux_hal::SerialLink link;
+  if (std::string err = link.open(path, 115200); !err.empty()) {
+    error = err;
+    return {};
+  }
+  HostSession session(link);
+  const uint64_t timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
+  if (std::string err = handshakeBoard(link, session, timeout_s, protocol::DeviceType::kAny, path); !err.empty()) {
+    error = err;
     return {};
   }
   std::map<uint16_t, float> values;

@@ -8,6 +8,11 @@ start=$(date +%s)
 tools/mcu/install-toolchain.sh
 tools/mcu/build.sh
 
+# phalanx flash (docs/firmware-mcu.md "Flashing"): a blank emulated board written through QEMU's gdbstub; wrong-device,
+# wrong-board and corrupt images refused with nothing written; the board then handshakes with the image's build id;
+# the documented --dry-run lines of --via openocd and dfu.
+tools/mcu/flash-test.sh --app glove5
+
 # Session test per app (mps2-an386, host 100 Hz): handshake, 4 s session, phalanxd killed -> safe within two ticks,
 # latched fault read back.
 # All gating. QEMU runs under SCHED_FIFO (qemu_board.py; docs/firmware-mcu.md "Real-time scheduling of the

@@ -9,6 +9,10 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
   qemu_board.py bench     -- the cycle benchmark: the same session under `-icount shift=N` (deterministic
                              instruction counting); prints the control tick's worst case and median in instructions.
   qemu_board.py run       -- start the board and print the pty path (for manual use with phalanxd).
+  qemu_board.py flash     -- `phalanx flash` through QEMU's gdbstub into a blank board (no image loaded, core
+                             halted): wrong-device, wrong-board and corrupt images are refused with nothing written;
+                             the good image is written and the board answers the handshake with its build id.
+  qemu_board.py blank     -- start a blank board waiting for a debugger (print its pty and gdbstub port).
 
 The protocol link is the CMSDK UART0 exposed with `-serial pty`; the debug console (UART1) is QEMU's stdout.
 QEMU's CMSDK UART model takes one received byte per guest read (docs/firmware-mcu.md: about 25-30 kB/s), so the
@@ -19,11 +23,16 @@ import argparse
 import json
 import os
 import re
+import shutil
 import signal
+import socket
+import struct
 import subprocess
 import sys
+import tempfile
 import threading
 import time
+import zlib
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 APPS = ("glove5", "sea_finger", "pantograph")
@@ -74,17 +83,21 @@ def realtime_prefix():
 class Board:
     """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
 
-    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386"):
+    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386", gdb_port=None):
         # UART0 (the protocol link) on a pty, UART1 (debug console) on stdout; semihosting only for the
-        # command line and the exit status.
+        # command line and the exit status. elf=None with a gdb_port: a blank board (nothing loaded; the core
+        # halted until a debugger lets it run: -S), the image to be written through the gdbstub (`phalanx flash`).
         args = ["qemu-system-arm", "-M", machine, "-nographic", "-monitor", "none",
                 "-serial", "pty", "-serial", "stdio"]
+        if gdb_port is not None:
+            args += ["-gdb", f"tcp:127.0.0.1:{gdb_port}"] + (["-S"] if elf is None else [])
         sh = ["enable=on", "target=native", "arg=fw", f"arg=seconds={seconds}"] + [f"arg={e}" for e in extra]
         if icount is not None:
             args += ["-icount", f"shift={icount}"]
             sh.append(f"arg=icount_shift={icount}")
         args += ["-semihosting-config", ",".join(sh)]
-        args += ["-kernel", elf]
+        if elf is not None:
+            args += ["-kernel", elf]
         args = realtime_prefix() + args
         self.cmd = args
         self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -97,7 +110,7 @@ class Board:
         m = self.wait_for(r"char device redirected to (/dev/pts/\d+)", 10)
         if m:
             self.pty = m.group(1)
-        if not self.wait_for(r"^BOOT ", 30):
+        if elf is not None and not self.wait_for(r"^BOOT ", 30):
             raise RuntimeError("firmware did not boot:\n" + self.text())
 
     def _read(self):
@@ -347,6 +360,176 @@ def bench(args):
     return 0 if ok else 1
 
 
+# ---- flash: `phalanx flash` through QEMU's gdbstub ----------------------------------------------------------------
+# The image-info block (common/include/phalanx/image_info.h), read here independently of phalanx's own reader.
+INFO_OFFSET = 0x200
+INFO_FMT = "<IHHBBHIIIII"
+INFO_FIELDS = ("magic", "layout_version", "info_size", "device_type", "board", "reserved0", "build_id", "load_address",
+               "image_size", "image_crc32", "reserved1")
+CRC_AT = INFO_OFFSET + 24
+
+
+def image_info(data):
+    return dict(zip(INFO_FIELDS, struct.unpack_from(INFO_FMT, data, INFO_OFFSET)))
+
+
+def with_info(data, **fields):
+    """A copy of a raw image with image-info fields replaced and its CRC recomputed (so only those fields differ)."""
+    info = image_info(data)
+    info.update(fields, image_crc32=0)
+    out = bytearray(data)
+    struct.pack_into(INFO_FMT, out, INFO_OFFSET, *(info[k] for k in INFO_FIELDS))
+    struct.pack_into("<I", out, CRC_AT, zlib.crc32(bytes(out)) & 0xFFFFFFFF)
+    return bytes(out)
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def gdb_read(port, addr, size, path):
+    """Reads the board's memory through the gdbstub with gdb itself (not through phalanx). `disconnect`, not
+    `detach`: the core stays halted (QEMU resumes it on a detach)."""
+    r = subprocess.run(["gdb-multiarch", "-nx", "-batch", "-ex", f"target remote 127.0.0.1:{port}",
+                        "-ex", f"dump binary memory {path} {addr:#x} {addr + size:#x}", "-ex", "disconnect"],
+                       stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    except OSError:
+        return r.stdout + r.stderr
+
+
+def phalanx_flash(argv, timeout_s=120):
+    r = subprocess.run([os.path.join(BIN, "phalanx"), "flash"] + argv, cwd=ROOT, stdin=subprocess.DEVNULL,
+                       capture_output=True, text=True, timeout=timeout_s)
+    return r.returncode, r.stdout, r.stderr
+
+
+def documented_dry_runs():
+    """The `--dry-run` examples of docs/firmware-mcu.md "Flashing": ($ command, [command lines it prints])."""
+    out, cur = [], None
+    for line in open(os.path.join(ROOT, "docs", "firmware-mcu.md")):
+        line = line.rstrip("\n")
+        if line.startswith("$ phalanx flash ") and "--dry-run" in line:
+            cur = (line[2:], [])
+            out.append(cur)
+        elif cur is not None and line and not line.startswith("```") and not line.startswith("$ "):
+            if not line.startswith("image "):
+                cur[1].append(line)
+        else:
+            cur = None
+    return out
+
+
+def flash(args):
+    c = Checks()
+    board_name = BOARDS[args.board][1].split("-", 1)[1]  # "mps2_an386" / "ast1030": the build's board name
+    good_path = app_elf(args.app, args.board)[:-4] + ".bin"
+    other_app = next(a for a in APPS if a != args.app)
+    wrong_device_path = app_elf(other_app, args.board)[:-4] + ".bin"
+    stm32_path = os.path.join(ROOT, "build", "mcu-stm32g474", f"phalanx-stm32g474-{args.app}.bin")
+    for p in (good_path, wrong_device_path, stm32_path):
+        if not os.path.exists(p):
+            print(f"missing image {p}: build the images first (tools/mcu/build.sh)")
+            return 1
+    good = open(good_path, "rb").read()
+    info = image_info(good)
+    build_hex = f"{info['build_id']:08x}"
+    work = tempfile.mkdtemp(prefix="phalanx-flash-test-")
+    corrupt_path = os.path.join(work, "corrupt.bin")
+    corrupt = bytearray(good)
+    corrupt[len(corrupt) // 2] ^= 0x5A  # one byte of code
+    open(corrupt_path, "wb").write(corrupt)
+    other_build_path = os.path.join(work, "other-build.bin")  # a consistent image that claims another build id
+    open(other_build_path, "wb").write(with_info(good, build_id=info["build_id"] ^ 0x00FF00FF))
+
+    port = free_port()
+    board = Board(None, extra=[f"plant_period_ms={args.plant_period_ms}"] + relaxed_hand(args) + args.extra,
+                  machine=args.board, gdb_port=port)
+    common = ["--via", "gdb", "--target", f"127.0.0.1:{port}", "--board", board_name, "--device-type", args.app,
+              "--device", f"serial:{board.pty}", "--timeout", "30"]
+    readback = os.path.join(work, "memory.bin")
+    try:
+        print(f"blank board up: pty={board.pty} gdbstub=127.0.0.1:{port}; image {os.path.relpath(good_path, ROOT)} "
+              f"build {build_hex}, {len(good)} bytes")
+        blank = gdb_read(port, info["load_address"], len(good), readback)
+        c.check(blank == bytes(len(good)), "the blank board's code memory reads as zeros through the gdbstub",
+                blank[:200] if isinstance(blank, str) else "")
+        refusals = [("wrong-device image", wrong_device_path, "wrong device"),
+                    ("corrupt image (one byte flipped)", corrupt_path, "CRC mismatch"),
+                    ("wrong-board image (the STM32G474's)", stm32_path, "wrong board"),
+                    ("ELF instead of the raw image", app_elf(args.app, args.board), "ELF")]
+        for what, path, expected in refusals:
+            rc, out, err = phalanx_flash([path] + common)
+            c.check(rc == 3 and expected in err and "nothing was written" in err,
+                    f"{what} refused before writing (exit 3, '{expected}')", f"rc={rc} {err.strip()[-300:]}")
+            print(f"    {err.strip()}")
+            after = gdb_read(port, info["load_address"], len(good), readback)
+            c.check(after == bytes(len(good)), f"  nothing was written (memory still zero after the {what})")
+        t0 = time.monotonic()
+        rc, out, err = phalanx_flash([good_path] + common)
+        print("\n".join("    " + l for l in out.strip().splitlines()))
+        c.check(rc == 0, f"the {args.app} image written through the gdbstub (exit 0, {time.monotonic() - t0:.1f} s "
+                "with the handshake)", f"rc={rc} {err.strip()[-400:]}")
+        c.check("read back: " in out and "equal to the image" in out, "phalanx read the image back equal")
+        c.check(f"build {build_hex}: matches the image" in out,
+                f"the board answered the handshake as {args.app} with the image's build id {build_hex}")
+        boot = board.wait_for(rf"^BOOT .*app={args.app}\b", 10)
+        c.check(boot is not None, "the board booted the written image (debug console BOOT line)")
+        d = subprocess.run([os.path.join(BIN, "phalanx"), "mcu-diag", "--device", f"serial:{board.pty}",
+                            "--timeout", "10"], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+        try:
+            diag = json.loads(d.stdout)
+        except json.JSONDecodeError:
+            diag = {}
+        c.check(diag.get("device_type") == args.app and diag.get("firmware", {}).get("build_id") == build_hex,
+                f"an independent handshake (phalanx mcu-diag) reads {args.app} build {build_hex}",
+                d.stdout[-200:] + d.stderr[-200:])
+        rc, out, err = phalanx_flash([other_build_path] + common)
+        c.check(rc == 5 and "build id mismatch" in err,
+                "an image whose block claims another build id: written, then the handshake's mismatch is an error "
+                "(exit 5)", f"rc={rc} {err.strip()[-300:]}")
+        print(f"    {err.strip()}")
+    finally:
+        board.stop()
+        shutil.rmtree(work, ignore_errors=True)
+
+    docs = documented_dry_runs()
+    vias = {v for cmd, _ in docs for v in ("openocd", "dfu", "gdb") if f"--via {v}" in cmd}
+    c.check({"openocd", "dfu"} <= vias, "docs/firmware-mcu.md shows the --dry-run output of --via openocd and dfu",
+            sorted(vias))
+    for cmd, expected in docs:
+        if "--via gdb" in cmd:
+            continue  # its read-back file name carries the process id
+        argv = cmd.split()[2:]
+        rc, out, err = phalanx_flash(argv)
+        got = [l for l in out.splitlines() if not l.startswith("image ")]
+        c.check(rc == 0 and got == expected, f"`{cmd}` prints what the docs say",
+                f"rc={rc} got {got} docs {expected} {err.strip()}")
+    print(f"flash test {args.app} on {args.board}: {c.passed} passed, {c.failed} failed")
+    return 0 if c.failed == 0 else 1
+
+
+def blank(args):
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    port = args.gdb_port or free_port()
+    board = Board(None, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra, machine=args.board,
+                  gdb_port=port)
+    print(f"PTY {board.pty}\nGDB 127.0.0.1:{port}", flush=True)
+    try:
+        while board.proc.poll() is None:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        board.stop()
+        print(board.text())
+    return 0
+
+
 def run(args):
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
     board = Board(args.elf, seconds=0, icount=args.shift,
@@ -366,7 +549,7 @@ def run(args):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("mode", choices=["session", "bench", "run"])
+    ap.add_argument("mode", choices=["session", "bench", "run", "flash", "blank"])
     ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
     ap.add_argument("--board", default="mps2-an386", choices=sorted(BOARDS),
                     help="emulated board (QEMU machine): mps2-an386 (CMSDK UART, host 100 Hz) or ast1030-evb "
@@ -387,6 +570,7 @@ def main():
                     help="run phalanx/phalanxd in their real-time mode (SCHED_FIFO 80 + mlockall) instead of "
                          "--no-realtime; needed for a 1 kHz host loop on a loaded machine")
     ap.add_argument("--extra", action="append", default=[], help="extra firmware option key=value")
+    ap.add_argument("--gdb-port", type=int, default=None, help="blank: the gdbstub's TCP port (default: a free one)")
     args = ap.parse_args()
     if args.elf is None:
         args.elf = app_elf(args.app, args.board)
@@ -397,7 +581,7 @@ def main():
         args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
-    return {"session": session, "bench": bench, "run": run}[args.mode](args)
+    return {"session": session, "bench": bench, "run": run, "flash": flash, "blank": blank}[args.mode](args)
 
 
 if __name__ == "__main__":

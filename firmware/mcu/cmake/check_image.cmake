@@ -1,5 +1,6 @@
 # Post-link check of one firmware image (cmake -P): size report, budget and "no heap" proof.
-#   flash = everything loaded into flash (.isr_vector .text .ARM.* .init_array + the .data image)
+#   flash = everything loaded into flash (.isr_vector .image_info .text .ARM.* .init_array + the .data image), and
+#           the zero gap between the vector table and the image-info block: the size of the raw image BIN
 #   RAM   = .data + .bss + .stack (there is no heap section)
 # Fails the build when a budget is exceeded or when the image links any allocator or exception machinery.
 foreach(v ELF MAP SIZE NM FLASH_BUDGET RAM_BUDGET REPORT)
@@ -20,7 +21,7 @@ foreach(line IN LISTS lines)
   if(line MATCHES "^(\\.[A-Za-z0-9_.]+)[ \t]+([0-9]+)[ \t]+([0-9]+)")
     set(sec ${CMAKE_MATCH_1})
     set(bytes ${CMAKE_MATCH_2})
-    if(sec MATCHES "^\\.(isr_vector|text|ARM\\.extab|ARM\\.exidx|init_array|data)$")
+    if(sec MATCHES "^\\.(isr_vector|image_info|text|ARM\\.extab|ARM\\.exidx|init_array|data)$")
       math(EXPR flash "${flash} + ${bytes}")
       string(APPEND detail "  ${sec} ${bytes} (flash)\n")
     endif()
@@ -30,6 +31,16 @@ foreach(line IN LISTS lines)
     endif()
   endif()
 endforeach()
+
+# The raw image also holds the gap before the image-info block (firmware/boards/phalanx-sections.ld).
+if(DEFINED BIN AND EXISTS ${BIN})
+  file(SIZE ${BIN} bin_bytes)
+  if(bin_bytes GREATER flash)
+    math(EXPR gap "${bin_bytes} - ${flash}")
+    string(APPEND detail "  gap ${gap} (flash: zeros before the image-info block)\n")
+    set(flash ${bin_bytes})
+  endif()
+endif()
 
 # No heap after init — and none before either: no allocator symbol may be linked at all.
 execute_process(COMMAND ${NM} ${ELF} OUTPUT_VARIABLE nm_out)

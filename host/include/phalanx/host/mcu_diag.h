@@ -11,7 +11,19 @@
 
 #include "phalanx/protocol/messages.h"
 
+namespace phalanx::linux_hal {
+class FdLink;
+}
+
 namespace phalanx::host {
+
+class HostSession;
+
+/// Handshakes with a board on an open link: Hello (expecting `expected`, kAny for any device) every 500 ms until the
+/// board answers or `timeout_s` passes (a board whose link is backed up may miss the first Hello). Returns "" once
+/// the handshake succeeded (session.deviceInfo() is the board's HelloAck), else why not. `what` names the link.
+std::string handshakeBoard(linux_hal::FdLink& link, HostSession& session, double timeout_s,
+                           protocol::DeviceType expected, const std::string& what);
 
 /// Opens the serial device at `path`, handshakes (any device type) and reads every board diagnostic parameter.
 /// Returns a JSON object {device_type, firmware: {build_id (hex git hash), protocol_version, tick_rate_hz},
