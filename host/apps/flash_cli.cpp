@@ -1,6 +1,7 @@
 #include "flash_cli.h"
 
 #include <cstdio>
+#include <cstdlib>
 
 #include "cli_args.h"
 #include "phalanx/host/flash.h"
@@ -26,8 +27,8 @@ FlashCommand::FlashCommand(CLI::App& parent) {
       ->check(CLI::IsMember({"glove5", "sea_finger", "pantograph"}))
       ->required();
   app->add_option("--build-id", build_id, "refuse an image whose build id is not this (8 hex digits)");
-  app->add_option("--device", device, "serial:<path> of the board's link: after writing, handshake and compare the "
-                                      "build id with the image's");
+  app->add_option("--device", device, "serial:<path>[@baud] of the board's link: after writing, handshake and compare "
+                                      "the build id with the image's");
   app->add_option("--timeout", timeout_s, "seconds to wait for the board's handshake after writing")
       ->check(cli::inRange(0.5, 120.0));
   app->add_flag("--dry-run", dry_run, "check the image and print the command(s) that would write it; run nothing");
@@ -50,9 +51,15 @@ int FlashCommand::run() const {
     r.expect.check_build_id = true;
     r.expect.build_id = static_cast<uint32_t>(v);
   }
-  if (!device.empty() && device.rfind("serial:", 0) != 0) {
-    std::fprintf(stderr, "phalanx: error: --device must be serial:<path> (got '%s')\n", device.c_str());
-    return cli::kExitBadArguments;
+  if (!device.empty()) {
+    const auto at = device.find('@');
+    char* end = nullptr;
+    const unsigned long baud = at == std::string::npos ? 1 : std::strtoul(device.c_str() + at + 1, &end, 10);
+    if (device.rfind("serial:", 0) != 0 || device.size() <= 7 ||
+        (at != std::string::npos && (at + 1 == device.size() || *end != '\0' || baud == 0 || baud > 4000000))) {
+      std::fprintf(stderr, "phalanx: error: --device: expected serial:<path>[@baud], got '%s'\n", device.c_str());
+      return cli::kExitBadArguments;
+    }
   }
   r.device = device;
   r.handshake_timeout_s = timeout_s;

@@ -219,7 +219,7 @@ int main(int argc, char** argv) {
   RunCommand run(app);
   CLI::App* version = app.add_subcommand("version", "print version information");
   McuDiagCommand mcu_diag(app);
-  FlashCommand flash(app);
+  FlashCommand flash_cmd(app);
   CanCommands can(app);
   DevicesCommand devices(app);
   BenchCommands bench(app);
@@ -238,7 +238,7 @@ int main(int argc, char** argv) {
   if (devices.app->parsed()) return devices.run();
   if (const int rc = cli::runTherapyCommands(therapy); rc >= 0) return rc;
   if (mcu_diag.app->parsed()) return mcu_diag.run();
-  if (flash.app->parsed()) return flash.run();
+  if (flash_cmd.app->parsed()) return flash_cmd.run();
   if (version->parsed()) return runVersion();
   return run.run(app, argc, argv);
 }

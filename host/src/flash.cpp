@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -106,9 +107,15 @@ int runTool(const std::vector<std::string>& argv, std::string& error) {
 
 /// After writing: handshake over the board's link; its build id and device type must be the image's.
 int verifyByHandshake(const Request& r, const image::ImageInfo& info) {
-  const std::string path = r.device.substr(7);
+  // serial:PATH[@baud], as `phalanx run --device` (no baud: the port's setting is kept).
+  std::string path = r.device.substr(7);
+  unsigned baud = 0;
+  if (const auto at = path.find('@'); at != std::string::npos) {
+    baud = static_cast<unsigned>(std::strtoul(path.c_str() + at + 1, nullptr, 10));
+    path = path.substr(0, at);
+  }
   linux_hal::SerialLink link;
-  if (const std::string err = link.open(path, 115200); !err.empty()) {
+  if (const std::string err = link.open(path, baud); !err.empty()) {
     std::fprintf(stderr, "phalanx flash: error: written, but the board's link: %s\n", err.c_str());
     return kExitVerifyFailed;
   }

@@ -443,6 +443,10 @@ def flash(args):
     corrupt = bytearray(good)
     corrupt[len(corrupt) // 2] ^= 0x5A  # one byte of code
     open(corrupt_path, "wb").write(corrupt)
+    oversized_path = os.path.join(work, "oversized.bin")  # consistent (size, CRC), one word over the part's code memory
+    part_bytes = {"mps2-an386": 4 << 20, "ast1030-evb": 512 << 10}[args.board]
+    padded = good + bytes(part_bytes + 4 - len(good))
+    open(oversized_path, "wb").write(with_info(padded, image_size=len(padded)))
     other_build_path = os.path.join(work, "other-build.bin")  # a consistent image that claims another build id
     open(other_build_path, "wb").write(with_info(good, build_id=info["build_id"] ^ 0x00FF00FF))
 
@@ -461,6 +465,7 @@ def flash(args):
         refusals = [("wrong-device image", wrong_device_path, "wrong device"),
                     ("corrupt image (one byte flipped)", corrupt_path, "CRC mismatch"),
                     ("wrong-board image (the STM32G474's)", stm32_path, "wrong board"),
+                    ("oversized image (one word over the part)", oversized_path, "too large"),
                     ("ELF instead of the raw image", app_elf(args.app, args.board), "ELF")]
         for what, path, expected in refusals:
             rc, out, err = phalanx_flash([path] + common)
