@@ -103,7 +103,9 @@ TEST(FlashImage, ACorruptImageIsRefusedByItsCrcWhereverTheByteIs) {
     const std::string err = check(b);
     EXPECT_FALSE(err.empty()) << "byte " << at;
     // A flipped byte inside the block may hit the magic or the size first: refused either way, and named.
-    if (at < 0x200 || at >= 0x200 + 20) EXPECT_NE(err.find("CRC mismatch"), std::string::npos) << at << ": " << err;
+    if (at < 0x200 || at >= 0x200 + 20) {
+      EXPECT_NE(err.find("CRC mismatch"), std::string::npos) << at << ": " << err;
+    }
   }
 }
 
