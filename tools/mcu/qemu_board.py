@@ -524,15 +524,7 @@ def blank(args):
     board = Board(None, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra, machine=args.board,
                   gdb_port=port)
     print(f"PTY {board.pty}\nGDB 127.0.0.1:{port}", flush=True)
-    try:
-        while board.proc.poll() is None:
-            time.sleep(0.5)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        board.stop()
-        print(board.text())
-    return 0
+    return serve(board)
 
 
 def run(args):
@@ -541,6 +533,11 @@ def run(args):
                   extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra,
                   machine=args.board)
     print(f"PTY {board.pty}", flush=True)
+    return serve(board)
+
+
+def serve(board):
+    """Keeps a started board running until QEMU exits or we are interrupted (run, blank); prints its console."""
     try:
         while board.proc.poll() is None:
             time.sleep(0.5)
