@@ -24,6 +24,7 @@
 
 #include "../support/sea_assessment_session.h"
 #include "phalanx/host/therapy/assessment_analysis.h"
+#include "phalanx/host/therapy/fhir.h"
 #include "phalanx/host/therapy/progress.h"
 #include "phalanx/host/therapy/records_dir.h"
 #include "process.h"
@@ -255,8 +256,12 @@ TEST(TherapyProgress, TrendsPdfAndFhirOfAPatientsSessions) {
   EXPECT_GE(with_mdc, 8u);
   // The improving course shows as such (the simulated truth went down for the gain, up for the strength).
   for (const auto& f : p["figures"]) {
-    if (f["name"] == "max_force.mcp") EXPECT_GT(f["values"][2].get<double>(), f["values"][0].get<double>());
-    if (f["name"] == "tardieu.catch_deg") EXPECT_LT(f["values"][2].get<double>(), f["values"][0].get<double>());
+    if (f["name"] == "max_force.mcp") {
+      EXPECT_GT(f["values"][2].get<double>(), f["values"][0].get<double>());
+    }
+    if (f["name"] == "tardieu.catch_deg") {
+      EXPECT_LT(f["values"][2].get<double>(), f["values"][0].get<double>());
+    }
   }
 
   // The faulted session's locked period is excluded, counted against the record.
@@ -365,7 +370,9 @@ TEST(TherapyProgress, TrendsPdfAndFhirOfAPatientsSessions) {
         EXPECT_NEAR((*mdc)["valueQuantity"]["value"].get<double>(), want, 1e-5 * std::fabs(want)) << name;
         EXPECT_EQ((*mdc)["valueQuantity"]["code"], (*o)["valueQuantity"]["code"]) << name << ": MDC in the figure's unit";
       }
-      if (k == 1) EXPECT_TRUE(o->contains("note")) << name << ": the excluded locked time is noted";
+      if (k == 1) {
+        EXPECT_TRUE(o->contains("note")) << name << ": the excluded locked time is noted";
+      }
       ++checked;
     }
     std::printf("session %zu: %zu instrumented figures in the FHIR bundle, values equal to the report's\n", k + 1, checked);

@@ -36,7 +36,7 @@ namespace {
 
 // Printed layout (A4, 12 mm margins): rows per table page and plots per page, chosen so that each page's content
 // fits one sheet; `pages` in the JSON is the plan, and the test checks the PDF has exactly that many.
-constexpr std::size_t kSessionRowsFirstPage = 14, kRowsPerPage = 26, kPlotsPerPage = 6;
+constexpr std::size_t kSessionRowsFirstPage = 14, kRowsPerPage = 26, kChangeRowsPerPage = 20, kPlotsPerPage = 6;
 constexpr const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd"};
 constexpr const char* kExcludedColour = "#e67e00";
 
@@ -211,13 +211,13 @@ std::string verdict(const nlohmann::json& f, double change, std::string& css) {
   css = "same";
   if (!f.contains("mdc95")) return "MDC unknown";
   const double mdc = f["mdc95"].get<double>();
-  if (std::fabs(change) <= mdc) return "within MDC95 (no detectable change)";
+  if (std::fabs(change) <= mdc) return "within MDC95";
   const int dir = f["direction"].get<int>();
   const bool up = change > 0;
-  if (dir == 0) return up ? "▲ higher, beyond MDC95" : "▼ lower, beyond MDC95";
+  if (dir == 0) return up ? "▲ higher" : "▼ lower";
   const bool better = (dir > 0) == up;
   css = better ? "better" : "worse";
-  return std::string(up ? "▲ higher" : "▼ lower") + (better ? " — better" : " — worse") + ", beyond MDC95";
+  return std::string(up ? "▲ " : "▼ ") + (better ? "better" : "worse");
 }
 
 std::string sessionTick(const nlohmann::json& s) {
@@ -330,11 +330,13 @@ std::string changePages(const nlohmann::json& p) {
   const nlohmann::json& figures = p["figures"];
   std::ostringstream h;
   for (std::size_t i = 0; i < figures.size(); ++i) {
-    if (i % kRowsPerPage == 0) {
+    if (i % kChangeRowsPerPage == 0) {
       if (i > 0) h << "</table></section>";
       h << "<section class='page'>" << pageHeader(p, i == 0 ? "Change from the first to the last session" : "Change (continued)")
-        << "<table><tr><th>figure</th><th>unit</th><th>first</th><th>last</th><th>change</th><th>MDC95</th>"
-           "<th>ICC(2,1)</th><th>change against the MDC95</th></tr>";
+        << "<p class='note'>Beyond the MDC95 (a change larger than the measurement's own test–retest variation): "
+           "▲ higher / ▼ lower, and better or worse where the figure has a direction; otherwise \"within "
+           "MDC95\" (no detectable change).</p><table><tr><th style='width:45%'>figure</th><th>unit</th><th>first</th>"
+           "<th>last</th><th>change</th><th>MDC95</th><th>ICC(2,1)</th><th>verdict</th></tr>";
     }
     const nlohmann::json& f = figures[i];
     double first = 0.0, last = 0.0;
@@ -488,7 +490,7 @@ std::string progressOf(const std::string& records_dir, const std::string& patien
                             : nlohmann::json()}};
   const std::size_t n = sessions.size();
   const std::size_t session_pages = 1 + (n > kSessionRowsFirstPage ? pagesFor(n - kSessionRowsFirstPage, kRowsPerPage) : 0);
-  out["pages"] = session_pages + pagesFor(periodRows(sessions), kRowsPerPage) + pagesFor(figures.size(), kRowsPerPage) +
+  out["pages"] = session_pages + pagesFor(periodRows(sessions), kRowsPerPage) + pagesFor(figures.size(), kChangeRowsPerPage) +
                  plotPages(plotsOf(figures)).size();
   return "";
 }
