@@ -29,7 +29,7 @@ PACKAGES=(
   clang libclang-rt-14-dev valgrind
   qemu-system-x86 busybox-static kmod cpio can-utils bc libaio-dev usbutils rt-tests
   linux-source-6.1 linux-headers-amd64
-  libcpp-httplib-dev chromium
+  libcpp-httplib-dev chromium poppler-utils
   debootstrap lintian help2man libcap2-bin
   cyclonedds-dev cyclonedds-tools iproute2
   nanopb libnanopb-dev

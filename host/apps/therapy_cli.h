@@ -2,6 +2,7 @@
 // The `phalanx` CLI as a client of phalanxd's control API (docs/api.md), and the session-record tools.
 //   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
 //   phalanx record export FILE [--csv|--mcap] [--out PATH] | record info FILE | record report FILE [--previous F] --out F
+//   phalanx record progress --patient ID --records-dir DIR [--repeatability REP.json] [--out F.html] [--pdf F.pdf]
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -26,6 +27,7 @@
 #include "phalanx/host/record/replay.h"
 #include "phalanx/host/therapy/fhir.h"
 #include "phalanx/host/therapy/guidance.h"
+#include "phalanx/host/therapy/progress.h"
 #include "phalanx/host/therapy/report.h"
 
 namespace phalanx::host::cli {
@@ -52,6 +54,8 @@ struct TherapyCli {
   std::string rec_file, rec_out, rec_previous, rec_reference, rec_repeatability;
   CLI::App* rec_repeat = nullptr;
   std::vector<std::string> rec_files;
+  CLI::App* rec_progress = nullptr;
+  std::string rec_records_dir, rec_pdf;
   bool csv = false;
   bool mcap = false;
 };
@@ -126,6 +130,20 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_fhir = t.record->add_subcommand("fhir", "export a record's results as a FHIR R4 Bundle of Observations (JSON)");
   t.rec_fhir->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_fhir->add_option("--out", t.rec_out, "output file (default: FILE with .fhir.json; never the record itself)");
+  t.rec_fhir->add_option("--repeatability", t.rec_repeatability,
+                         "repeatability file (phalanx record repeatability): ICC(2,1) and MDC95 as components")
+      ->check(CLI::ExistingFile);
+  t.rec_progress = t.record->add_subcommand(
+      "progress", "a patient's progress over time: every figure's trend across their session records, printable "
+                  "(HTML, and PDF through headless Chromium)");
+  t.rec_progress->add_option("--patient", t.patient, "the patient's id (their records' names)")->required();
+  t.rec_progress->add_option("--records-dir", t.rec_records_dir, "the directory of the session records")->required();
+  t.rec_progress->add_option("--repeatability", t.rec_repeatability,
+                             "repeatability file (phalanx record repeatability): the MDC95 band and ICC per figure")
+      ->check(CLI::ExistingFile);
+  t.rec_progress->add_option("--out", t.rec_out, "HTML output (default: the PDF's name with .html)");
+  t.rec_progress->add_option("--pdf", t.rec_pdf, "PDF output, printed from the HTML by headless Chromium");
+  t.rec_progress->add_flag("--json", t.json, "print the progress JSON (every session's figures) on stdout");
   t.rec_replay = t.record->add_subcommand(
       "replay", "feed a --record FILE.mcap recording through this build's controller offline and compare every command "
                 "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable)");
@@ -412,6 +430,34 @@ inline std::string withExtension(const std::string& path, const std::string& ext
   return (has_ext ? path.substr(0, dot) : path) + ext;
 }
 
+/// `phalanx record progress`: the HTML (and PDF) progress report; a summary (or --json: the progress JSON).
+inline int runProgress(TherapyCli& t) {
+  if (t.rec_out.empty() && t.rec_pdf.empty()) {
+    std::fprintf(stderr, "phalanx: error: record progress: give --pdf FILE.pdf and/or --out FILE.html\n");
+    return 2;
+  }
+  therapy::ProgressRequest r{t.rec_records_dir, t.patient, t.rec_repeatability,
+                             t.rec_out.empty() ? withExtension(t.rec_pdf, ".html") : t.rec_out, t.rec_pdf};
+  nlohmann::json p;
+  const std::string err = therapy::writeProgressReport(r, p, [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); });
+  if (!err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+    return 1;
+  }
+  if (t.json) {
+    std::cout << p.dump(1) << std::endl;
+    return 0;
+  }
+  std::size_t excluded = 0;
+  for (const auto& s : p["sessions"]) excluded += s["excluded_cycles"].get<std::size_t>() > 0 ? 1 : 0;
+  std::printf("patient %s: %zu sessions (%zu with locked/faulted time excluded), %zu figures, %s\n", t.patient.c_str(),
+              p["sessions"].size(), excluded, p["figures"].size(),
+              p["mdc_source"].is_string() ? ("MDC95 from " + p["mdc_source"].get<std::string>()).c_str() : "no MDC (no --repeatability)");
+  std::printf("report: %s\n", r.html_path.c_str());
+  if (!r.pdf_path.empty()) std::printf("PDF: %s (%d pages)\n", r.pdf_path.c_str(), p["pages"].get<int>());
+  return 0;
+}
+
 /// Runs the parsed therapy/record subcommand; returns -1 if none of them was given.
 inline int runTherapyCommands(TherapyCli& t) {
   if (t.record->parsed() && t.rec_replay->parsed()) return runReplay(t);
@@ -446,9 +492,10 @@ inline int runTherapyCommands(TherapyCli& t) {
       std::printf("repeatability: %s (%s)\n", t.rec_out.c_str(), rep["source"].get<std::string>().c_str());
       return 0;
     }
+    if (t.rec_progress->parsed()) return runProgress(t);
     if (t.rec_fhir->parsed()) {
       const std::string out = t.rec_out.empty() ? withExtension(t.rec_file, ".fhir.json") : t.rec_out;
-      if (const std::string err = therapy::writeFhirBundle(t.rec_file, out); !err.empty()) {
+      if (const std::string err = therapy::writeFhirBundle(t.rec_file, out, t.rec_repeatability); !err.empty()) {
         std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
         return 1;
       }

@@ -26,6 +26,14 @@ void SvgPlot::addLine(const std::vector<std::array<double, 2>>& pts, const std::
   series_.push_back(Series{pts, colour, label, 1.5, 1.0, true, markers});
 }
 
+void SvgPlot::addBand(double y_lo, double y_hi, const std::string& colour, double opacity, const std::string& label) {
+  bands_.push_back(Band{std::min(y_lo, y_hi), std::max(y_lo, y_hi), colour, label, opacity});
+}
+
+void SvgPlot::addVLine(double x, const std::string& colour, const std::string& label) {
+  vlines_.push_back(VLine{x, colour, label});
+}
+
 namespace {
 std::string escape(const std::string& s) {
   std::string o;
@@ -59,7 +67,17 @@ std::string SvgPlot::render() const {
       y1 = std::max(y1, p[1]);
     }
   }
-  if (!(x1 >= x0)) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+  for (const Band& b : bands_) {
+    if (!std::isfinite(b.lo) || !std::isfinite(b.hi)) continue;
+    y0 = std::min(y0, b.lo);
+    y1 = std::max(y1, b.hi);
+  }
+  for (const auto& [x, label] : x_ticks_) {
+    x0 = std::min(x0, x);
+    x1 = std::max(x1, x);
+  }
+  if (!(x1 >= x0)) x0 = 0, x1 = 1;
+  if (!(y1 >= y0)) y0 = 0, y1 = 1;
   if (x1 - x0 < 1e-12) x0 -= 0.5, x1 += 0.5;
   if (y1 - y0 < 1e-12) y0 -= 0.5, y1 += 0.5;
   const double pad_x = 0.05 * (x1 - x0), pad_y = 0.05 * (y1 - y0);
@@ -77,7 +95,7 @@ std::string SvgPlot::render() const {
   std::ostringstream o;
   o.precision(6);
   o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << width_px_ << "\" height=\"" << height_px_
-    << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+    << "\" viewBox=\"0 0 " << width_px_ << " " << height_px_ << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
   o << "<text x=\"" << width_px_ / 2 << "\" y=\"20\" text-anchor=\"middle\" font-size=\"14\">" << escape(title_)
     << "</text>\n";
@@ -85,7 +103,17 @@ std::string SvgPlot::render() const {
   o << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << (x1 - x0) * sx << "\" height=\"" << ph
     << "\" fill=\"none\" stroke=\"black\"/>\n";
   const double xs = tickStep(x1 - x0), ys = tickStep(y1 - y0);
-  for (double t = std::ceil(x0 / xs) * xs; t <= x1; t += xs) {
+  for (const auto& [t, label] : x_ticks_) {
+    const auto nl = label.find('\n');
+    o << "<line x1=\"" << X(t) << "\" y1=\"" << top + ph << "\" x2=\"" << X(t) << "\" y2=\"" << top + ph + 5
+      << "\" stroke=\"black\"/><text x=\"" << X(t) << "\" y=\"" << top + ph + 18 << "\" text-anchor=\"middle\">"
+      << escape(label.substr(0, nl)) << "</text>\n";
+    if (nl != std::string::npos) {
+      o << "<text x=\"" << X(t) << "\" y=\"" << top + ph + 32 << "\" text-anchor=\"middle\" font-size=\"10\">"
+        << escape(label.substr(nl + 1)) << "</text>\n";
+    }
+  }
+  for (double t = std::ceil(x0 / xs) * xs; x_ticks_.empty() && t <= x1; t += xs) {
     o << "<line x1=\"" << X(t) << "\" y1=\"" << top + ph << "\" x2=\"" << X(t) << "\" y2=\"" << top + ph + 5
       << "\" stroke=\"black\"/><text x=\"" << X(t) << "\" y=\"" << top + ph + 18 << "\" text-anchor=\"middle\">"
       << (std::fabs(t) < 1e-9 * xs ? 0.0 : t) << "</text>\n";
@@ -99,6 +127,20 @@ std::string SvgPlot::render() const {
     << escape(x_label_) << "</text>\n";
   o << "<text transform=\"translate(16," << top + ph / 2 << ") rotate(-90)\" text-anchor=\"middle\">"
     << escape(y_label_) << "</text>\n";
+  // Bands and vertical markers under the data.
+  for (const Band& b : bands_) {
+    if (!std::isfinite(b.lo) || !std::isfinite(b.hi)) continue;
+    o << "<rect x=\"" << left << "\" y=\"" << Y(b.hi) << "\" width=\"" << (x1 - x0) * sx << "\" height=\""
+      << std::max(Y(b.lo) - Y(b.hi), 0.5) << "\" fill=\"" << b.colour << "\" fill-opacity=\"" << b.opacity << "\"/>\n";
+  }
+  for (const VLine& v : vlines_) {
+    o << "<line x1=\"" << X(v.x) << "\" y1=\"" << top << "\" x2=\"" << X(v.x) << "\" y2=\"" << top + ph
+      << "\" stroke=\"" << v.colour << "\" stroke-width=\"1.5\" stroke-dasharray=\"4 3\"/>\n";
+    if (!v.label.empty()) {
+      o << "<text x=\"" << X(v.x) + 3 << "\" y=\"" << top + 11 << "\" font-size=\"10\" fill=\"" << v.colour << "\">"
+        << escape(v.label) << "</text>\n";
+    }
+  }
   // Data.
   for (const Series& s : series_) {
     if (s.line) {
@@ -122,6 +164,13 @@ std::string SvgPlot::render() const {
   }
   // Legend.
   double ly = top + 14;
+  for (const Band& b : bands_) {
+    if (b.label.empty()) continue;
+    o << "<rect x=\"" << left + 10 << "\" y=\"" << ly - 9 << "\" width=\"10\" height=\"10\" fill=\"" << b.colour
+      << "\" fill-opacity=\"" << std::min(1.0, 2.0 * b.opacity) << "\"/><text x=\"" << left + 26 << "\" y=\"" << ly
+      << "\">" << escape(b.label) << "</text>\n";
+    ly += 16;
+  }
   for (const Series& s : series_) {
     if (s.label.empty()) continue;
     o << "<rect x=\"" << left + 10 << "\" y=\"" << ly - 9 << "\" width=\"10\" height=\"10\" fill=\"" << s.colour

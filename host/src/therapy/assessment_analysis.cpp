@@ -321,6 +321,14 @@ std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::js
   return out;
 }
 
+std::string figureUnit(const std::string& name, const std::string& unit) {
+  if (name.rfind("tardieu.reflex", 0) == 0) return unit;
+  if (name.find("_deg_s") != std::string::npos) return "°/s";
+  if (name.find("_deg") != std::string::npos) return "°";
+  if (name.rfind("tardieu.gain", 0) == 0) return unit + "·s/rad";
+  return unit;
+}
+
 nlohmann::json repeatabilityOf(const std::vector<std::vector<nlohmann::json>>& sessions, const std::string& source,
                                std::string& error) {
   // figure → [patient][session], kept only when every session has it.

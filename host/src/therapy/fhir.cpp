@@ -8,6 +8,7 @@
 #include <regex>
 
 #include "phalanx/host/record/output_file.h"
+#include "phalanx/host/therapy/assessment_analysis.h"
 #include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/report.h"
 
@@ -64,9 +65,54 @@ std::string bodySiteText(const std::string& name, const std::string& device) {
   return (finger == "thumb" ? std::string("thumb") : finger + " finger") + " " + joint + " joint";
 }
 
+/// The local code, display text, UCUM unit and body site of an instrumented-assessment figure
+/// (assessmentFigures()); false for the figures exported otherwise (the active ROM).
+struct FigureCode {
+  std::string code, display, unit, site;
+};
+bool figureCode(const std::string& name, const nlohmann::json& in, const std::string& effort_unit, FigureCode& out) {
+  const bool glove = effort_unit == "N";
+  const std::string u = ucum(effort_unit);
+  const auto dot1 = name.find('.'), dot2 = name.find('.', dot1 + 1);
+  const std::string family = name.substr(0, dot1);
+  const std::string part = name.substr(dot1 + 1, dot2 == std::string::npos ? std::string::npos : dot2 - dot1 - 1);
+  const std::string last = dot2 == std::string::npos ? "" : name.substr(dot2 + 1);
+  const std::string stretched = in.contains("tardieu") ? in["tardieu"].value("channel", std::string()) : "";
+  if (family == "passive_rom") {
+    out = last == "extension_deg"
+              ? FigureCode{"passive-rom-extension", "Passive range of motion: flexion of the relaxed joint under the extending test effort", "deg", part}
+              : FigureCode{"passive-rom-flexion", "Passive range of motion: flexion of the relaxed joint under the flexing test effort", "deg", part};
+    return true;
+  }
+  if (family == "max_force") {
+    out = {"max-voluntary-effort", glove ? "Maximal voluntary fingertip force (isometric, the device holding the pose)"
+                                         : "Maximal voluntary finger joint torque (isometric, the device holding the pose)",
+           u, part};
+    return true;
+  }
+  if (family != "tardieu") return false;
+  if (part == "catch_deg") out = {"tardieu-catch-angle", "Catch angle: joint flexion at the catch of the fastest stretch (instrumented Modified Tardieu, R1)", "deg", stretched};
+  else if (part == "threshold_deg_s") out = {"stretch-reflex-threshold-velocity", "Stretch-reflex threshold velocity (instrumented Modified Tardieu)", "deg/s", stretched};
+  else if (part == "gain_per_rad_s") out = {"stretch-reflex-gain", "Stretch-reflex gain: reflex effort per stretch velocity above the threshold", u + ".s/rad", stretched};
+  else out = {"stretch-reflex-effort", "Mean stretch-reflex effort after the catch in one imposed stretch", u, stretched};
+  return true;
+}
+
+/// The nominal velocity (deg/s) of a figure tardieu.reflex_at_<v>_deg_s, and that stretch's figures.
+nlohmann::json stretchOf(const std::string& name, const nlohmann::json& in) {
+  const std::string prefix = "tardieu.reflex_at_";
+  if (name.rfind(prefix, 0) != 0 || !in.contains("tardieu")) return nullptr;
+  const int v = std::atoi(name.c_str() + prefix.size());
+  for (const auto& s : in["tardieu"].value("stretches", nlohmann::json::array())) {
+    if (s.value("nominal_deg_s", -1) == v) return s;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
-nlohmann::json fhirBundle(const nlohmann::json& m, const std::string& record_name, std::string& error) {
+nlohmann::json fhirBundle(const nlohmann::json& m, const std::string& record_name, std::string& error,
+                          const nlohmann::json& repeatability) {
   const std::string patient = m.value("patient", std::string());
   if (patient.empty()) {
     error = "the record has no patient (a session without a profile): a FHIR Observation needs a subject";
@@ -157,6 +203,39 @@ nlohmann::json fhirBundle(const nlohmann::json& m, const std::string& record_nam
     add("tracking|" + c, localCode("tracking-rms-error", "Finger flexion tracking error against the exercise target (RMS)"),
         bodySiteText(c, device), quantity(tk[c]["rms_error_deg"].get<double>(), "deg", "deg"), comps, "therapy");
   }
+  // The instrumented assessments (assessment_analysis.h), one Observation per figure, with the figure's ICC(2,1)
+  // and MDC95 as components when a repeatability study gives them.
+  const nlohmann::json in = m.value("instrumented", nlohmann::json::object());
+  const nlohmann::json none = nlohmann::json::object();
+  const nlohmann::json& rep = repeatability.is_object() && repeatability.contains("figures") ? repeatability["figures"] : none;
+  for (const auto& [name, v] : assessmentFigures(m)) {
+    FigureCode fc;
+    if (!figureCode(name, in, unit, fc)) continue;
+    nlohmann::json comps = nlohmann::json::array();
+    if (const nlohmann::json st = stretchOf(name, in); st.is_object()) {
+      comps.push_back({{"code", localCode("stretch-velocity-nominal", "Imposed stretch velocity")},
+                       {"valueQuantity", quantity(st["nominal_deg_s"].get<double>(), "deg/s", "deg/s")}});
+      if (st["velocity_deg_s"].is_number()) {
+        comps.push_back({{"code", localCode("stretch-velocity-measured", "Measured stretch velocity")},
+                         {"valueQuantity", quantity(st["velocity_deg_s"].get<double>(), "deg/s", "deg/s")}});
+      }
+    }
+    if (rep.contains(name)) {
+      comps.push_back({{"code", localCode("icc-2-1", "Test-retest ICC(2,1) of this measurement")},
+                       {"valueQuantity", quantity(rep[name]["icc"].get<double>(), "1", "1")}});
+      comps.push_back({{"code", localCode("mdc95", "Minimal detectable change (95 %) of this measurement")},
+                       {"valueQuantity", quantity(rep[name]["mdc95"].get<double>(), fc.unit, fc.unit)}});
+    }
+    add("figure|" + name, localCode(fc.code, fc.display), fc.site.empty() ? "" : bodySiteText(fc.site, device),
+        quantity(v, fc.unit, fc.unit), comps, "exam");
+    nlohmann::json& o = entries.back()["resource"];
+    o["method"]["text"] = method_text + "; figure " + name;
+    if (rep.contains(name)) {
+      o["note"].push_back({{"text", "ICC(2,1) and MDC95 are the measurement's test-retest repeatability from " +
+                                        repeatability.value("source", std::string("a repeatability study")) +
+                                        ", not properties of this patient."}});
+    }
+  }
   const nlohmann::json ef = m.value("effort", nlohmann::json::object());
   for (const std::string& c : anatomicalKeys(ef)) {
     add("peak|" + c,
@@ -179,14 +258,20 @@ nlohmann::json fhirBundle(const nlohmann::json& m, const std::string& record_nam
   return bundle;
 }
 
-std::string writeFhirBundle(const std::string& record_path, const std::string& out_path) {
+std::string writeFhirBundle(const std::string& record_path, const std::string& out_path,
+                            const std::string& repeatability_path) {
   if (std::string err = record::refuseSameFile(record_path, out_path); !err.empty()) return err;
+  nlohmann::json rep;
+  if (!repeatability_path.empty()) {
+    if (std::string err = record::refuseSameFile(repeatability_path, out_path); !err.empty()) return err;
+    if (std::string err = loadRepeatability(repeatability_path, rep); !err.empty()) return err;
+  }
   record::SessionRecord rec;
   if (std::string err = record::readRecord(record_path, rec); !err.empty()) return err;
   const nlohmann::json m = sessionMetrics(rec);
   if (m.contains("error")) return record_path + ": " + m["error"].get<std::string>();
   std::string error;
-  const nlohmann::json b = fhirBundle(m, record_path.substr(record_path.rfind('/') + 1), error);
+  const nlohmann::json b = fhirBundle(m, record_path.substr(record_path.rfind('/') + 1), error, rep);
   if (!error.empty()) return record_path + ": " + error;
   record::AtomicOutputFile out;
   if (std::string err = out.open(out_path); !err.empty()) return err;

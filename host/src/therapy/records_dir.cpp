@@ -80,6 +80,16 @@ std::vector<std::string> patientRecords(const std::string& dir, const std::strin
   return out;
 }
 
+std::vector<std::string> recordPatients(const std::string& dir) {
+  std::vector<std::string> out;
+  for (const std::string& f : recordFiles(dir)) {
+    RecordName n;
+    if (parseRecordName(f, n) && std::find(out.begin(), out.end(), n.patient) == out.end()) out.push_back(n.patient);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 std::string newestRecord(const std::string& dir, const std::string& patient) {
   const auto records = patientRecords(dir, patient);
   return records.empty() ? std::string() : dir + "/" + records.back();

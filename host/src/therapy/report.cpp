@@ -378,8 +378,10 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
   // Locked / faulted periods: listed, and left out of every exercise metric below.
   nlohmann::json excl = nlohmann::json::array();
   double excluded_s = 0.0;
+  std::size_t excluded_cycles = 0;
   for (std::size_t i = 0; i < s.t.size(); ++i) {
     if (!s.excluded[i]) continue;
+    ++excluded_cycles;
     if (i > 0) excluded_s += s.t[i] - s.t[i - 1];
     if (i == 0 || !s.excluded[i - 1]) excl.push_back({{"start_s", s.t[i]}, {"end_s", s.t[i]}, {"faults", faultList(s.faults[i])}});
     excl.back()["end_s"] = s.t[i];
@@ -387,6 +389,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
   }
   m["excluded_periods"] = excl;
   m["excluded_s"] = excluded_s;
+  m["excluded_cycles"] = excluded_cycles;
   const int kAssess = static_cast<int>(ExerciseId::kAssessment);
   const bool has_assessment = std::find(s.exercise.begin(), s.exercise.end(), kAssess) != s.exercise.end();
   m["rom_source"] = has_assessment ? "assessment" : "whole session (no assessment in this session)";
@@ -529,13 +532,6 @@ nlohmann::json sessionMetrics(const record::SessionRecord& rec, const Transparen
 }
 
 namespace {
-std::string figureUnit(const std::string& name, const std::string& unit) {
-  if (name.find("_deg_s") != std::string::npos && name.rfind("tardieu.reflex", 0) != 0) return "°/s";
-  if (name.find("_deg") != std::string::npos && name.rfind("tardieu.reflex", 0) != 0) return "°";
-  if (name.rfind("tardieu.gain", 0) == 0) return unit + "·s/rad";
-  return unit;
-}
-
 /// Every instrumented-assessment figure with its repeatability (ICC(2,1), MDC95) beside it.
 std::string instrumentedHtml(const nlohmann::json& m, const nlohmann::json& rep, const std::string& unit) {
   const auto figures = assessmentFigures(m);

@@ -3,6 +3,7 @@
 /// ticks and a legend. No dependencies; the output opens in any browser.
 #include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace phalanx::host::design {
@@ -18,6 +19,13 @@ class SvgPlot {
   /// show, is seen).
   void addLine(const std::vector<std::array<double, 2>>& pts, const std::string& colour, const std::string& label,
                bool markers = false);
+  /// A horizontal band y_lo…y_hi across the plot (drawn under the data; e.g. a minimal-detectable-change band).
+  void addBand(double y_lo, double y_hi, const std::string& colour, double opacity, const std::string& label = "");
+  /// A dashed vertical line at x (drawn under the data), labelled at its top.
+  void addVLine(double x, const std::string& colour, const std::string& label = "");
+  /// Labelled x ticks at these positions instead of the automatic numeric ones (categories such as sessions);
+  /// a label may hold two lines separated by '\n'.
+  void setXTicks(std::vector<std::pair<double, std::string>> ticks) { x_ticks_ = std::move(ticks); }
   /// Equal scaling of x and y (workspace plots).
   void setEqualAspect(bool on) { equal_aspect_ = on; }
 
@@ -37,6 +45,18 @@ class SvgPlot {
   int width_px_, height_px_;
   bool equal_aspect_ = false;
   std::vector<Series> series_;
+  struct Band {
+    double lo, hi;
+    std::string colour, label;
+    double opacity;
+  };
+  std::vector<Band> bands_;
+  struct VLine {
+    double x;
+    std::string colour, label;
+  };
+  std::vector<VLine> vlines_;
+  std::vector<std::pair<double, std::string>> x_ticks_;
 };
 
 }  // namespace phalanx::host::design

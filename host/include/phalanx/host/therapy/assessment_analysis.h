@@ -64,6 +64,10 @@ double analyseMaxForce(const std::vector<double>& t, const std::vector<double>& 
 /// Non-finite figures are left out.
 std::vector<std::pair<std::string, double>> assessmentFigures(const nlohmann::json& metrics);
 
+/// The unit of an assessmentFigures() figure for a device whose effort unit is `effort_unit` ("N", "N·m"):
+/// "°" for angles, "°/s" for velocities, effort_unit·s/rad for the reflex gain, else effort_unit.
+std::string figureUnit(const std::string& name, const std::string& effort_unit);
+
 /// The repeatability of every assessment figure from sessions[patient][session] = that session's metrics
 /// (sessionMetrics()): for each figure present in every session, ICC(2,1), SEM, MDC95 (repeatability.h).
 /// Every patient must have the same number (≥ 2) of sessions, and there must be ≥ 2 patients. Returns the

@@ -28,6 +28,8 @@ std::string recordStamp(std::time_t t);
 
 /// The records of exactly this patient in dir, oldest first (see RecordName::operator<); file names only.
 std::vector<std::string> patientRecords(const std::string& dir, const std::string& patient);
+/// Every patient with a record in dir, sorted (file names parsed as above).
+std::vector<std::string> recordPatients(const std::string& dir);
 /// The newest of them as dir/file, "" when there is none.
 std::string newestRecord(const std::string& dir, const std::string& patient);
 /// The name a new record of this patient started at `when` gets: the next sequence number after the records
