@@ -1,3 +1,4 @@
+#include "phalanx/host/design/svg.h"
 #include "phalanx/host/benchrun/report.h"
 
 #include <algorithm>
@@ -18,19 +19,7 @@ struct Series {
   const std::vector<double>* y;
 };
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
+const auto& esc = design::markupEscape;
 
 std::string fmt(double v, const char* f = "%.4g") {
   char b[64];

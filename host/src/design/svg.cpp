@@ -34,17 +34,22 @@ void SvgPlot::addVLine(double x, const std::string& colour, const std::string& l
   vlines_.push_back(VLine{x, colour, label});
 }
 
-namespace {
-std::string escape(const std::string& s) {
+std::string markupEscape(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      case '\'': o += "&#39;"; break;
+      default: o += c;
+    }
   }
   return o;
 }
+
+namespace {
 
 /// "Nice" tick step (1, 2, 5 × 10^k) giving about 6 ticks over `span`.
 double tickStep(double span) {
@@ -97,7 +102,7 @@ std::string SvgPlot::render() const {
   o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << width_px_ << "\" height=\"" << height_px_
     << "\" viewBox=\"0 0 " << width_px_ << " " << height_px_ << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  o << "<text x=\"" << width_px_ / 2 << "\" y=\"20\" text-anchor=\"middle\" font-size=\"14\">" << escape(title_)
+  o << "<text x=\"" << width_px_ / 2 << "\" y=\"20\" text-anchor=\"middle\" font-size=\"14\">" << markupEscape(title_)
     << "</text>\n";
   // Axes box, ticks and labels.
   o << "<rect x=\"" << left << "\" y=\"" << top << "\" width=\"" << (x1 - x0) * sx << "\" height=\"" << ph
@@ -107,10 +112,10 @@ std::string SvgPlot::render() const {
     const auto nl = label.find('\n');
     o << "<line x1=\"" << X(t) << "\" y1=\"" << top + ph << "\" x2=\"" << X(t) << "\" y2=\"" << top + ph + 5
       << "\" stroke=\"black\"/><text x=\"" << X(t) << "\" y=\"" << top + ph + 18 << "\" text-anchor=\"middle\">"
-      << escape(label.substr(0, nl)) << "</text>\n";
+      << markupEscape(label.substr(0, nl)) << "</text>\n";
     if (nl != std::string::npos) {
       o << "<text x=\"" << X(t) << "\" y=\"" << top + ph + 32 << "\" text-anchor=\"middle\" font-size=\"10\">"
-        << escape(label.substr(nl + 1)) << "</text>\n";
+        << markupEscape(label.substr(nl + 1)) << "</text>\n";
     }
   }
   for (double t = std::ceil(x0 / xs) * xs; x_ticks_.empty() && t <= x1; t += xs) {
@@ -124,9 +129,9 @@ std::string SvgPlot::render() const {
       << (std::fabs(t) < 1e-9 * ys ? 0.0 : t) << "</text>\n";
   }
   o << "<text x=\"" << left + pw / 2 << "\" y=\"" << height_px_ - 12 << "\" text-anchor=\"middle\">"
-    << escape(x_label_) << "</text>\n";
+    << markupEscape(x_label_) << "</text>\n";
   o << "<text transform=\"translate(16," << top + ph / 2 << ") rotate(-90)\" text-anchor=\"middle\">"
-    << escape(y_label_) << "</text>\n";
+    << markupEscape(y_label_) << "</text>\n";
   // Bands and vertical markers under the data.
   for (const Band& b : bands_) {
     if (!std::isfinite(b.lo) || !std::isfinite(b.hi)) continue;
@@ -138,7 +143,7 @@ std::string SvgPlot::render() const {
       << "\" stroke=\"" << v.colour << "\" stroke-width=\"1.5\" stroke-dasharray=\"4 3\"/>\n";
     if (!v.label.empty()) {
       o << "<text x=\"" << X(v.x) + 3 << "\" y=\"" << top + 11 << "\" font-size=\"10\" fill=\"" << v.colour << "\">"
-        << escape(v.label) << "</text>\n";
+        << markupEscape(v.label) << "</text>\n";
     }
   }
   // Data.
@@ -168,13 +173,13 @@ std::string SvgPlot::render() const {
     if (b.label.empty()) continue;
     o << "<rect x=\"" << left + 10 << "\" y=\"" << ly - 9 << "\" width=\"10\" height=\"10\" fill=\"" << b.colour
       << "\" fill-opacity=\"" << std::min(1.0, 2.0 * b.opacity) << "\"/><text x=\"" << left + 26 << "\" y=\"" << ly
-      << "\">" << escape(b.label) << "</text>\n";
+      << "\">" << markupEscape(b.label) << "</text>\n";
     ly += 16;
   }
   for (const Series& s : series_) {
     if (s.label.empty()) continue;
     o << "<rect x=\"" << left + 10 << "\" y=\"" << ly - 9 << "\" width=\"10\" height=\"10\" fill=\"" << s.colour
-      << "\"/><text x=\"" << left + 26 << "\" y=\"" << ly << "\">" << escape(s.label) << "</text>\n";
+      << "\"/><text x=\"" << left + 26 << "\" y=\"" << ly << "\">" << markupEscape(s.label) << "</text>\n";
     ly += 16;
   }
   o << "</svg>\n";

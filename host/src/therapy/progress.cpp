@@ -40,18 +40,7 @@ constexpr std::size_t kSessionRowsFirstPage = 14, kRowsPerPage = 26, kChangeRows
 constexpr const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd"};
 constexpr const char* kExcludedColour = "#e67e00";
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else if (c == '"') o += "&quot;";
-    else if (c == '\'') o += "&#39;";
-    else o += c;
-  }
-  return o;
-}
+const auto& esc = design::markupEscape;
 
 /// Three significant digits, never float noise or "-0" (humanNumber).
 std::string sig(double v) {

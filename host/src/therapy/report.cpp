@@ -1,3 +1,4 @@
+#include "phalanx/host/design/svg.h"
 #include "phalanx/host/therapy/report.h"
 
 #include <fcntl.h>
@@ -30,19 +31,7 @@ constexpr double kRomCutoffHz = 5.0;
 /// Plots carry at most this many points per series (a 30-minute session has 1.8 M cycles).
 constexpr std::size_t kMaxPlotPoints = 1500;
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
+const auto& esc = design::markupEscape;
 
 std::string fmt(double v, int digits = 2) {
   if (!std::isfinite(v)) return "–";

@@ -59,4 +59,7 @@ class SvgPlot {
   std::vector<std::pair<double, std::string>> x_ticks_;
 };
 
+/// Text made safe for HTML/SVG text and attribute values: < > & " ' as entities.
+std::string markupEscape(const std::string& s);
+
 }  // namespace phalanx::host::design
