@@ -163,15 +163,24 @@ def check_fault_safe(res, where, cols, truth):
               f"not safe (first: device_time_us, fault_bits, mode, driving, truth torque = {bad[:1]})")
 
 
-def check_watchdog_log(res, where, log_path, offset):
-    log = open(log_path, errors="replace").read()[offset:]
+def check_watchdog_log(res, where, log_path, offset, end, killed_record):
+    """The firmware's outputs after a kill -9 of the daemon: the first SAFE line between the kill and the next
+    daemon's start is the watchdog's. With none there, the outputs were already off at the kill (a fault latched
+    before it), which the killed daemon's last recorded cycle must show."""
+    log = open(log_path, errors="replace").read()[offset:end]
     m = re.search(r"SAFE t_us=(\d+) deadline_us=(\d+) period_us=(\d+) faults=0x([0-9a-f]+)", log)
-    res.check("fault-safe", m is not None, where, "the firmware logged its outputs going safe after the kill -9")
     if m:
         t, dl, per, faults = int(m[1]), int(m[2]), int(m[3]), int(m[4], 16)
         res.check("fault-safe", t > dl and t - dl <= 2 * per and faults & 1, where,
                   f"watchdog: outputs safe {t - dl} us after the deadline (<= {2 * per}), faults 0x{faults:04x} "
                   "with command-timeout")
+        return
+    cols, n = load_record(killed_record) if os.path.exists(killed_record) else ({}, 0)
+    driving = [c for c in cols if c.startswith("duty") and n and abs(cols[c][-1]) > 1e-6]
+    undriven = n > 0 and cols["fault_bits"][-1] != 0 and cols["mode"][-1] == 0 and not driving
+    res.check("fault-safe", undriven, where,
+              "no SAFE logged after the kill -9, so the outputs must have been off already: the killed daemon's "
+              f"last recorded cycle has a fault latched, mode safe and no duty ({n} cycles recorded)")
 
 
 def summary_of(path):
@@ -300,7 +309,9 @@ def check_episode(res, ep_dir, limits):
         check_daemon(res, ep_dir, meta, d, limits)
     fw = meta.get("firmware")
     if fw and "log_offset_at_kill" in fw:
-        check_watchdog_log(res, where, os.path.join(ep_dir, fw["stderr"]), fw["log_offset_at_kill"])
+        killed = next((d for d in meta.get("daemons", []) if d.get("exit") == -9), {})
+        check_watchdog_log(res, where, os.path.join(ep_dir, fw["stderr"]), fw["log_offset_at_kill"],
+                           fw.get("log_offset_at_restart"), os.path.join(ep_dir, killed.get("record", "")))
     if fw and "exit" in fw:
         res.check("exit-report", fw["exit"] == 0, where, f"firmware-sim exited 0 on SIGTERM (got {fw['exit']})")
     if "api_garbage_sent" in meta:

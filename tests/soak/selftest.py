@@ -107,6 +107,15 @@ def late_watchdog(d):
     tail = re.sub(r"SAFE t_us=(\d+) deadline_us=(\d+)", lambda m: f"SAFE t_us={int(m[2]) + 3000} deadline_us={m[2]}",
                   text[off:], count=1)
     open(p, "w").write(text[:off] + tail)
+def no_watchdog(d):
+    """The SAFE line after the kill removed: the killed daemon's record shows a driven device at the kill."""
+    off = json.load(open(os.path.join(d, "meta.json")))["firmware"]["log_offset_at_kill"]
+    p = os.path.join(d, "firmware.stderr")
+    text = open(p).read()
+    tail = re.sub(r"[^\n]*SAFE t_us=[^\n]*\n", "", text[off:], count=1)
+    open(p, "w").write(text[:off] + tail)
+
+
 cases = [
     ("setpoint beyond the device's 10 N", clean, "setpoint-limit",
      lambda d: edit_csv(rec(d), set_cells({"setpoint_index": 10.5}))),
@@ -127,6 +136,8 @@ cases = [
      lambda d: os.truncate(os.path.join(d, "record.mcap"), os.path.getsize(os.path.join(d, "record.mcap")) // 2)),
     ("the firmware's watchdog three ticks late", killed, "fault-safe",
      late_watchdog),
+    ("no SAFE logged after the kill of a daemon that was driving", killed, "fault-safe",
+     no_watchdog),
 ]
 for i, (what, src, inv, fn) in enumerate(cases):
     res, v = violations(doctored(src, f"case{i}", fn))

@@ -234,6 +234,7 @@ def ep_kill9_daemon(ep, b, device):
         ep.inject("kill9_daemon")
     d.wait(10)
     time.sleep(0.4)  # the watchdog trips 100 ms after the last command; the firmware logs it
+    ep.meta["firmware"]["log_offset_at_restart"] = os.path.getsize(ep.path("firmware.stderr"))
     ep.inject("restart_daemon")
     d2 = Daemon(ep, b, COMMON + ["--device", f"serial:{fw.pty}", "--json", "--mode", "transparent", "--seconds", "1.5",
                                  "--record", ep.path("record2.csv")], "daemon2", [0], record="record2.csv",
