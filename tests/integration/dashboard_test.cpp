@@ -480,7 +480,9 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
   nlohmann::json page_after;
   for (int i = 0; i < 50; ++i) {
     page_after = chrome.eval(session, read_fields);
-    if (page_after.is_object() && page_after.value("phase", "") == "ended" && !page_after.value("stop_enabled", true)) break;
+    // The STOP answer's message can land a poll after the phase: wait for all three.
+    if (page_after.is_object() && page_after.value("phase", "") == "ended" && !page_after.value("stop_enabled", true) &&
+        !page_after.value("message", "").empty()) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   std::printf("page after STOP: %s\n", page_after.dump().c_str());
