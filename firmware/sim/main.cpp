@@ -184,6 +184,10 @@ int main(int argc, char** argv) {
   std::string truth_path;
   cli.add_option("--truth", truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
+  std::vector<std::string> inject_args;
+  cli.add_option("--inject", inject_args,
+                 "fail an input on the board's clock (repeatable): sensor-range@T, sensor-stuck@T, estop@T+D (seconds; "
+                 "docs/soak.md)");
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -201,6 +205,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", error.c_str());
     return 2;
   }
+  std::vector<fw_sim::Injection> schedule;
+  for (const std::string& a : inject_args) {
+    fw_sim::Injection j;
+    if (const std::string err = fw_sim::parseInjection(a, j); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 2;
+    }
+    schedule.push_back(j);
+  }
+  fw_sim::FaultInjector injector(std::move(schedule), dev->injectableSensor());
   TruthLog truth;
   if (!truth_path.empty()) {
     if (const std::string err = truth.open(truth_path, *dev); !err.empty()) {
@@ -283,6 +297,7 @@ int main(int argc, char** argv) {
     const uint64_t woke_ns = linux_hal::monotonicNs();
     dev->plant().advance(sub_dt_s, substeps, board.io());
     board.clock().advanceUs(period_us);
+    injector.apply(board.clock().nowUs(), board.io(), stderr);
     truth.write(board.clock().nowUs(), *dev);
     const uint64_t deadline_us = core.commandDeadlineUs();
     if (use_ffs) {

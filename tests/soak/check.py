@@ -292,6 +292,42 @@ def episode_result(ep_dir, limits):
             "violations": r.violations, "worst_kill_gap_ms": r.worst_kill_gap_ms}
 
 
+# Ticks from an injected input fault to the outputs off: the e-stop and a sensor's plausibility are read every
+# tick (detected in the tick after the injection, outputs off in that tick); a frozen glove sensor needs
+# hall_stuck_ticks (250, firmware/apps/include/phalanx/apps/glove5.h) unchanged ticks first.
+INJECT_TICKS = {"sensor-range": 2, "estop": 2, "sensor-stuck": 250 + 2}
+
+
+def check_injected_input(res, where, meta, ep_dir):
+    """An input fault injected by firmware-sim --inject: the record shows its fault bit latched, and the firmware's
+    outputs went off within INJECT_TICKS of the injection (its SAFE line after the INJECT line), or were already
+    off then (no SAFE line after it: then no recorded cycle from the injection on drives anything)."""
+    spec, bit = meta["firmware"]["inject"], meta["expect_fault"]
+    d = next((x for x in meta["daemons"] if x["name"] == "daemon"), {})
+    path = os.path.join(ep_dir, d.get("record") or "")
+    cols, n = load_record(path) if os.path.exists(path) else ({}, 0)
+    latched = any(not math.isnan(v) and int(v) & bit for v in cols.get("fault_bits", []))
+    res.check("fault-safe", latched, where, f"{spec}: fault bit 0x{bit:04x} latched in the record ({n} cycles)")
+    log = open(os.path.join(ep_dir, meta["firmware"]["stderr"]), errors="replace").read()
+    m = re.search(r"INJECT (\S+) started t_us=(\d+)", log)
+    if not m:
+        res.check("fault-safe", False, where, f"{spec}: the firmware logged no INJECT line")
+        return
+    t_inj, per = int(m[2]), TICK_US
+    safe = re.search(r"SAFE t_us=(\d+) deadline_us=\d+ period_us=(\d+) faults=0x([0-9a-f]+)", log[m.end():])
+    if safe:
+        t, per, faults = int(safe[1]), int(safe[2]), int(safe[3], 16)
+        bound = INJECT_TICKS[m[1]] * per
+        res.check("fault-safe", t - t_inj <= bound and faults & bit, where,
+                  f"{spec}: outputs safe {t - t_inj} us after the injection (<= {bound}), faults 0x{faults:04x}")
+        return
+    duty = [c for c in cols if c.startswith("duty")]
+    t = cols.get("device_time_us", [])
+    driving = [int(t[i]) for i in range(n) if t[i] >= t_inj and any(abs(cols[c][i]) > 1e-6 for c in duty)]
+    res.check("fault-safe", n > 0 and not driving, where, f"{spec}: no SAFE logged after the injection, so nothing "
+              f"may be driven from it on ({len(driving)} recorded cycles drive; first {driving[:1]})")
+
+
 def check_episode(res, ep_dir, limits):
     if os.path.exists(os.path.join(ep_dir, "checked.json")):
         merge_pruned(res, ep_dir)
@@ -312,6 +348,8 @@ def check_episode(res, ep_dir, limits):
         killed = next((d for d in meta.get("daemons", []) if d.get("exit") == -9), {})
         check_watchdog_log(res, where, os.path.join(ep_dir, fw["stderr"]), fw["log_offset_at_kill"],
                            fw.get("log_offset_at_restart"), os.path.join(ep_dir, killed.get("record", "")))
+    if fw and "inject" in fw:
+        check_injected_input(res, where, meta, ep_dir)
     if fw and "exit" in fw:
         res.check("exit-report", fw["exit"] == 0, where, f"firmware-sim exited 0 on SIGTERM (got {fw['exit']})")
     if "api_garbage_sent" in meta:

@@ -163,6 +163,29 @@ expect(not v, f"a real clean pantograph episode passes ({res.violations[:2]})")
 res, v = violations(doctored(pen, "case-pen-truth", pen_truth))
 expect(v == ["fault-safe"], f"doctored: pen faulted, safe mode, but the plant truth has motor torque: {v}")
 
+# An input fault injected into the board (firmware-sim --inject): detected, and the outputs off within two ticks.
+def late_detection(d):
+    """The firmware's SAFE line after the injection moved three ticks later."""
+    p = os.path.join(d, "firmware.stderr")
+    text = open(p).read()
+    m = re.search(r"INJECT \S+ started t_us=(\d+)", text)
+    tail = re.sub(r"SAFE t_us=\d+", f"SAFE t_us={int(m[1]) + 3000}", text[m.end():], count=1)
+    open(p, "w").write(text[:m.end()] + tail)
+
+
+def never_latched(d):
+    """The record's fault bits all cleared: the injected fault never shows."""
+    edit_csv(rec(d), lambda h, b: [r[:h.index("fault_bits")] + ["0"] + r[h.index("fault_bits") + 1:] for r in b])
+
+
+sensor = real("sensor_range", "sea_finger", 8)
+res, v = violations(sensor)
+expect(not v, f"a real sensor-range episode on the SEA passes ({res.violations[:2]})")
+for what, fn in (("outputs safe three ticks after the injected sensor fault", late_detection),
+                 ("the injected sensor fault never latched in the record", never_latched)):
+    res, v = violations(doctored(sensor, "case-" + fn.__name__, fn))
+    expect(v == ["fault-safe"], f"doctored: {what}: violations of {v} (expected ['fault-safe']) {res.violations[:1]}")
+
 print(f"selftest: {len(FAILS)} failures; evidence in {TMP}")
 if not FAILS:
     shutil.rmtree(TMP, ignore_errors=True)

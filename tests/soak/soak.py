@@ -34,7 +34,7 @@ import check  # noqa: E402
 DEVICES = ("glove5", "sea_finger", "pantograph")
 KINDS = ("clean", "kill9_daemon", "kill9_firmware", "corrupt_frames", "truncate_frames", "flood_frames",
          "link_stall_short", "link_stall_long", "disk_full", "client_bad", "api_garbage", "dashboard_garbage",
-         "modbus_garbage")
+         "modbus_garbage", "sensor_range", "sensor_stuck", "estop_press")
 # Every daemon runs without real-time priority (the machine is shared) and with a 100 ms command timeout, so a
 # busy machine's scheduling hiccup is not mistaken for a fault (the watchdog then still trips within 100 ms).
 COMMON = ["--no-realtime", "--command-timeout-ms", "100"]
@@ -99,11 +99,11 @@ class Daemon:
 class Firmware:
     """A standalone firmware-sim on its own pseudo-terminal (the daemon then opens it as serial:PATH)."""
 
-    def __init__(self, ep, bin_dir, device, seed):
+    def __init__(self, ep, bin_dir, device, seed, extra=()):
         self.log = open(ep.path("firmware.stderr"), "w")
         truth = ep.path("truth.csv")
         self.p = subprocess.Popen([os.path.join(bin_dir, "firmware-sim"), "--device", device, "--scenario", "random",
-                                   "--seed", str(seed), "--seconds", "300", "--truth", truth],
+                                   "--seed", str(seed), "--seconds", "300", "--truth", truth, *extra],
                                   stdout=subprocess.PIPE, stderr=self.log, text=True)
         line = self.p.stdout.readline().strip()
         if not line.startswith("PTY "):
@@ -288,6 +288,31 @@ def ep_link(ep, b, device, kind):
     px.close()
     for k, v in px.injected.items():
         ep.inject(k, v)
+    fw.stop()
+
+
+# protocol::fault bits (common/include/phalanx/protocol/messages.h) each input fault must latch.
+INPUT_FAULTS = {"sensor_range": ("sensor-range", 1 << 3), "sensor_stuck": ("sensor-stuck", 1 << 4),
+                "estop_press": ("estop", 1 << 2)}
+
+
+def ep_input_fault(ep, b, device, kind):
+    """A sensor that fails (open or frozen) or the e-stop pressed on the board (firmware-sim --inject), while the
+    daemon drives the device: the firmware must find it itself and latch its safe state; the session runs on to
+    its end with the device safe (exit 0)."""
+    if kind == "sensor_stuck":
+        device = ep.meta["device"] = "glove5"  # only the glove's firmware detects a frozen sensor (docs/soak.md)
+    what, bit = INPUT_FAULTS[kind]
+    at = round(ep.rng.uniform(2.0, 3.0), 2)
+    spec = f"{what}@{at}" + (f"+{round(ep.rng.uniform(0.1, 1.0), 2)}" if what == "estop" else "")
+    fw = Firmware(ep, b, device, ep.rng.randrange(1, 10000), ["--inject", spec])
+    ep.meta["expect_fault"] = bit
+    ep.meta["firmware"]["inject"] = spec
+    d = Daemon(ep, b, COMMON + ["--device", f"serial:{fw.pty}", "--json", "--mode", "transparent", "--seconds", "5",
+                                "--record", ep.path("record.csv")], "daemon", [0], record="record.csv",
+               truth="truth.csv")
+    ep.inject(kind)
+    d.wait(60)
     fw.stop()
 
 
@@ -559,6 +584,9 @@ RUNNERS = {
     "link_stall_long": lambda e, b, dv: ep_link(e, b, dv, "link_stall_long"),
     "disk_full": ep_disk_full, "client_bad": ep_client_bad, "api_garbage": ep_api_garbage,
     "dashboard_garbage": ep_dashboard_garbage, "modbus_garbage": ep_modbus_garbage,
+    "sensor_range": lambda e, b, dv: ep_input_fault(e, b, dv, "sensor_range"),
+    "sensor_stuck": lambda e, b, dv: ep_input_fault(e, b, dv, "sensor_stuck"),
+    "estop_press": lambda e, b, dv: ep_input_fault(e, b, dv, "estop_press"),
 }
 
 
@@ -622,7 +650,7 @@ def main():
         ep.save()
         if a.prune:
             prune(ep.dir, limits)
-        print(f"  ep{n:04d} {kind:18s} {device:10s} {ep.meta['wall_s']:6.1f} s  exits "
+        print(f"  ep{n:04d} {kind:18s} {ep.meta['device']:10s} {ep.meta['wall_s']:6.1f} s  exits "
               f"{[x.get('exit') for x in ep.meta['daemons']]}  injected {ep.meta['injected']}", flush=True)
         n += 1
     print(f"soak: {n} episodes in {(time.monotonic() - t0) / 60:.1f} min; load average {os.getloadavg()}", flush=True)

@@ -72,6 +72,7 @@ class PantographApp : public fw::DeviceApp {
   protocol::ParamStatus setParam(uint16_t id, float value) override;
 
   const PenJointState& joint(int i) const { return joint_[i]; }
+  const PantographConfig& config() const { return cfg_; }
 
  private:
   PantographConfig cfg_;

@@ -17,6 +17,8 @@ class Glove5SimDevice : public SimDevice {
   fw::DeviceApp& app() override { return app_; }
   std::vector<std::string> truthColumns() const override;
   void truthValues(double* out) const override;
+  /// The index finger's MCP Hall sensor; open: 0 counts, below kHallPlausibleMinCounts.
+  InjectableSensor injectableSensor() const override { return {false, static_cast<uint8_t>(glove::board::hallAdcChannel(1, 0)), 0, 0}; }
   sim::Plant& plant() override { return plant_; }
   uint8_t pwmCount() const override { return glove::board::kPwmChannelCount; }
   uint8_t adcCount() const override { return glove::board::kAdcChannelCount; }

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "phalanx/fw/app.h"
+#include "phalanx/fw_sim/fault_injection.h"
 #include "phalanx/protocol/devices.h"
 #include "phalanx/sim/plant.h"
 
@@ -32,6 +33,8 @@ class SimDevice {
   /// units, then after each plant step the values in the same order (truthValues writes truthColumns().size()).
   virtual std::vector<std::string> truthColumns() const = 0;
   virtual void truthValues(double* out) const = 0;
+  /// The sensor input firmware-sim --inject fails (fault_injection.h): the device's first joint sensor.
+  virtual InjectableSensor injectableSensor() const = 0;
 };
 
 /// name: glove5 | sea_finger | sea_rig | pantograph. Returns nullptr and sets error for an unknown or unbuilt device.
