@@ -164,9 +164,21 @@ function showStatus(st) {
            st.estop === undefined ? undefined : !!st.estop);
   setField('time', typeof st.t_s === 'number' ? st.t_s.toFixed(1) + ' s' : '–');
   setField('limited', st.limited_cycles === undefined ? '–' : String(st.limited_cycles));
+  showReplay(st.replay);
   document.getElementById('stop').disabled = !running;
   document.getElementById('reset').disabled = !running;
   document.getElementById('start').disabled = running;
+}
+
+// `phalanx record replay FILE --dashboard`: the file, its speed and the replay time over the total; its
+// controls are refused by the replay (there is no device).
+function showReplay(r) {
+  const box = document.getElementById('replay-field');
+  box.hidden = !r;
+  if (!r) return;
+  const t = (v) => (typeof v === 'number' ? v.toFixed(1) : '–');
+  document.getElementById('replay').textContent = r.file + ' at ' + r.speed + '× — ' + t(r.t_s) + ' / ' +
+    t(r.total_s) + ' s' + (r.finished ? ' (end)' : '');
 }
 
 function startSession(meta) {

@@ -26,11 +26,14 @@
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/api/client.h"
+#include "../support/http_client.h"
 #include "process.h"
 
 extern char** environ;
 
 using phalanx::test::binPath;
+using phalanx::test::http;
+using phalanx::test::HttpAnswer;
 using phalanx::test::Process;
 
 namespace {
@@ -94,43 +97,6 @@ class DashDaemon {
   int port_ = 0;
   std::unique_ptr<Process> proc_;
 };
-
-struct HttpAnswer {
-  int status = 0;
-  std::string body;
-};
-
-/// Minimal HTTP/1.1 client on loopback (the test needs exact control of Host and headers).
-HttpAnswer http(int port, const std::string& method, const std::string& path, const std::string& host,
-                const std::string& extra_headers = "", const std::string& body = "") {
-  HttpAnswer a;
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in sa{};
-  sa.sin_family = AF_INET;
-  sa.sin_port = htons(static_cast<uint16_t>(port));
-  sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) {
-    ::close(fd);
-    return a;
-  }
-  std::string req = method + " " + path + " HTTP/1.1\r\nHost: " + host + "\r\nConnection: close\r\n" + extra_headers;
-  if (!body.empty() || method == "POST") req += "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
-  req += "\r\n" + body;
-  (void)!::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
-  std::string resp;
-  char buf[8192];
-  pollfd p{fd, POLLIN, 0};
-  while (::poll(&p, 1, 5000) > 0) {
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    resp.append(buf, static_cast<size_t>(n));
-  }
-  ::close(fd);
-  if (resp.rfind("HTTP/1.1 ", 0) == 0) a.status = std::atoi(resp.c_str() + 9);
-  const auto b = resp.find("\r\n\r\n");
-  if (b != std::string::npos) a.body = resp.substr(b + 4);
-  return a;
-}
 
 /// Chromium over the DevTools protocol on a pipe pair: we write commands to its fd 3, read answers from its fd 4;
 /// messages are JSON terminated by a NUL byte.

@@ -4,6 +4,7 @@
 /// and configuration; every replayed command is compared bit for bit with the recorded one. The same build gives
 /// the same commands, so a control change shows as the first cycle and channel where they part.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -52,7 +53,19 @@ struct ReplayResult {
   nlohmann::json toJson() const;
 };
 
+/// One replayed cycle: its 0-based index, the recorded session time and telemetry, and the command the replay
+/// computed (after the limits stage).
+struct ReplayedCycle {
+  uint64_t cycle = 0;
+  double t_s = 0.0;
+  const TelemetryFrame& tel;
+  const protocol::Command& command;
+};
+/// Called for every replayed cycle, in order (the dashboard stream builds its status frames from them).
+using ReplayObserver = std::function<void(const protocol::DeviceLayout& layout, const ReplayedCycle& cycle)>;
+
 /// "" (the replay ran; result says whether it matched) or why the file cannot be replayed (naming the file).
-std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result);
+std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result,
+                            const ReplayObserver& observer = {});
 
 }  // namespace phalanx::host::record

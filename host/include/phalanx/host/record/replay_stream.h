@@ -1,0 +1,77 @@
+#pragma once
+/// `phalanx record replay FILE --dashboard ADDRESS:PORT [--speed X] [--hold]` (docs/records.md, "Replay";
+/// docs/dashboard.md, "Replay mode"): the replay of a `--record FILE.mcap` recording (replay.h) shown on the live
+/// dashboard, paced at X times the recorded speed. The dashboard's request handler answers `status` from the
+/// recording (the snapshot format the page reads, one frame per 1/50 s of session time), `profiles` with none,
+/// and refuses every control request: there is no device, so nothing can reach a motor.
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "phalanx/host/api/dashboard_options.h"
+#include "phalanx/host/record/replay.h"
+
+namespace phalanx::host::record {
+
+/// Replay speeds accepted (× the recorded session's speed).
+inline constexpr double kReplaySpeedMin = 0.1, kReplaySpeedMax = 100.0;
+
+/// One status frame: the session object of a status answer (as TherapySession::statusJson) at a recorded cycle.
+struct ReplayFrame {
+  double t_s = 0.0;
+  nlohmann::json session;
+};
+
+/// A replayed recording as status frames: the first replayed cycle of each 1/50 s of session time
+/// (floor(t_s · 50) advances; the dashboard's sample rate), with what the recording's telemetry gives through the
+/// device's therapy adapter (joint flexion, channel q, measured effort: glove5, sea_finger) or its raw angles
+/// (pantograph), and the replayed command as commanded effort.
+struct ReplayFrames {
+  std::string file;  ///< the file's name (no directory), as the page shows it
+  ReplayResult result;
+  std::vector<ReplayFrame> frames;
+};
+
+/// replayRecording(path, options) and its frames. "" or why the file cannot be replayed (naming the file).
+std::string replayFrames(const std::string& path, const ReplayOptions& options, ReplayFrames& out);
+
+/// The request handler of a replay's dashboard (thread-safe): status from the frame shown now, no profiles,
+/// every other request refused.
+class ReplayStatus {
+ public:
+  ReplayStatus(const ReplayFrames& frames, double speed);
+  /// One JSON request line → the answer (Dashboard::RequestHandler).
+  nlohmann::json handle(const std::string& line) const;
+  /// Show frame i (0 ≤ i < frames); finished: the replay reached the end of the file.
+  void show(std::size_t i, bool finished);
+  /// The status answer shown now ({"ok": true, "result": {...}}).
+  nlohmann::json statusAnswer() const;
+
+ private:
+  const ReplayFrames& frames_;
+  double speed_;
+  mutable std::mutex mutex_;
+  std::size_t shown_ = 0;
+  bool finished_ = false;
+  bool started_ = false;
+};
+
+struct ReplayStreamOptions {
+  ReplayOptions replay;
+  api::DashboardOptions dashboard;
+  double speed = 1.0;
+  bool hold = false;  ///< at the end: keep serving the last frame until stop
+};
+
+/// Streams a replay to a dashboard: prints "DASHBOARD <url>" on stdout, shows each frame at its time / speed,
+/// and at the end (or when `stop` becomes true) prints the summary JSON on stdout. Without hold it waits, after
+/// the last frame, until a page has fetched every sample (at most while a page keeps fetching, ≤ 10 s), so a page
+/// watching sees the end. Returns the exit code: 0 (identical or stopped), 1 a replayed command differs, 2 the
+/// file cannot be replayed, 3 the dashboard cannot listen.
+int streamReplay(const std::string& path, const ReplayStreamOptions& options, const std::atomic<bool>& stop);
+
+}  // namespace phalanx::host::record

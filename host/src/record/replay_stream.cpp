@@ -1,0 +1,228 @@
+#include "phalanx/host/record/replay_stream.h"
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <thread>
+
+#include "phalanx/host/api/dashboard.h"
+#include "phalanx/host/record/mcap_session.h"
+#include "phalanx/host/session.h"
+#include "phalanx/host/therapy/device.h"
+#include "phalanx/host/therapy/guidance.h"
+
+namespace phalanx::host::record {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string baseName(const std::string& path) {
+  const auto slash = path.rfind('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+/// Channels and joints of one cycle through the device's therapy adapter (as phalanxd's status shows them).
+void adapterValues(therapy::TherapyDevice& dev, const ReplayedCycle& c, nlohmann::json& s) {
+  therapy::Observation obs{};
+  dev.observe(c.tel, obs);
+  std::array<double, therapy::kMaxChannels> commanded{};
+  std::array<float, therapy::kMaxChannels> setpoint{};
+  for (std::size_t i = 0; i < dev.channelCount(); ++i) setpoint[i] = c.command.setpoint[i];
+  dev.effortFromCommand(setpoint, commanded);
+  s["effort_unit"] = dev.effortUnit();
+  for (std::size_t ch = 0; ch < dev.channelCount(); ++ch) {
+    s["channels"][dev.channelName(ch)] = {{"q_deg", obs.channel_valid[ch] ? num(obs.q_rad[ch] * kRadToDeg) : nullptr},
+                                          {"target_deg", nullptr},
+                                          {"effort_measured", num(obs.effort[ch])},
+                                          {"effort_command", num(commanded[ch])},
+                                          {"effort_max", num(dev.effortLimit(ch))}};
+  }
+  for (std::size_t j = 0; j < dev.jointCount(); ++j) {
+    s["joints"][dev.jointName(j)] = {{"channel", dev.channelName(dev.jointChannel(j))},
+                                     {"flexion_deg", obs.joint_valid[j] ? num(obs.flexion_rad[j] * kRadToDeg) : nullptr}};
+  }
+}
+
+/// A device without a therapy adapter (the pantograph): its measured angles as joints, its setpoints as the
+/// commanded efforts (no measured effort, no coordinate).
+void rawValues(const protocol::DeviceLayout& layout, const ReplayedCycle& c, nlohmann::json& s) {
+  const std::vector<std::string> samples = sampleColumnNames(layout), setpoints = setpointColumnNames(layout);
+  s["effort_unit"] = layout.type == protocol::DeviceType::kPantograph ? "N·m" : "";
+  for (std::size_t i = 0; i < layout.setpoint_count; ++i) {
+    s["channels"][setpoints[i]] = {{"q_deg", nullptr}, {"target_deg", nullptr}, {"effort_measured", nullptr},
+                                   {"effort_command", num(c.command.setpoint[i])}, {"effort_max", nullptr}};
+  }
+  for (std::size_t i = 0; i < layout.sample_count; ++i) {
+    if (layout.sample_kind[i] != protocol::SampleKind::kAngle) continue;
+    s["joints"][samples[i]] = {{"channel", ""}, {"flexion_deg", num(double(c.tel.value[i]) * kRadToDeg)}};
+  }
+}
+
+/// The session object of a status answer at one replayed cycle.
+nlohmann::json frameOf(const protocol::DeviceLayout& layout, therapy::TherapyDevice* dev, const std::string& file,
+                       const ReplayedCycle& c) {
+  nlohmann::json s{{"phase", "replay"},
+                   {"record", file},
+                   {"device", layout.name},
+                   {"t_s", c.t_s},
+                   {"cycles", c.cycle + 1},
+                   {"device_mode", modeName(c.tel.mode)},
+                   {"faults", faultList(c.tel.fault_bits)},
+                   {"estop", (c.tel.state_flags & protocol::state::kEstopPressed) != 0}};
+  if (c.tel.fault_bits != 0) s["fault_guidance"] = therapy::faultGuidanceJson(c.tel.fault_bits);
+  if (dev != nullptr) {
+    adapterValues(*dev, c, s);
+  } else {
+    rawValues(layout, c, s);
+  }
+  return s;
+}
+
+}  // namespace
+
+std::string replayFrames(const std::string& path, const ReplayOptions& options, ReplayFrames& out) {
+  out = ReplayFrames{};
+  out.file = baseName(path);
+  std::unique_ptr<therapy::TherapyDevice> dev;
+  bool first = true;
+  double last_slot = -1.0;
+  auto observe = [&](const protocol::DeviceLayout& layout, const ReplayedCycle& c) {
+    if (first) {
+      std::string err;  // no adapter (pantograph): the raw channels
+      dev = therapy::makeTherapyDevice(layout, {}, err);
+      first = false;
+    }
+    const double slot = std::floor(c.t_s * api::Dashboard::kSampleRateHz);
+    if (slot <= last_slot) return;  // not the first cycle of its 1/50 s
+    last_slot = slot;
+    out.frames.push_back({c.t_s, frameOf(layout, dev.get(), out.file, c)});
+  };
+  if (std::string err = replayRecording(path, options, out.result, observe); !err.empty()) return err;
+  if (out.frames.empty()) return path + ": holds no cycle to replay";
+  return {};
+}
+
+ReplayStatus::ReplayStatus(const ReplayFrames& frames, double speed) : frames_(frames), speed_(speed) {}
+
+void ReplayStatus::show(std::size_t i, bool finished) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  shown_ = std::min(i, frames_.frames.size() - 1);
+  finished_ = finished;
+  started_ = true;
+}
+
+nlohmann::json ReplayStatus::statusAnswer() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const ReplayFrame& f = frames_.frames[shown_];
+  const double t0 = frames_.frames.front().t_s;
+  nlohmann::json session = f.session;
+  session["replay"] = {{"file", frames_.file},
+                       {"speed", speed_},
+                       {"t_s", f.t_s - t0},
+                       {"total_s", frames_.frames.back().t_s - t0},
+                       {"finished", finished_},
+                       {"mismatched_cycles", frames_.result.mismatched_cycles}};
+  nlohmann::json result{{"session_running", started_ && !finished_}, {"session", session}};
+  return {{"ok", true}, {"result", result}};
+}
+
+nlohmann::json ReplayStatus::handle(const std::string& line) const {
+  const nlohmann::json req = nlohmann::json::parse(line, nullptr, false);
+  if (req.is_discarded() || !req.is_object() || !req.contains("cmd") || !req["cmd"].is_string()) {
+    return {{"ok", false}, {"error", "expected one JSON object with a string \"cmd\""}};
+  }
+  const std::string cmd = req["cmd"].get<std::string>();
+  if (cmd == "status") return statusAnswer();
+  if (cmd == "profiles") return {{"ok", true}, {"result", nlohmann::json::array()}};
+  return {{"ok", false},
+          {"error", cmd + ": this is a replay of " + frames_.file + ": there is no device to control"}};
+}
+
+namespace {
+
+/// Sleeps until `until` or stop, in steps short enough for a signal to end the replay within 50 ms.
+bool sleepUntil(std::chrono::steady_clock::time_point until, const std::atomic<bool>& stop) {
+  while (!stop.load()) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= until) return true;
+    std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(until - now, std::chrono::milliseconds(50)));
+  }
+  return false;
+}
+
+/// After the last frame: until a page has fetched every sample, while one keeps fetching (≤ 10 s; a page seen
+/// fetching within the last 2 s is waited for), or stop.
+void lingerForPages(const api::Dashboard& dash, const std::atomic<bool>& stop) {
+  const auto end = std::chrono::steady_clock::now();
+  while (!stop.load() && dash.deliveredSeq() < dash.lastSeq()) {
+    const auto now = std::chrono::steady_clock::now();
+    const bool page_active = now - dash.lastFetch() < std::chrono::seconds(2);
+    if (now - end > std::chrono::seconds(10) || (!page_active && now - end > std::chrono::seconds(2))) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+}  // namespace
+
+int streamReplay(const std::string& path, const ReplayStreamOptions& options, const std::atomic<bool>& stop) {
+  ReplayFrames frames;
+  if (std::string err = replayFrames(path, options.replay, frames); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+    return 2;
+  }
+  ReplayStatus status(frames, options.speed);
+  api::Dashboard dash(options.dashboard, [&status](const std::string& line) { return status.handle(line); },
+                      api::Dashboard::Sampling::kPublished);
+  if (std::string err = dash.start(); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: --dashboard: %s\n", err.c_str());
+    return 3;
+  }
+  std::printf("DASHBOARD %s\n", dash.url().c_str());
+  std::fflush(stdout);
+  const double t0 = frames.frames.front().t_s;
+  const double total_s = frames.frames.back().t_s - t0;
+  std::fprintf(stderr, "replay %s (%s, %s) on the dashboard at %g×: %zu frames, %.1f s of session\n",
+               frames.file.c_str(), frames.result.device.c_str(), frames.result.controller.c_str(), options.speed,
+               frames.frames.size(), total_s);
+  const auto wall0 = std::chrono::steady_clock::now();
+  std::size_t shown = 0;
+  for (std::size_t i = 0; i < frames.frames.size(); ++i) {
+    const auto due = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                 std::chrono::duration<double>((frames.frames[i].t_s - t0) / options.speed));
+    if (!sleepUntil(due, stop)) break;
+    status.show(i, i + 1 == frames.frames.size());
+    dash.publish(status.statusAnswer());
+    shown = i + 1;
+  }
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const bool finished = shown == frames.frames.size();
+  if (finished && options.hold) {
+    std::fprintf(stderr, "replay finished; holding the last state until SIGINT/SIGTERM\n");
+    while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  } else if (finished) {
+    lingerForPages(dash, stop);
+  }
+  const uint64_t delivered = dash.deliveredSeq(), samples = dash.lastSeq();
+  dash.stop();
+  const double replay_s = shown > 0 ? frames.frames[shown - 1].t_s - t0 : 0.0;
+  nlohmann::json summary = frames.result.toJson();
+  summary["stream"] = {{"speed", options.speed},        {"frames", frames.frames.size()},
+                       {"frames_shown", shown},         {"samples_fetched", delivered},
+                       {"samples", samples},            {"finished", finished},
+                       {"replay_s", replay_s},          {"wall_s", wall_s},
+                       {"achieved_speed", wall_s > 0 ? replay_s / wall_s : 0.0}};
+  std::cout << summary.dump() << std::endl;
+  std::fprintf(stderr, "replay %s: %zu of %zu frames shown (%.2f s of session in %.2f s: %.2f×), %llu of %llu samples "
+               "fetched by a page; %llu of %llu compared cycles differ\n",
+               finished ? "finished" : "stopped", shown, frames.frames.size(), replay_s, wall_s,
+               wall_s > 0 ? replay_s / wall_s : 0.0, static_cast<unsigned long long>(delivered),
+               static_cast<unsigned long long>(samples),
+               static_cast<unsigned long long>(frames.result.mismatched_cycles),
+               static_cast<unsigned long long>(frames.result.compared));
+  return frames.result.mismatched_cycles == 0 ? 0 : 1;
+}
+
+}  // namespace phalanx::host::record
