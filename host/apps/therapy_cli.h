@@ -175,6 +175,24 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
       ->needs(dash);
 }
 
+/// Why FILE is not a replayable recording, from its first bytes ("" for MCAP).
+inline std::string replayableKind(const std::string& path) {
+  char head[8] = {};
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  const std::size_t n = f != nullptr ? std::fread(head, 1, sizeof head, f) : 0;
+  if (f != nullptr) std::fclose(f);
+  if (n == 8 && std::memcmp(head, "\x89MCAP0\r\n", 8) == 0) return {};
+  if (n == 8 && std::memcmp(head, "PHXREC1\n", 8) == 0) {
+    return path + " is a session record (.phrec): replaying therapy sessions is not supported (exercise and limit "
+                  "changes are not tied to the cycle that took them); replay a `--record FILE.mcap` recording";
+  }
+  if (n >= 4 && std::memcmp(head, "t_s,", 4) == 0) {
+    return path + " is a CSV recording: it rounds values to 5 significant digits and holds no configuration, so "
+                  "it cannot reproduce commands bit for bit; record with `--record FILE.mcap`";
+  }
+  return path + " is not an MCAP recording";
+}
+
 /// Set by SIGINT/SIGTERM during `phalanx record replay --dashboard`.
 inline std::atomic<bool> g_replay_stop{false};
 
@@ -197,6 +215,10 @@ inline int runReplayStream(const TherapyCli& t) {
                  o.dashboard.address.c_str());
     return 2;
   }
+  if (const std::string why = replayableKind(t.rec_file); !why.empty() && !record::isSessionRecord(t.rec_file)) {
+    std::fprintf(stderr, "phalanx: error: %s\n", why.c_str());
+    return 2;
+  }
   struct sigaction sa {};
   sa.sa_handler = [](int) { g_replay_stop.store(true); };
   sigemptyset(&sa.sa_mask);
@@ -206,31 +228,13 @@ inline int runReplayStream(const TherapyCli& t) {
   return record::streamReplay(t.rec_file, o, g_replay_stop);
 }
 
-/// Why FILE is not a replayable recording, from its first bytes ("" for MCAP).
-inline std::string replayableKind(const std::string& path) {
-  char head[8] = {};
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  const std::size_t n = f != nullptr ? std::fread(head, 1, sizeof head, f) : 0;
-  if (f != nullptr) std::fclose(f);
-  if (n == 8 && std::memcmp(head, "\x89MCAP0\r\n", 8) == 0) return {};
-  if (n == 8 && std::memcmp(head, "PHXREC1\n", 8) == 0) {
-    return path + " is a session record (.phrec): replaying therapy sessions is not supported (exercise and limit "
-                  "changes are not tied to the cycle that took them); replay a `--record FILE.mcap` recording";
-  }
-  if (n >= 4 && std::memcmp(head, "t_s,", 4) == 0) {
-    return path + " is a CSV recording: it rounds values to 5 significant digits and holds no configuration, so "
-                  "it cannot reproduce commands bit for bit; record with `--record FILE.mcap`";
-  }
-  return path + " is not an MCAP recording";
-}
-
 /// `phalanx record replay`: JSON result on stdout, one line for people on stderr.
 inline int runReplay(const TherapyCli& t) {
+  if (t.replay_dashboard_opt != nullptr && t.replay_dashboard_opt->count() > 0) return runReplayStream(t);
   if (const std::string why = replayableKind(t.rec_file); !why.empty()) {
     std::fprintf(stderr, "phalanx: error: %s\n", why.c_str());
     return 2;
   }
-  if (t.replay_dashboard_opt != nullptr && t.replay_dashboard_opt->count() > 0) return runReplayStream(t);
   record::ReplayOptions o;
   o.set = t.replay_set;
   record::ReplayResult r;

@@ -11,6 +11,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <climits>
@@ -27,6 +28,7 @@
 
 #include "../support/http_client.h"
 #include "phalanx/host/record/mcap_reader.h"
+#include "phalanx/host/record/record_reader.h"
 #include "process.h"
 
 using phalanx::test::binPath;
@@ -305,6 +307,59 @@ TEST_F(ReplayDashboard, SeaFingerAtFourTimesDeliversEverySampleOnce) {
 
 TEST_F(ReplayDashboard, PantographAtRealSpeedDeliversEverySampleOnce) {
   replayAndCheck(recordSession(*dir_, "pantograph", "2"), "1", "pantograph");
+}
+
+// A therapy session record (.phrec) is shown with its recorded values (no controller re-run): every 1/50 s of
+// session time once, in order, with the exercise and the targets it recorded.
+TEST_F(ReplayDashboard, SessionRecordIsStreamedWithItsRecordedValues) {
+  const std::string path = *dir_ + "/resistance.phrec";
+  Process d({binPath("phalanxd"), "--no-realtime", "--device", "sim:sea_finger", "--scenario", "close-open",
+             "--exercise", "assistance", "--session-record", path, "--seconds", "2", "--command-timeout-ms", "200"});
+  ASSERT_EQ(d.wait(60000), 0) << d.stderrText();
+  phalanx::host::record::SessionRecord rec;
+  ASSERT_EQ(phalanx::host::record::readRecord(path, rec), "");
+  const int target_mcp = rec.auxIndex("target_mcp_rad");
+  ASSERT_GE(target_mcp, 0);
+  std::vector<const phalanx::host::record::CycleRecord*> want;
+  double last_slot = -1.0;
+  for (const auto& c : rec.cycles) {
+    const double slot = std::floor(c.t_s * 50.0);
+    if (slot > last_slot) want.push_back(&c);
+    last_slot = std::max(last_slot, slot);
+  }
+  ASSERT_GT(want.size(), 50u);
+  Replay r = startReplay({path, "--dashboard", "127.0.0.1:0", "--speed", "8"});
+  ASSERT_GT(r.port, 0);
+  const std::string tok = "X-Phalanx-Token: " + r.token + "\r\n";
+  std::vector<nlohmann::json> got;
+  nlohmann::json status, meta;
+  uint64_t after = 0;
+  for (int i = 0; i < 6000; ++i) {
+    const HttpAnswer a = http(r.port, "GET", "/api/samples?after=" + std::to_string(after), r.host, tok);
+    ASSERT_EQ(a.status, 200);
+    const auto j = nlohmann::json::parse(a.body);
+    status = j["status"];
+    if (j["meta"].is_object() && j["meta"].contains("channels")) meta = j["meta"];
+    for (const auto& s : j["samples"]) got.push_back(s), after = s["seq"].get<uint64_t>();
+    if (status.contains("replay") && status["replay"].value("finished", false) && after == j["last_seq"]) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(r.proc->wait(30000), 0) << r.proc->stderrText();
+  EXPECT_EQ(status.value("exercise", ""), "assistance");
+  ASSERT_EQ(got.size(), want.size());
+  const auto channels = meta["channels"];
+  const auto mcp = std::find(channels.begin(), channels.end(), "mcp");
+  ASSERT_NE(mcp, channels.end());
+  const std::size_t k = static_cast<std::size_t>(mcp - channels.begin());
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i]["seq"].get<uint64_t>(), i + 1);
+    EXPECT_EQ(got[i]["t"].get<double>(), want[i]->t_s) << i;
+    const double target = double(want[i]->aux[static_cast<std::size_t>(target_mcp)]) * 180.0 / M_PI;
+    if (!got[i]["tg"][k].is_number() || !near(got[i]["tg"][k].get<double>(), target)) ++bad;
+  }
+  EXPECT_EQ(bad, 0u) << "targets differing from the record's";
+  std::printf("session record: %zu samples, exercise %s\n", got.size(), status.value("exercise", "").c_str());
 }
 
 TEST_F(ReplayDashboard, SigintEndsItPromptlyWithKeepAliveConnectionsOpen) {

@@ -26,14 +26,6 @@ std::string fileText(const std::string& path) {
   return s.str();
 }
 
-const protocol::DeviceLayout* layoutNamed(const std::string& name) {
-  for (auto t : {protocol::DeviceType::kGlove5, protocol::DeviceType::kSeaFinger, protocol::DeviceType::kPantograph}) {
-    const protocol::DeviceLayout* l = protocol::layoutFor(t);
-    if (l != nullptr && name == l->name) return l;
-  }
-  return nullptr;
-}
-
 /// The files a recording embeds (geometry, subject), written to a private directory for makeController.
 class EmbeddedFiles {
  public:
@@ -222,6 +214,14 @@ void replayCycle(Controller& ctl, CommandLimits& limits, const Recorded& rec, do
 }
 
 }  // namespace
+
+const protocol::DeviceLayout* layoutNamed(const std::string& name) {
+  for (auto t : {protocol::DeviceType::kGlove5, protocol::DeviceType::kSeaFinger, protocol::DeviceType::kPantograph}) {
+    const protocol::DeviceLayout* l = protocol::layoutFor(t);
+    if (l != nullptr && name == l->name) return l;
+  }
+  return nullptr;
+}
 
 const phalanx::pen::Model<double>* penModelOf(const Controller& controller) {
   const auto* p = dynamic_cast<const pen::PenController*>(&controller);

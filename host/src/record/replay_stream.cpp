@@ -2,14 +2,17 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <thread>
 
 #include "phalanx/host/api/dashboard.h"
 #include "phalanx/host/record/mcap_session.h"
+#include "phalanx/host/record/record_reader.h"
 #include "phalanx/host/session.h"
 #include "phalanx/host/therapy/device.h"
+#include "phalanx/host/therapy/exercise.h"
 #include "phalanx/host/therapy/guidance.h"
 
 namespace phalanx::host::record {
@@ -81,24 +84,101 @@ nlohmann::json frameOf(const protocol::DeviceLayout& layout, therapy::TherapyDev
   return s;
 }
 
+/// The first cycle of each 1/50 s of session time (the dashboard's sample rate).
+class FrameSlots {
+ public:
+  bool take(double t_s) {
+    const double slot = std::floor(t_s * api::Dashboard::kSampleRateHz);
+    if (slot <= last_) return false;
+    last_ = slot;
+    return true;
+  }
+
+ private:
+  double last_ = -1.0;
+};
+
+}  // namespace
+
+bool isSessionRecord(const std::string& path) {
+  char head[8] = {};
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  const std::size_t n = f != nullptr ? std::fread(head, 1, sizeof head, f) : 0;
+  if (f != nullptr) std::fclose(f);
+  return n == 8 && std::memcmp(head, "PHXREC1\n", 8) == 0;
+}
+
+namespace {
+
+float auxAt(const CycleRecord& c, int index) {
+  return index >= 0 && index < c.aux_count ? c.aux[static_cast<std::size_t>(index)] : std::nanf("");
+}
+
+/// A therapy session record (.phrec) as frames: its recorded values (telemetry through the therapy adapter with
+/// the patient's kinematics, the sent command, the exercise and its targets); no controller is run (its exercise
+/// and limit changes are not tied to the cycles that took them), so nothing is compared.
+std::string recordFrames(const std::string& path, ReplayFrames& out) {
+  SessionRecord rec;
+  if (std::string err = readRecord(path, rec); !err.empty()) return path + ": " + err;
+  if (rec.header.is_null()) return path + ": its header record is missing or damaged";
+  const std::string device = rec.header.value("device", "");
+  const protocol::DeviceLayout* layout = layoutNamed(device);
+  std::string err;
+  auto dev = layout != nullptr ? therapy::makeTherapyDevice(*layout, kinematicsFromHeader(rec.header), err) : nullptr;
+  if (!dev) return path + ": device '" + device + "' " + (err.empty() ? "is unknown" : err);
+  out.result.device = device;
+  out.result.controller = "therapy (recorded values; no controller run)";
+  out.result.file_complete = rec.complete();
+  const int exercise = rec.auxIndex("exercise_id");
+  std::vector<int> target(dev->channelCount());
+  for (std::size_t ch = 0; ch < target.size(); ++ch) target[ch] = rec.auxIndex("target_" + dev->channelName(ch) + "_rad");
+  FrameSlots slots;
+  for (const CycleRecord& c : rec.cycles) {
+    ++out.result.cycles;
+    if (!slots.take(c.t_s)) continue;
+    TelemetryFrame tel;
+    tel.device_time_us = c.device_time_us;
+    tel.mode = static_cast<protocol::Mode>(c.tel_mode);
+    tel.state_flags = c.state_flags;
+    tel.fault_bits = c.fault_bits;
+    tel.sample_count = c.sample_count;
+    for (std::size_t i = 0; i < c.sample_count; ++i) tel.value[i] = c.sample[i];
+    protocol::Command cmd;
+    cmd.mode = static_cast<protocol::Mode>(c.cmd_mode);
+    for (std::size_t i = 0; i < c.setpoint_count; ++i) cmd.setpoint[i] = c.setpoint[i];
+    nlohmann::json s = frameOf(*layout, dev.get(), out.file, ReplayedCycle{out.result.cycles - 1, c.t_s, tel, cmd});
+    if (rec.header.contains("patient")) s["patient"] = rec.header["patient"];
+    const float ex = auxAt(c, exercise);
+    if (std::isfinite(ex)) s["exercise"] = therapy::exerciseName(static_cast<therapy::ExerciseId>(static_cast<int>(ex)));
+    for (std::size_t ch = 0; ch < target.size(); ++ch) {
+      s["channels"][dev->channelName(ch)]["target_deg"] = num(double(auxAt(c, target[ch])) * kRadToDeg);
+    }
+    out.frames.push_back({c.t_s, std::move(s)});
+  }
+  if (out.frames.empty()) return path + ": holds no cycle to replay";
+  return {};
+}
+
 }  // namespace
 
 std::string replayFrames(const std::string& path, const ReplayOptions& options, ReplayFrames& out) {
   out = ReplayFrames{};
   out.file = baseName(path);
+  out.result.file = path;
+  if (isSessionRecord(path)) {
+    if (!options.set.empty()) return path + ": --set changes a replayed controller; a session record is shown as recorded";
+    return recordFrames(path, out);
+  }
   std::unique_ptr<therapy::TherapyDevice> dev;
   bool first = true;
-  double last_slot = -1.0;
+  FrameSlots slots;
   auto observe = [&](const protocol::DeviceLayout& layout, const ReplayedCycle& c) {
     if (first) {
       std::string err;  // no adapter (pantograph): the raw channels
       dev = therapy::makeTherapyDevice(layout, {}, err);
       first = false;
     }
-    const double slot = std::floor(c.t_s * api::Dashboard::kSampleRateHz);
-    if (slot <= last_slot) return;  // not the first cycle of its 1/50 s
-    last_slot = slot;
-    out.frames.push_back({c.t_s, frameOf(layout, dev.get(), out.file, c)});
+    if (slots.take(c.t_s)) out.frames.push_back({c.t_s, frameOf(layout, dev.get(), out.file, c)});
   };
   if (std::string err = replayRecording(path, options, out.result, observe); !err.empty()) return err;
   if (out.frames.empty()) return path + ": holds no cycle to replay";

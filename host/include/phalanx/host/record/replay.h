@@ -24,6 +24,9 @@ inline constexpr int kReplayFormatVersion = 1;
 /// patient limits stage or a therapy controller ran). controller: Controller::name().
 nlohmann::json replayConfig(const RunOptions& opt, const std::string& controller, bool patient_limits);
 
+/// The layout of a device a recording names ("glove5", "sea_finger", "pantograph"); null for another name.
+const protocol::DeviceLayout* layoutNamed(const std::string& name);
+
 /// The pen model a pantograph controller runs (its geometry), for the recordings' pen channels; null otherwise.
 const phalanx::pen::Model<double>* penModelOf(const Controller& controller);
 

@@ -36,7 +36,11 @@ struct ReplayFrames {
   std::vector<ReplayFrame> frames;
 };
 
-/// replayRecording(path, options) and its frames. "" or why the file cannot be replayed (naming the file).
+/// True for a therapy session record (.phrec, by its first bytes): streamed with its recorded values.
+bool isSessionRecord(const std::string& path);
+
+/// replayRecording(path, options) and its frames; for a session record (.phrec) its recorded values as frames
+/// (nothing replayed or compared: a therapy session's exercise and limit changes are not tied to their cycles). "" or why the file cannot be replayed (naming the file).
 std::string replayFrames(const std::string& path, const ReplayOptions& options, ReplayFrames& out);
 
 /// The request handler of a replay's dashboard (thread-safe): status from the frame shown now, no profiles,
