@@ -261,6 +261,7 @@ async function loadProfiles() {
 }
 
 async function poll() {
+  let full = false;  // a full answer (a fast replay, or a page that was hidden): fetch the rest at once
   try {
     const r = await fetch('api/samples?after=' + lastSeq, { headers: { 'X-Phalanx-Token': TOKEN }, cache: 'no-store' });
     const a = await r.json();
@@ -270,6 +271,7 @@ async function poll() {
     }
     showStatus(a.status || {});
     if (a.meta && a.meta.session && a.meta.session !== session) startSession(a.meta);
+    full = a.samples.length >= 500;
     for (const s of a.samples) {
       lastSeq = Math.max(lastSeq, s.seq);
       charts.joints.push(s.t, s.j);
@@ -281,7 +283,7 @@ async function poll() {
   } catch (e) {
     message('dashboard: ' + e, true);
   } finally {
-    setTimeout(poll, POLL_MS);
+    setTimeout(poll, full ? 0 : POLL_MS);
   }
 }
 
