@@ -217,8 +217,7 @@ nlohmann::json ReplayStatus::handle(const std::string& line) const {
   const std::string cmd = req["cmd"].get<std::string>();
   if (cmd == "status") return statusAnswer();
   if (cmd == "profiles") return {{"ok", true}, {"result", nlohmann::json::array()}};
-  return {{"ok", false},
-          {"error", cmd + ": this is a replay of " + frames_.file + ": there is no device to control"}};
+  return {{"ok", false}, {"error", "this is a replay of " + frames_.file + ": there is no device to control"}};
 }
 
 namespace {
