@@ -124,36 +124,37 @@ std::string recordFrames(const std::string& path, ReplayFrames& out) {
   const std::string device = rec.header.value("device", "");
   const protocol::DeviceLayout* layout = layoutNamed(device);
   std::string err;
-  auto dev = layout != nullptr ? therapy::makeTherapyDevice(*layout, kinematicsFromHeader(rec.header), err) : nullptr;
+  std::shared_ptr<therapy::TherapyDevice> dev = layout != nullptr ? therapy::makeTherapyDevice(*layout, kinematicsFromHeader(rec.header), err) : nullptr;
   if (!dev) return path + ": device '" + device + "' " + (err.empty() ? "is unknown" : err);
   out.result.device = device;
   out.result.controller = "therapy (recorded values; no controller run)";
   out.result.file_complete = rec.complete();
   const int exercise = rec.auxIndex("exercise_id");
-  std::vector<int> target(dev->channelCount());
+  std::vector<int> target(std::min<std::size_t>(dev->channelCount(), protocol::kMaxSetpoints));
   for (std::size_t ch = 0; ch < target.size(); ++ch) target[ch] = rec.auxIndex("target_" + dev->channelName(ch) + "_rad");
+  out.layout = layout;
+  out.device = std::move(dev);
+  out.session_record = true;
+  if (rec.header.contains("patient")) out.patient = rec.header["patient"];
   FrameSlots slots;
   for (const CycleRecord& c : rec.cycles) {
     ++out.result.cycles;
     if (!slots.take(c.t_s)) continue;
-    TelemetryFrame tel;
-    tel.device_time_us = c.device_time_us;
-    tel.mode = static_cast<protocol::Mode>(c.tel_mode);
-    tel.state_flags = c.state_flags;
-    tel.fault_bits = c.fault_bits;
-    tel.sample_count = c.sample_count;
-    for (std::size_t i = 0; i < c.sample_count; ++i) tel.value[i] = c.sample[i];
-    protocol::Command cmd;
-    cmd.mode = static_cast<protocol::Mode>(c.cmd_mode);
-    for (std::size_t i = 0; i < c.setpoint_count; ++i) cmd.setpoint[i] = c.setpoint[i];
-    nlohmann::json s = frameOf(*layout, dev.get(), out.file, ReplayedCycle{out.result.cycles - 1, c.t_s, tel, cmd});
-    if (rec.header.contains("patient")) s["patient"] = rec.header["patient"];
-    const float ex = auxAt(c, exercise);
-    if (std::isfinite(ex)) s["exercise"] = therapy::exerciseName(static_cast<therapy::ExerciseId>(static_cast<int>(ex)));
-    for (std::size_t ch = 0; ch < target.size(); ++ch) {
-      s["channels"][dev->channelName(ch)]["target_deg"] = num(double(auxAt(c, target[ch])) * kRadToDeg);
-    }
-    out.frames.push_back({c.t_s, std::move(s)});
+    ReplayFrame f;
+    f.t_s = c.t_s;
+    f.cycle = out.result.cycles - 1;
+    f.tel.device_time_us = c.device_time_us;
+    f.tel.mode = static_cast<protocol::Mode>(c.tel_mode);
+    f.tel.state_flags = c.state_flags;
+    f.tel.fault_bits = c.fault_bits;
+    f.tel.sample_count = c.sample_count;
+    for (std::size_t i = 0; i < c.sample_count; ++i) f.tel.value[i] = c.sample[i];
+    f.command.mode = static_cast<protocol::Mode>(c.cmd_mode);
+    f.command.channel_count = c.setpoint_count;
+    for (std::size_t i = 0; i < c.setpoint_count; ++i) f.command.setpoint[i] = c.setpoint[i];
+    f.exercise_id = auxAt(c, exercise);
+    for (std::size_t ch = 0; ch < target.size(); ++ch) f.target_rad[ch] = auxAt(c, target[ch]);
+    out.frames.push_back(f);
   }
   if (out.frames.empty()) return path + ": holds no cycle to replay";
   return {};
@@ -169,43 +170,64 @@ std::string replayFrames(const std::string& path, const ReplayOptions& options, 
     if (!options.set.empty()) return path + ": --set changes a replayed controller; a session record is shown as recorded";
     return recordFrames(path, out);
   }
-  std::unique_ptr<therapy::TherapyDevice> dev;
   bool first = true;
   FrameSlots slots;
   auto observe = [&](const protocol::DeviceLayout& layout, const ReplayedCycle& c) {
     if (first) {
       std::string err;  // no adapter (pantograph): the raw channels
-      dev = therapy::makeTherapyDevice(layout, {}, err);
+      out.layout = &layout;
+      out.device = therapy::makeTherapyDevice(layout, {}, err);
       first = false;
     }
-    if (slots.take(c.t_s)) out.frames.push_back({c.t_s, frameOf(layout, dev.get(), out.file, c)});
+    if (!slots.take(c.t_s)) return;
+    ReplayFrame f;
+    f.t_s = c.t_s;
+    f.cycle = c.cycle;
+    f.tel = c.tel;
+    f.command = c.command;
+    f.target_rad.fill(std::nanf(""));
+    out.frames.push_back(f);
   };
   if (std::string err = replayRecording(path, options, out.result, observe); !err.empty()) return err;
   if (out.frames.empty()) return path + ": holds no cycle to replay";
   return {};
 }
 
-ReplayStatus::ReplayStatus(const ReplayFrames& frames, double speed) : frames_(frames), speed_(speed) {}
+nlohmann::json ReplayFrames::session(std::size_t i) const {
+  const ReplayFrame& f = frames[i];
+  nlohmann::json s = frameOf(*layout, device.get(), file, ReplayedCycle{f.cycle, f.t_s, f.tel, f.command});
+  if (!patient.is_null()) s["patient"] = patient;
+  if (std::isfinite(f.exercise_id)) {
+    s["exercise"] = therapy::exerciseName(static_cast<therapy::ExerciseId>(static_cast<int>(f.exercise_id)));
+  }
+  if (session_record && device != nullptr) {  // the recorded targets
+    for (std::size_t ch = 0; ch < device->channelCount() && ch < f.target_rad.size(); ++ch) {
+      s["channels"][device->channelName(ch)]["target_deg"] = num(double(f.target_rad[ch]) * kRadToDeg);
+    }
+  }
+  const double t0 = frames.front().t_s;
+  s["replay"] = {{"file", file}, {"speed", 1.0}, {"t_s", f.t_s - t0}, {"total_s", frames.back().t_s - t0},
+                 {"finished", false}, {"mismatched_cycles", result.mismatched_cycles}};
+  return s;
+}
+
+ReplayStatus::ReplayStatus(const ReplayFrames& frames, double speed)
+    : frames_(frames), speed_(speed) {}
 
 void ReplayStatus::show(std::size_t i, bool finished) {
+  nlohmann::json s = frames_.session(std::min(i, frames_.frames.size() - 1));  // outside the lock
+  s["replay"]["speed"] = speed_;
+  s["replay"]["finished"] = finished;
   std::lock_guard<std::mutex> lock(mutex_);
-  shown_ = std::min(i, frames_.frames.size() - 1);
+  session_ = std::move(s);
   finished_ = finished;
   started_ = true;
 }
 
 nlohmann::json ReplayStatus::statusAnswer() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  const ReplayFrame& f = frames_.frames[shown_];
-  const double t0 = frames_.frames.front().t_s;
-  nlohmann::json session = f.session;
-  session["replay"] = {{"file", frames_.file},
-                       {"speed", speed_},
-                       {"t_s", f.t_s - t0},
-                       {"total_s", frames_.frames.back().t_s - t0},
-                       {"finished", finished_},
-                       {"mismatched_cycles", frames_.result.mismatched_cycles}};
-  nlohmann::json result{{"session_running", started_ && !finished_}, {"session", session}};
+  nlohmann::json result{{"session_running", started_ && !finished_}};
+  if (started_) result["session"] = session_;  // before the first frame: no session yet
   return {{"ok", true}, {"result", result}};
 }
 

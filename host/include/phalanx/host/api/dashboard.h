@@ -4,7 +4,8 @@
 ///
 /// - HTTP by cpp-httplib (Debian libcpp-httplib-dev): own listener thread + a bounded worker pool, never the
 ///   session's thread. Its data come from the API's status request, sampled at 50 Hz by a sampler thread into a
-///   bounded ring (the loop itself only publishes its 50 Hz status snapshot with a try-lock, as for the API).
+///   bounded ring (the loop itself only publishes its 50 Hz status snapshot with a try-lock, as for the API);
+///   or, for a replay (record/replay_stream.h), handed each snapshot by publish().
 /// - Controls are API requests: POST /api/request carries one JSON request to the SAME handler as the UNIX
 ///   socket (validated there; a refused one changes nothing). There is no other path into the daemon.
 /// - Access: a random token (128 bit) in the URL fragment, sent back as the X-Phalanx-Token header on every /api
