@@ -2,6 +2,7 @@
 // The `phalanx` CLI as a client of phalanxd's control API (docs/api.md), and the session-record tools.
 //   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
 //   phalanx record export FILE [--csv|--mcap] [--out PATH] | record info FILE | record report FILE [--previous F] --out F
+//   phalanx record replay FILE [--set K=V] [--dashboard ADDRESS:PORT [--speed X] [--hold] [--allow-remote]]
 //   phalanx record progress --patient ID --records-dir DIR [--repeatability REP.json] [--out F.html] [--pdf F.pdf]
 #include <CLI/CLI.hpp>
 #include <signal.h>
@@ -154,7 +155,8 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_progress->add_flag("--json", t.json, "print the progress JSON (every session's figures) on stdout");
   t.rec_replay = t.record->add_subcommand(
       "replay", "feed a --record FILE.mcap recording through this build's controller offline and compare every command "
-                "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable)");
+                "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable); with --dashboard also show it on the "
+                "live dashboard (a session record .phrec: its recorded values)");
   t.rec_replay->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_replay->add_option("--set", t.replay_set,
                            "change the recorded configuration for the replay, KEY=VALUE (mode, scene, "

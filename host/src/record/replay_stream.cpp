@@ -268,6 +268,48 @@ void lingerForPages(const api::Dashboard& dash, const std::atomic<bool>& stop) {
 
 }  // namespace
 
+namespace {
+
+/// Shows each frame at its session time / speed after the first (published to the dashboard: one sample each).
+/// Returns how many were shown (fewer when stopped) and the wall time that took.
+std::size_t paceFrames(const ReplayFrames& frames, double speed, ReplayStatus& status, api::Dashboard& dash,
+                       const std::atomic<bool>& stop, double& wall_s) {
+  const double t0 = frames.frames.front().t_s;
+  const auto wall0 = std::chrono::steady_clock::now();
+  std::size_t shown = 0;
+  for (std::size_t i = 0; i < frames.frames.size(); ++i) {
+    const auto due = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                 std::chrono::duration<double>((frames.frames[i].t_s - t0) / speed));
+    if (!sleepUntil(due, stop)) break;
+    status.show(i, i + 1 == frames.frames.size());
+    dash.publish(status.statusAnswer());
+    shown = i + 1;
+  }
+  wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return shown;
+}
+
+/// The replay's JSON plus "stream" on stdout, one line for people on stderr.
+void printSummary(const ReplayFrames& frames, double speed, std::size_t shown, double wall_s, uint64_t delivered,
+                  uint64_t samples) {
+  const bool finished = shown == frames.frames.size();
+  const double replay_s = shown > 0 ? frames.frames[shown - 1].t_s - frames.frames.front().t_s : 0.0;
+  const double achieved = wall_s > 0 ? replay_s / wall_s : 0.0;
+  nlohmann::json summary = frames.result.toJson();
+  summary["stream"] = {{"speed", speed},           {"frames", frames.frames.size()}, {"frames_shown", shown},
+                       {"samples", samples},       {"samples_fetched", delivered},   {"finished", finished},
+                       {"replay_s", replay_s},     {"wall_s", wall_s},               {"achieved_speed", achieved}};
+  std::cout << summary.dump() << std::endl;
+  std::fprintf(stderr, "replay %s: %zu of %zu frames shown (%.2f s of session in %.2f s: %.2f×), %llu of %llu samples "
+               "fetched by a page; %llu of %llu compared cycles differ\n",
+               finished ? "finished" : "stopped", shown, frames.frames.size(), replay_s, wall_s, achieved,
+               static_cast<unsigned long long>(delivered), static_cast<unsigned long long>(samples),
+               static_cast<unsigned long long>(frames.result.mismatched_cycles),
+               static_cast<unsigned long long>(frames.result.compared));
+}
+
+}  // namespace
+
 int streamReplay(const std::string& path, const ReplayStreamOptions& options, const std::atomic<bool>& stop) {
   ReplayFrames frames;
   if (std::string err = replayFrames(path, options.replay, frames); !err.empty()) {
@@ -283,46 +325,20 @@ int streamReplay(const std::string& path, const ReplayStreamOptions& options, co
   }
   std::printf("DASHBOARD %s\n", dash.url().c_str());
   std::fflush(stdout);
-  const double t0 = frames.frames.front().t_s;
-  const double total_s = frames.frames.back().t_s - t0;
   std::fprintf(stderr, "replay %s (%s, %s) on the dashboard at %g×: %zu frames, %.1f s of session\n",
                frames.file.c_str(), frames.result.device.c_str(), frames.result.controller.c_str(), options.speed,
-               frames.frames.size(), total_s);
-  const auto wall0 = std::chrono::steady_clock::now();
-  std::size_t shown = 0;
-  for (std::size_t i = 0; i < frames.frames.size(); ++i) {
-    const auto due = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                 std::chrono::duration<double>((frames.frames[i].t_s - t0) / options.speed));
-    if (!sleepUntil(due, stop)) break;
-    status.show(i, i + 1 == frames.frames.size());
-    dash.publish(status.statusAnswer());
-    shown = i + 1;
-  }
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  const bool finished = shown == frames.frames.size();
-  if (finished && options.hold) {
+               frames.frames.size(), frames.frames.back().t_s - frames.frames.front().t_s);
+  double wall_s = 0.0;
+  const std::size_t shown = paceFrames(frames, options.speed, status, dash, stop, wall_s);
+  if (shown == frames.frames.size() && options.hold) {
     std::fprintf(stderr, "replay finished; holding the last state until SIGINT/SIGTERM\n");
     while (!stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  } else if (finished) {
+  } else if (shown == frames.frames.size()) {
     lingerForPages(dash, stop);
   }
   const uint64_t delivered = dash.deliveredSeq(), samples = dash.lastSeq();
   dash.stop();
-  const double replay_s = shown > 0 ? frames.frames[shown - 1].t_s - t0 : 0.0;
-  nlohmann::json summary = frames.result.toJson();
-  summary["stream"] = {{"speed", options.speed},        {"frames", frames.frames.size()},
-                       {"frames_shown", shown},         {"samples_fetched", delivered},
-                       {"samples", samples},            {"finished", finished},
-                       {"replay_s", replay_s},          {"wall_s", wall_s},
-                       {"achieved_speed", wall_s > 0 ? replay_s / wall_s : 0.0}};
-  std::cout << summary.dump() << std::endl;
-  std::fprintf(stderr, "replay %s: %zu of %zu frames shown (%.2f s of session in %.2f s: %.2f×), %llu of %llu samples "
-               "fetched by a page; %llu of %llu compared cycles differ\n",
-               finished ? "finished" : "stopped", shown, frames.frames.size(), replay_s, wall_s,
-               wall_s > 0 ? replay_s / wall_s : 0.0, static_cast<unsigned long long>(delivered),
-               static_cast<unsigned long long>(samples),
-               static_cast<unsigned long long>(frames.result.mismatched_cycles),
-               static_cast<unsigned long long>(frames.result.compared));
+  printSummary(frames, options.speed, shown, wall_s, delivered, samples);
   return frames.result.mismatched_cycles == 0 ? 0 : 1;
 }
 
