@@ -254,14 +254,14 @@ bool sleepUntil(std::chrono::steady_clock::time_point until, const std::atomic<b
   return false;
 }
 
-/// After the last frame: until a page has fetched every sample, while one keeps fetching (≤ 10 s; a page seen
-/// fetching within the last 2 s is waited for), or stop.
+/// After the last frame: until a page has fetched every sample, or stop. A page seen fetching within the last 5 s
+/// is waited for (a loaded machine can stall one for seconds), at most 30 s; with none, 2 s.
 void lingerForPages(const api::Dashboard& dash, const std::atomic<bool>& stop) {
   const auto end = std::chrono::steady_clock::now();
   while (!stop.load() && dash.deliveredSeq() < dash.lastSeq()) {
     const auto now = std::chrono::steady_clock::now();
-    const bool page_active = now - dash.lastFetch() < std::chrono::seconds(2);
-    if (now - end > std::chrono::seconds(10) || (!page_active && now - end > std::chrono::seconds(2))) return;
+    const bool page_active = now - dash.lastFetch() < std::chrono::seconds(5);
+    if (now - end > std::chrono::seconds(30) || (!page_active && now - end > std::chrono::seconds(2))) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 }

@@ -93,8 +93,8 @@ struct ReplayStreamOptions {
 
 /// Streams a replay to a dashboard: prints "DASHBOARD <url>" on stdout, shows each frame at its time / speed,
 /// and at the end (or when `stop` becomes true) prints the summary JSON on stdout. Without hold it waits, after
-/// the last frame, until a page has fetched every sample (at most while a page keeps fetching, ≤ 10 s), so a page
-/// watching sees the end. Returns the exit code: 0 (identical or stopped), 1 a replayed command differs, 2 the
+/// the last frame, until a page has fetched every sample (while one keeps fetching, ≤ 30 s), so a page watching
+/// sees the end. Returns the exit code: 0 (identical or stopped), 1 a replayed command differs, 2 the
 /// file cannot be replayed, 3 the dashboard cannot listen.
 int streamReplay(const std::string& path, const ReplayStreamOptions& options, const std::atomic<bool>& stop);
 
