@@ -2,12 +2,16 @@
 // The `phalanx` CLI as a client of phalanxd's control API (docs/api.md), and the session-record tools.
 //   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
 //   phalanx record export FILE [--csv|--mcap] [--out PATH] | record info FILE | record report FILE [--previous F] --out F
+//   phalanx record replay FILE [--set K=V] [--dashboard ADDRESS:PORT [--speed X] [--hold] [--allow-remote]]
 //   phalanx record progress --patient ID --records-dir DIR [--repeatability REP.json] [--out F.html] [--pdf F.pdf]
 #include <CLI/CLI.hpp>
+#include <signal.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -25,6 +29,7 @@
 #include "phalanx/host/record/mcap_session.h"
 #include "phalanx/host/record/record_reader.h"
 #include "phalanx/host/record/replay.h"
+#include "phalanx/host/record/replay_stream.h"
 #include "phalanx/host/therapy/fhir.h"
 #include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/progress.h"
@@ -51,6 +56,10 @@ struct TherapyCli {
   CLI::App* rec_fhir = nullptr;
   CLI::App* rec_replay = nullptr;
   std::vector<std::string> replay_set;  // KEY=VALUE
+  std::string replay_dashboard;          // --dashboard ADDRESS:PORT
+  CLI::Option* replay_dashboard_opt = nullptr;
+  double replay_speed = 1.0;
+  bool replay_hold = false, replay_allow_remote = false;
   std::string rec_file, rec_out, rec_previous, rec_reference, rec_repeatability;
   CLI::App* rec_repeat = nullptr;
   std::vector<std::string> rec_files;
@@ -146,11 +155,26 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   t.rec_progress->add_flag("--json", t.json, "print the progress JSON (every session's figures) on stdout");
   t.rec_replay = t.record->add_subcommand(
       "replay", "feed a --record FILE.mcap recording through this build's controller offline and compare every command "
-                "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable)");
+                "bit for bit (exit 0 identical, 1 a mismatch, 2 not replayable); with --dashboard also show it on the "
+                "live dashboard (a session record .phrec: its recorded values)");
   t.rec_replay->add_option("file", t.rec_file)->required()->check(CLI::ExistingFile);
   t.rec_replay->add_option("--set", t.replay_set,
                            "change the recorded configuration for the replay, KEY=VALUE (mode, scene, "
                            "pen_wall_stiffness_N_per_cm, pen_floor_mm); repeatable");
+  CLI::Option* dash = t.rec_replay->add_option(
+      "--dashboard", t.replay_dashboard,
+      "stream the replay to the live dashboard on ADDRESS:PORT (loopback; port 0: any free; its URL is printed); "
+      "its controls are refused: there is no device (docs/dashboard.md)");
+  t.replay_dashboard_opt = dash;
+  t.rec_replay->add_option("--speed", t.replay_speed, "with --dashboard: times the recorded speed (default 1)")
+      ->check(inRange(record::kReplaySpeedMin, record::kReplaySpeedMax))
+      ->needs(dash);
+  t.rec_replay->add_flag("--hold", t.replay_hold,
+                         "with --dashboard: at the end keep serving the last state until SIGINT/SIGTERM")
+      ->needs(dash);
+  t.rec_replay->add_flag("--allow-remote", t.replay_allow_remote,
+                         "with --dashboard: allow a non-loopback address (plain HTTP, the recording's patient data)")
+      ->needs(dash);
 }
 
 /// Why FILE is not a replayable recording, from its first bytes ("" for MCAP).
@@ -171,8 +195,44 @@ inline std::string replayableKind(const std::string& path) {
   return path + " is not an MCAP recording";
 }
 
+/// Set by SIGINT/SIGTERM during `phalanx record replay --dashboard`.
+inline std::atomic<bool> g_replay_stop{false};
+
+/// `phalanx record replay FILE --dashboard ...`: the replay streamed to the dashboard (record/replay_stream.h).
+inline int runReplayStream(const TherapyCli& t) {
+  record::ReplayStreamOptions o;
+  o.replay.set = t.replay_set;
+  o.speed = t.replay_speed;
+  o.hold = t.replay_hold;
+  o.dashboard.allow_remote = true;  // the syntax first; loopback below, with this command's own hint
+  if (const std::string err = api::parseDashboardSpec(t.replay_dashboard, o.dashboard); !err.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s%s\n", err.rfind("--dashboard", 0) == 0 ? "" : "--dashboard: ", err.c_str());
+    return 2;
+  }
+  o.dashboard.allow_remote = t.replay_allow_remote;
+  if (!t.replay_allow_remote && !api::isLoopbackAddress(o.dashboard.address)) {
+    std::fprintf(stderr,
+                 "phalanx: error: --dashboard: %s is not a loopback address: the dashboard serves the recording's "
+                 "patient data over plain HTTP; add --allow-remote to serve it on a network\n",
+                 o.dashboard.address.c_str());
+    return 2;
+  }
+  if (const std::string why = replayableKind(t.rec_file); !why.empty() && !record::isSessionRecord(t.rec_file)) {
+    std::fprintf(stderr, "phalanx: error: %s\n", why.c_str());
+    return 2;
+  }
+  struct sigaction sa {};
+  sa.sa_handler = [](int) { g_replay_stop.store(true); };
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+  return record::streamReplay(t.rec_file, o, g_replay_stop);
+}
+
 /// `phalanx record replay`: JSON result on stdout, one line for people on stderr.
 inline int runReplay(const TherapyCli& t) {
+  if (t.replay_dashboard_opt != nullptr && t.replay_dashboard_opt->count() > 0) return runReplayStream(t);
   if (const std::string why = replayableKind(t.rec_file); !why.empty()) {
     std::fprintf(stderr, "phalanx: error: %s\n", why.c_str());
     return 2;

@@ -164,9 +164,21 @@ function showStatus(st) {
            st.estop === undefined ? undefined : !!st.estop);
   setField('time', typeof st.t_s === 'number' ? st.t_s.toFixed(1) + ' s' : '–');
   setField('limited', st.limited_cycles === undefined ? '–' : String(st.limited_cycles));
+  showReplay(st.replay);
   document.getElementById('stop').disabled = !running;
   document.getElementById('reset').disabled = !running;
   document.getElementById('start').disabled = running;
+}
+
+// `phalanx record replay FILE --dashboard`: the file, its speed and the replay time over the total; its
+// controls are refused by the replay (there is no device).
+function showReplay(r) {
+  const box = document.getElementById('replay-field');
+  box.hidden = !r;
+  if (!r) return;
+  const t = (v) => (typeof v === 'number' ? v.toFixed(1) : '–');
+  document.getElementById('replay').textContent = r.file + ' at ' + r.speed + '× — ' + t(r.t_s) + ' / ' +
+    t(r.total_s) + ' s' + (r.finished ? ' (end)' : '');
 }
 
 function startSession(meta) {
@@ -249,6 +261,7 @@ async function loadProfiles() {
 }
 
 async function poll() {
+  let full = false;  // a full answer (a fast replay, or a page that was hidden): fetch the rest at once
   try {
     const r = await fetch('api/samples?after=' + lastSeq, { headers: { 'X-Phalanx-Token': TOKEN }, cache: 'no-store' });
     const a = await r.json();
@@ -258,6 +271,7 @@ async function poll() {
     }
     showStatus(a.status || {});
     if (a.meta && a.meta.session && a.meta.session !== session) startSession(a.meta);
+    full = a.samples.length >= 500;
     for (const s of a.samples) {
       lastSeq = Math.max(lastSeq, s.seq);
       charts.joints.push(s.t, s.j);
@@ -269,7 +283,7 @@ async function poll() {
   } catch (e) {
     message('dashboard: ' + e, true);
   } finally {
-    setTimeout(poll, POLL_MS);
+    setTimeout(poll, full ? 0 : POLL_MS);
   }
 }
 

@@ -26,11 +26,14 @@
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/api/client.h"
+#include "../support/http_client.h"
 #include "process.h"
 
 extern char** environ;
 
 using phalanx::test::binPath;
+using phalanx::test::http;
+using phalanx::test::HttpAnswer;
 using phalanx::test::Process;
 
 namespace {
@@ -94,43 +97,6 @@ class DashDaemon {
   int port_ = 0;
   std::unique_ptr<Process> proc_;
 };
-
-struct HttpAnswer {
-  int status = 0;
-  std::string body;
-};
-
-/// Minimal HTTP/1.1 client on loopback (the test needs exact control of Host and headers).
-HttpAnswer http(int port, const std::string& method, const std::string& path, const std::string& host,
-                const std::string& extra_headers = "", const std::string& body = "") {
-  HttpAnswer a;
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in sa{};
-  sa.sin_family = AF_INET;
-  sa.sin_port = htons(static_cast<uint16_t>(port));
-  sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&sa), sizeof sa) != 0) {
-    ::close(fd);
-    return a;
-  }
-  std::string req = method + " " + path + " HTTP/1.1\r\nHost: " + host + "\r\nConnection: close\r\n" + extra_headers;
-  if (!body.empty() || method == "POST") req += "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
-  req += "\r\n" + body;
-  (void)!::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
-  std::string resp;
-  char buf[8192];
-  pollfd p{fd, POLLIN, 0};
-  while (::poll(&p, 1, 5000) > 0) {
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    resp.append(buf, static_cast<size_t>(n));
-  }
-  ::close(fd);
-  if (resp.rfind("HTTP/1.1 ", 0) == 0) a.status = std::atoi(resp.c_str() + 9);
-  const auto b = resp.find("\r\n\r\n");
-  if (b != std::string::npos) a.body = resp.substr(b + 4);
-  return a;
-}
 
 /// Chromium over the DevTools protocol on a pipe pair: we write commands to its fd 3, read answers from its fd 4;
 /// messages are JSON terminated by a NUL byte.
@@ -489,4 +455,86 @@ TEST(Dashboard, HeadlessChromiumSeesTheSessionMovingAndStopsIt) {
   EXPECT_EQ(page_after.value("phase", ""), "ended");
   EXPECT_FALSE(page_after.value("stop_enabled", true));
   EXPECT_EQ(page_after.value("message", ""), "stop: ok");
+}
+
+// Replay mode (`phalanx record replay FILE --dashboard`): the same page shows a recording; the status line says
+// it is a replay (file, speed, replay time / total); STOP is answered with the replay's refusal; at the end the
+// page shows "(end)"; SIGTERM ends the replay promptly although Chromium holds its keep-alive connection open.
+TEST(Dashboard, HeadlessChromiumShowsAReplayAndItsControlsAreRefused) {
+  const std::string exe = Chromium::executable();
+  if (exe.empty()) {
+    if (std::getenv("CI") != nullptr) FAIL() << "chromium is not installed on CI (tools/setup.sh installs it)";
+    GTEST_SKIP() << "chromium is not installed (Debian package 'chromium'; tools/setup.sh installs it): the "
+                    "browser test of the replay page did not run";
+  }
+  const std::string dir = tempDir();
+  const std::string rec = dir + "/glove-run.mcap";
+  Process daemon({binPath("phalanxd"), "--no-realtime", "--device", "sim:glove5", "--scenario", "close-open",
+                  "--record", rec, "--seconds", "4", "--command-timeout-ms", "200"});
+  ASSERT_EQ(daemon.wait(60000), 0) << daemon.stderrText();
+  Process replay({binPath("phalanx"), "record", "replay", rec, "--dashboard", "127.0.0.1:0", "--speed", "1", "--hold"});
+  const std::string line = replay.readStdoutLine(30000);
+  ASSERT_EQ(line.rfind("DASHBOARD http://127.0.0.1:", 0), 0u) << line << replay.stderrText();
+  const std::string url = line.substr(10);
+
+  Chromium chrome(exe, dir + "/chromium-profile", dir + "/chromium.log");
+  ASSERT_TRUE(chrome.ok());
+  nlohmann::json r;
+  ASSERT_EQ(chrome.call("Target.createTarget", {{"url", url}}, "", r), "");
+  const std::string target = r.value("targetId", "");
+  ASSERT_EQ(chrome.call("Target.attachToTarget", {{"targetId", target}, {"flatten", true}}, "", r), "");
+  const std::string session = r.value("sessionId", "");
+  ASSERT_FALSE(session.empty());
+  const std::string read_fields =
+      "(() => { try { return {phase: document.getElementById('phase').textContent,"
+      " device: document.getElementById('device').textContent,"
+      " replay_shown: !document.getElementById('replay-field').hidden,"
+      " replay: document.getElementById('replay').textContent,"
+      " message: document.getElementById('message').textContent}; } catch (e) { return null; } })()";
+  nlohmann::json fields;
+  for (int i = 0; i < 100; ++i) {
+    fields = chrome.eval(session, read_fields);
+    if (fields.is_object() && fields.value("replay_shown", false) && fields.value("phase", "") == "replay") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::printf("replay page: %s\n", fields.dump().c_str());
+  EXPECT_EQ(fields.value("phase", ""), "replay");
+  EXPECT_EQ(fields.value("device", ""), "glove5");
+  EXPECT_EQ(fields.value("replay", "").rfind("glove-run.mcap at 1× — ", 0), 0u) << fields.dump();
+
+  // STOP (enabled while the replay runs) gets the replay's refusal.
+  chrome.eval(session, "document.getElementById('stop').click(), true");
+  for (int i = 0; i < 50; ++i) {
+    fields = chrome.eval(session, read_fields);
+    if (fields.value("message", "").find("no device") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(fields.value("message", ""), "stop: this is a replay of glove-run.mcap: there is no device to control");
+
+  // At the end: "(end)", the plots drawn; a screenshot kept as an artefact.
+  for (int i = 0; i < 150; ++i) {
+    fields = chrome.eval(session, read_fields);
+    if (fields.value("replay", "").find("(end)") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_NE(fields.value("replay", "").find("(end)"), std::string::npos) << fields.dump();
+  const nlohmann::json sig = chrome.eval(session, kPlotSignature);
+  EXPECT_GT(sig.value("ink", 0), 2000) << "the joint plot has the replay's lines on it";
+  ASSERT_EQ(chrome.call("Page.captureScreenshot", {{"format", "png"}}, session, r), "");
+  const std::string shot = base64Decode(r.value("data", ""));
+  EXPECT_EQ(shot.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  const std::string artefacts = binPath("") + "/../test-artefacts";
+  ::mkdir(artefacts.c_str(), 0755);
+  std::ofstream(artefacts + "/dashboard-replay.png", std::ios::binary) << shot;
+  std::printf("replay page at the end: %s; plot %s; screenshot %zu bytes (build/host/test-artefacts/dashboard-replay.png)\n",
+              fields.value("replay", "").c_str(), sig.dump().c_str(), shot.size());
+
+  // The page keeps polling on its keep-alive connection; SIGTERM must still end the replay at once.
+  const auto t0 = std::chrono::steady_clock::now();
+  replay.signal(SIGTERM);
+  const int rc = replay.wait(5000);
+  const double exit_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(rc, 0) << "no exit within 5 s of SIGTERM with the page open: " << replay.stderrText();
+  std::printf("SIGTERM with the page open: exit after %.3f s\n", exit_s);
+  std::system(("rm -rf " + dir).c_str());
 }

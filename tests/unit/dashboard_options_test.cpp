@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdio>
 #include <chrono>
 #include <thread>
 
+#include "../support/http_client.h"
 #include "phalanx/host/api/dashboard.h"
 #include "phalanx/host/config.h"
 
@@ -101,4 +103,78 @@ TEST(DashboardSampler, KeepsNewSnapshotsOfTheRunningSession) {
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_EQ(calls.load(), n) << "stopped means stopped";
   EXPECT_GT(n, 10);
+}
+
+namespace {
+
+nlohmann::json statusAt(double t_s) {
+  nlohmann::json s{{"phase", "replay"}, {"device", "sea_finger"}, {"record", "r.mcap"}, {"t_s", t_s},
+                   {"replay", {{"file", "r.mcap"}, {"speed", 4.0}}},
+                   {"channels", {{"mcp", {{"q_deg", t_s}, {"effort_measured", 0.01}}}}},
+                   {"joints", {{"mcp", {{"flexion_deg", t_s}}}}}};
+  return {{"ok", true}, {"result", {{"session_running", true}, {"session", s}}}};
+}
+
+}  // namespace
+
+// Published sampling (a replay): every published snapshot with a newer session time is one sample, whatever the
+// rate; the handler is never polled; deliveredSeq() says how far a client has fetched without a gap.
+TEST(DashboardSampler, PublishedSnapshotsAreEachOneSample) {
+  std::atomic<int> calls{0};
+  DashboardOptions o;
+  o.enabled = true;
+  o.port = 0;
+  api::Dashboard d(o, [&](const std::string&) { ++calls; return statusAt(0.0); }, api::Dashboard::Sampling::kPublished);
+  ASSERT_EQ(d.start(), "");
+  for (int i = 0; i < 1000; ++i) d.publish(statusAt(0.02 * i));  // far faster than 50 Hz
+  d.publish(statusAt(0.02 * 999));  // the same session time again: no new sample
+  EXPECT_EQ(d.lastSeq(), 1000u);
+  EXPECT_EQ(d.deliveredSeq(), 0u);
+  nlohmann::json a = d.samplesAfter(0);
+  EXPECT_EQ(a["samples"].size(), api::Dashboard::kMaxSamplesPerAnswer);
+  EXPECT_EQ(a["status"]["replay"]["speed"], 4.0);
+  EXPECT_EQ(d.deliveredSeq(), 500u);
+  a = d.samplesAfter(500);
+  EXPECT_EQ(a["samples"].size(), 500u);
+  EXPECT_EQ(a["samples"].back()["t"], 0.02 * 999);
+  EXPECT_EQ(d.deliveredSeq(), 1000u);
+  d.stop();
+  EXPECT_EQ(calls.load(), 0) << "a published dashboard never polls its handler for status";
+}
+
+// Dashboard::stop() ends open connections at once: an idle keep-alive one, one with half a request sent, and
+// one polling every 20 ms as a page does (before the fix stop() waited for each of them: the keep-alive timeout,
+// the 5 s read timeout, and up to 200 requests of the polling one).
+TEST(DashboardStop, EndsOpenKeepAliveConnectionsPromptly) {
+  DashboardOptions o;
+  o.enabled = true;
+  o.port = 0;
+  api::Dashboard d(o, [](const std::string&) { return statusAt(1.0); });
+  ASSERT_EQ(d.start(), "");
+  const std::string host = "127.0.0.1:" + std::to_string(d.port());
+  const std::string tok = "X-Phalanx-Token: " + d.token() + "\r\n";
+  phalanx::test::KeepAlive idle(d.port()), half(d.port()), polling(d.port());
+  ASSERT_EQ(idle.request("GET", "/api/samples", host, tok).status, 200);
+  ASSERT_TRUE(half.send("GET /api/samples HTTP/1.1\r\nHost: " + host + "\r\n"));
+  std::atomic<bool> done{false};
+  std::atomic<int> polls{0};
+  std::thread poller([&] {
+    while (!done && polling.request("GET", "/api/samples", host, tok).status == 200) {
+      ++polls;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  for (int i = 0; i < 500 && polls < 5; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_GE(polls.load(), 5);
+  const auto t0 = std::chrono::steady_clock::now();
+  d.stop();
+  const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  done = true;
+  poller.join();
+  // 1.5 s: well above the ~0.1 s it takes (one keep-alive poll step), well below the 2 s keep-alive timeout and
+  // the 5 s read timeout the old stop() waited for.
+  EXPECT_LT(stop_s, 1.5) << "stop() took " << stop_s << " s";
+  EXPECT_TRUE(idle.closedByServer(1000));
+  EXPECT_TRUE(half.closedByServer(1000));
+  std::printf("Dashboard::stop() with 3 open keep-alive connections: %.3f s\n", stop_s);
 }

@@ -144,14 +144,25 @@ class BoundedServer final : public httplib::Server {
   /// One connection's requests from memory (Dashboard::serveInMemory): the same request processing as a socket.
   std::string serveMemory(const std::string& bytes);
 
+  /// Ends every open connection now: no new request is read, and a read or write waiting on a connection's
+  /// socket returns at once. httplib::Server::stop() only closes the listener (and is_running() stays true until
+  /// every worker has finished), so a page polling on a keep-alive connection kept its worker, and stop(), busy
+  /// for up to kKeepAliveMaxCount requests (20 s at the page's 100 ms).
+  void closeConnections() {
+    closing_ = true;
+    std::lock_guard<std::mutex> lock(open_mutex_);
+    for (int fd : open_) ::shutdown(fd, SHUT_RDWR);
+  }
+
  private:
   bool process_and_close_socket(socket_t sock) override {
     const int served = ++connections;
     bool ok = false;
     if (served > kMaxConnections) {
       refuseBusy(sock);
-    } else {
+    } else if (track(sock)) {
       ok = serveRequests(sock);
+      untrack(sock);
     }
     --connections;
     ::shutdown(sock, SHUT_RDWR);
@@ -159,9 +170,22 @@ class BoundedServer final : public httplib::Server {
     return ok;
   }
 
+  /// Registers an open connection for closeConnections(); false once closing (the connection is not served).
+  /// The set only holds descriptors not yet closed, so a shutdown() never reaches a reused descriptor.
+  bool track(int sock) {
+    std::lock_guard<std::mutex> lock(open_mutex_);
+    if (closing_) return false;
+    open_.insert(sock);
+    return true;
+  }
+  void untrack(int sock) {
+    std::lock_guard<std::mutex> lock(open_mutex_);
+    open_.erase(sock);
+  }
+
   bool serveRequests(int sock) {
     bool ok = false;
-    for (size_t left = kKeepAliveMaxCount; left > 0 && waitForRequest(sock); --left) {
+    for (size_t left = kKeepAliveMaxCount; left > 0 && !closing_ && waitForRequest(sock); --left) {
       RequestStream strm(sock);
       t_stream = &strm;
       bool closed = false;
@@ -173,7 +197,7 @@ class BoundedServer final : public httplib::Server {
   }
 
   bool waitForRequest(int sock) const {
-    for (int waited = 0; waited < kKeepAliveTimeoutMs && is_running(); waited += 100) {
+    for (int waited = 0; waited < kKeepAliveTimeoutMs && is_running() && !closing_; waited += 100) {
       if (waitFor(sock, POLLIN, 100)) return true;
     }
     return false;
@@ -186,6 +210,10 @@ class BoundedServer final : public httplib::Server {
                              std::to_string(body.size()) + "\r\nConnection: close\r\nCache-Control: no-store\r\n\r\n" + body;
     (void)!::send(sock, resp.data(), resp.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   }
+
+  std::atomic<bool> closing_{false};
+  std::mutex open_mutex_;  // guards open_
+  std::set<int> open_;
 };
 
 /// A connection whose bytes are all in memory: reads end with them, writes are collected.
@@ -297,8 +325,8 @@ struct Dashboard::Http {
   BoundedServer server;
 };
 
-Dashboard::Dashboard(const DashboardOptions& options, RequestHandler handler)
-    : options_(options), handler_(std::move(handler)), http_(std::make_unique<Http>()) {}
+Dashboard::Dashboard(const DashboardOptions& options, RequestHandler handler, Sampling sampling)
+    : options_(options), handler_(std::move(handler)), sampling_(sampling), http_(std::make_unique<Http>()) {}
 
 Dashboard::~Dashboard() { stop(); }
 
@@ -328,7 +356,7 @@ std::string Dashboard::start() {
   listen_thread_ = std::thread([this] { http_->server.listen_after_bind(); });
   // Serving before start() returns, so that stop() (which only stops a running server) can never miss it.
   for (int i = 0; i < 1000 && !http_->server.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  sample_thread_ = std::thread([this] { sampleLoop(); });
+  if (sampling_ == Sampling::kPolled) sample_thread_ = std::thread([this] { sampleLoop(); });
   return {};
 }
 
@@ -407,6 +435,8 @@ void Dashboard::routes() {
       after = std::stoull(a);
     }
     res.set_content(samplesAfter(after).dump(), "application/json");
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_fetch_ = std::chrono::steady_clock::now();
   });
   s.Post("/api/request", [this](const httplib::Request&, httplib::Response& res, const httplib::ContentReader& reader) {
     std::string body;
@@ -445,7 +475,8 @@ void Dashboard::routes() {
 
 void Dashboard::stop() {
   if (!running_.exchange(false)) return;
-  http_->server.stop();
+  http_->server.stop();                // the listener: no new connection
+  http_->server.closeConnections();    // the open ones (a page's keep-alive connection), so the workers end now
   if (listen_thread_.joinable()) listen_thread_.join();
   if (sample_thread_.joinable()) sample_thread_.join();
 }
@@ -462,9 +493,20 @@ void Dashboard::sampleLoop() {
   }
 }
 
-void Dashboard::takeSample() {
-  const nlohmann::json resp = handler_("{\"cmd\":\"status\"}");
-  if (!resp.value("ok", false)) return;
+void Dashboard::takeSample() { publish(handler_("{\"cmd\":\"status\"}")); }
+
+uint64_t Dashboard::lastSeq() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return seq_;
+}
+
+std::chrono::steady_clock::time_point Dashboard::lastFetch() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return last_fetch_;
+}
+
+void Dashboard::publish(const nlohmann::json& resp) {
+  if (!resp.is_object() || !resp.value("ok", false) || !resp.contains("result")) return;
   const nlohmann::json& r = resp["result"];
   nlohmann::json st{{"session_running", r.value("session_running", false)}};
   nlohmann::json sample;
@@ -473,7 +515,7 @@ void Dashboard::takeSample() {
   if (r.contains("session")) {
     const nlohmann::json& s = r["session"];
     for (const char* k : {"phase", "patient", "record", "device", "exercise", "t_s", "cycles", "device_mode", "faults",
-                          "estop", "limited_cycles", "effort_unit", "fault_guidance"}) {
+                          "estop", "limited_cycles", "effort_unit", "fault_guidance", "replay"}) {
       if (s.contains(k)) st[k] = s[k];
     }
     session = s.value("record", std::string()) + "|" + s.value("device", std::string());
@@ -530,12 +572,20 @@ nlohmann::json Dashboard::samplesAfter(uint64_t after) const {
   nlohmann::json out{{"ok", true}, {"status", status_}, {"meta", meta_}, {"samples", nlohmann::json::array()},
                      {"rate_hz", kSampleRateHz}};
   std::size_t n = 0;
+  uint64_t upto = after;  // every sample up to this seq is in the answer (or was before it)
   for (const auto& s : ring_) {
-    if (s["seq"].get<uint64_t>() <= after) continue;
+    const uint64_t seq = s["seq"].get<uint64_t>();
+    if (seq <= after) continue;
+    if (n >= kMaxSamplesPerAnswer) break;
     out["samples"].push_back(s);
-    if (++n >= kMaxSamplesPerAnswer) break;
+    ++n;
+    upto = seq;
   }
+  if (n < kMaxSamplesPerAnswer) upto = seq_;
   out["last_seq"] = seq_;
+  // Only from a client that had every sample up to `after` (the ring still held the one after it).
+  const bool contiguous = ring_.empty() || ring_.front()["seq"].get<uint64_t>() <= after + 1;
+  if (contiguous && upto > delivered_seq_.load()) delivered_seq_.store(upto);
   return out;
 }
 

@@ -26,14 +26,6 @@ std::string fileText(const std::string& path) {
   return s.str();
 }
 
-const protocol::DeviceLayout* layoutNamed(const std::string& name) {
-  for (auto t : {protocol::DeviceType::kGlove5, protocol::DeviceType::kSeaFinger, protocol::DeviceType::kPantograph}) {
-    const protocol::DeviceLayout* l = protocol::layoutFor(t);
-    if (l != nullptr && name == l->name) return l;
-  }
-  return nullptr;
-}
-
 /// The files a recording embeds (geometry, subject), written to a private directory for makeController.
 class EmbeddedFiles {
  public:
@@ -223,6 +215,14 @@ void replayCycle(Controller& ctl, CommandLimits& limits, const Recorded& rec, do
 
 }  // namespace
 
+const protocol::DeviceLayout* layoutNamed(const std::string& name) {
+  for (auto t : {protocol::DeviceType::kGlove5, protocol::DeviceType::kSeaFinger, protocol::DeviceType::kPantograph}) {
+    const protocol::DeviceLayout* l = protocol::layoutFor(t);
+    if (l != nullptr && name == l->name) return l;
+  }
+  return nullptr;
+}
+
 const phalanx::pen::Model<double>* penModelOf(const Controller& controller) {
   const auto* p = dynamic_cast<const pen::PenController*>(&controller);
   return p != nullptr ? &p->model() : nullptr;
@@ -288,7 +288,8 @@ std::string setUp(const nlohmann::json& header, const ReplayOptions& options, Em
 }
 
 /// Every recorded cycle through the controller and the limits stage, compared with the recorded command.
-std::string runCycles(const McapContents& m, uint16_t ch_tel, uint16_t ch_cmd, Setup& s, ReplayResult& result) {
+std::string runCycles(const McapContents& m, uint16_t ch_tel, uint16_t ch_cmd, Setup& s, ReplayResult& result,
+                      const ReplayObserver& observer) {
   std::vector<const McapMessage*> tel, com;
   for (const McapMessage& msg : m.messages) {
     if (msg.channel == ch_tel) tel.push_back(&msg);
@@ -305,6 +306,7 @@ std::string runCycles(const McapContents& m, uint16_t ch_tel, uint16_t ch_cmd, S
       return "cycle " + std::to_string(i) + ": " + err;
     }
     replayCycle(*s.controller, limits, rec, s.dt_s, cmd);
+    if (observer) observer(*s.layout, ReplayedCycle{i, rec.t_s, rec.tel, cmd});
     ++result.cycles;
     if (rec.source != kSourceController && rec.source != kSourceStop) {
       ++result.external;  // a client's command: the controller ran (its state follows), nothing to compare
@@ -318,7 +320,8 @@ std::string runCycles(const McapContents& m, uint16_t ch_tel, uint16_t ch_cmd, S
 
 }  // namespace
 
-std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result) {
+std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result,
+                            const ReplayObserver& observer) {
   result = ReplayResult{};
   result.file = path;
   McapContents m;
@@ -332,7 +335,7 @@ std::string replayRecording(const std::string& path, const ReplayOptions& option
   if (std::string err = setUp(header, options, files, s); !err.empty()) return path + ": " + err;
   result.device = s.layout->name;
   result.controller = s.controller->name();
-  if (std::string err = runCycles(m, ch_tel, ch_cmd, s, result); !err.empty()) return path + ": " + err;
+  if (std::string err = runCycles(m, ch_tel, ch_cmd, s, result, observer); !err.empty()) return path + ": " + err;
   return {};
 }
 

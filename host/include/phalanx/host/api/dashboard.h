@@ -4,7 +4,8 @@
 ///
 /// - HTTP by cpp-httplib (Debian libcpp-httplib-dev): own listener thread + a bounded worker pool, never the
 ///   session's thread. Its data come from the API's status request, sampled at 50 Hz by a sampler thread into a
-///   bounded ring (the loop itself only publishes its 50 Hz status snapshot with a try-lock, as for the API).
+///   bounded ring (the loop itself only publishes its 50 Hz status snapshot with a try-lock, as for the API);
+///   or, for a replay (record/replay_stream.h), handed each snapshot by publish().
 /// - Controls are API requests: POST /api/request carries one JSON request to the SAME handler as the UNIX
 ///   socket (validated there; a refused one changes nothing). There is no other path into the daemon.
 /// - Access: a random token (128 bit) in the URL fragment, sent back as the X-Phalanx-Token header on every /api
@@ -12,6 +13,7 @@
 ///   cannot read or post. The URL is printed on stdout and written next to the API socket, mode 0660 (who may
 ///   use the API may use the dashboard).
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <functional>
@@ -37,7 +39,12 @@ class Dashboard {
   /// Samples per /api/samples answer.
   static constexpr std::size_t kMaxSamplesPerAnswer = 500;
 
-  Dashboard(const DashboardOptions& options, RequestHandler handler);
+  /// Where the samples come from. kPolled: the sampler thread asks the handler for status at kSampleRateHz
+  /// (phalanxd). kPublished: the owner hands each status answer to publish() (`phalanx record replay
+  /// --dashboard`: every recorded sample reaches the ring, at any replay speed and however loaded the machine).
+  enum class Sampling { kPolled, kPublished };
+
+  Dashboard(const DashboardOptions& options, RequestHandler handler, Sampling sampling = Sampling::kPolled);
   ~Dashboard();
   Dashboard(const Dashboard&) = delete;
   Dashboard& operator=(const Dashboard&) = delete;
@@ -58,6 +65,16 @@ class Dashboard {
   /// The /api/samples answer for samples after `after` (exposed for tests).
   nlohmann::json samplesAfter(uint64_t after) const;
 
+  /// One status answer ({"ok": true, "result": {...}}, as the handler's "status") → the status the page shows
+  /// and, when its session time is newer than the last sample's, one sample (seq lastSeq() + 1). kPublished.
+  void publish(const nlohmann::json& status_answer);
+  /// The newest sample's seq (0: none yet).
+  uint64_t lastSeq() const;
+  /// The highest seq up to which an /api/samples answer has handed out every sample (a client has seen them).
+  uint64_t deliveredSeq() const { return delivered_seq_.load(); }
+  /// When an /api/samples request was last answered (steady clock; epoch: never).
+  std::chrono::steady_clock::time_point lastFetch() const;
+
  private:
   void routes();
   void sampleLoop();
@@ -65,6 +82,8 @@ class Dashboard {
 
   DashboardOptions options_;
   RequestHandler handler_;
+  Sampling sampling_;
+  mutable std::atomic<uint64_t> delivered_seq_{0};  // written by samplesAfter()
   std::string token_;
   uint16_t port_ = 0;
   struct Http;
@@ -80,6 +99,7 @@ class Dashboard {
   std::string last_session_;
   nlohmann::json status_;  // the latest status without per-channel/joint values
   nlohmann::json meta_;    // channel/joint names, effort unit of the running session
+  std::chrono::steady_clock::time_point last_fetch_{};
 };
 
 }  // namespace phalanx::host::api

@@ -4,6 +4,7 @@
 /// and configuration; every replayed command is compared bit for bit with the recorded one. The same build gives
 /// the same commands, so a control change shows as the first cycle and channel where they part.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,6 +23,9 @@ inline constexpr int kReplayFormatVersion = 1;
 /// commands (the controller's options, with the contents of its geometry/subject files; the loop rate; whether a
 /// patient limits stage or a therapy controller ran). controller: Controller::name().
 nlohmann::json replayConfig(const RunOptions& opt, const std::string& controller, bool patient_limits);
+
+/// The layout of a device a recording names ("glove5", "sea_finger", "pantograph"); null for another name.
+const protocol::DeviceLayout* layoutNamed(const std::string& name);
 
 /// The pen model a pantograph controller runs (its geometry), for the recordings' pen channels; null otherwise.
 const phalanx::pen::Model<double>* penModelOf(const Controller& controller);
@@ -52,7 +56,19 @@ struct ReplayResult {
   nlohmann::json toJson() const;
 };
 
+/// One replayed cycle: its 0-based index, the recorded session time and telemetry, and the command the replay
+/// computed (after the limits stage).
+struct ReplayedCycle {
+  uint64_t cycle = 0;
+  double t_s = 0.0;
+  const TelemetryFrame& tel;
+  const protocol::Command& command;
+};
+/// Called for every replayed cycle, in order (the dashboard stream builds its status frames from them).
+using ReplayObserver = std::function<void(const protocol::DeviceLayout& layout, const ReplayedCycle& cycle)>;
+
 /// "" (the replay ran; result says whether it matched) or why the file cannot be replayed (naming the file).
-std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result);
+std::string replayRecording(const std::string& path, const ReplayOptions& options, ReplayResult& result,
+                            const ReplayObserver& observer = {});
 
 }  // namespace phalanx::host::record
