@@ -473,7 +473,8 @@ void Dashboard::takeSample() {
   if (r.contains("session")) {
     const nlohmann::json& s = r["session"];
     for (const char* k : {"phase", "patient", "record", "device", "exercise", "t_s", "cycles", "device_mode", "faults",
-                          "estop", "limited_cycles", "effort_unit", "fault_guidance"}) {
+                          "estop", "limited_cycles", "effort_unit", "fault_guidance", "paused", "plan",
+                          "self_training"}) {
       if (s.contains(k)) st[k] = s[k];
     }
     session = s.value("record", std::string()) + "|" + s.value("device", std::string());
