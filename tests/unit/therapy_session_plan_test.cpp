@@ -6,6 +6,7 @@
 
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/session_plan.h"
+#include "../support/counting_allocator.h"  // g_allocations
 
 using namespace phalanx::host::therapy;
 
@@ -295,4 +296,34 @@ TEST(PlanRunner, StepsEndAtTheirDurationOrRepetitionsCountingOnlyCountedTime) {
   EXPECT_TRUE(runner.finished());
   EXPECT_NEAR(static_cast<double>(runner.result(1).elapsed_us.load()) * 1e-6, 0.5, 0.0015);
   EXPECT_EQ(runner.takeNextExercise(), nullptr);
+}
+
+TEST(PlanRunner, ItsCyclesAndStepChangesAllocateNothing) {
+  Fixture f;
+  SessionPlan plan;
+  ASSERT_EQ(f.parse(R"({"steps": [{"exercise": "assessment", "duration_s": 1, "repetitions": 50},
+                                   {"exercise": "assessment", "duration_s": 1}]})",
+                    plan),
+            "");
+  std::vector<std::unique_ptr<Exercise>> later(2);
+  std::string err;
+  later[1] = makeExercise("assessment", nullptr, *f.device, f.profile, std::make_shared<Pattern>(5), err);
+  PlanRunner runner(plan, std::move(later));
+  Observation obs{};
+  obs.channel_valid.fill(true);
+  Exercise* next = nullptr;
+  int ended = 0;
+  const long before = g_allocations.load();
+  for (int i = 0; i < 3200; ++i) {  // 2/3 counted: 2133 ms of plan time
+    obs.q_rad[1] = 2.0 * (1.0 - std::cos(2.0 * M_PI * i * 0.001));
+    if (runner.cycle(obs, 0.001, i % 3 != 0) != PlanRunner::Ended::kNo) {
+      ++ended;
+      if (Exercise* e = runner.takeNextExercise()) next = e;
+    }
+  }
+  const long after = g_allocations.load();
+  EXPECT_EQ(after, before);
+  EXPECT_EQ(ended, 2);
+  EXPECT_TRUE(runner.finished());
+  delete next;
 }
