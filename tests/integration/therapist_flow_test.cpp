@@ -88,15 +88,15 @@ class Daemon {
                                      // and a 100 ms command timeout: a loaded machine's stalls do not latch
                                      // faults of their own before the one the test causes.
                                      "--command-timeout-ms", "100"};
-    // An option given in `extra` replaces the default above (e.g. a longer --command-timeout-ms).
-    for (std::size_t i = 0; i + 1 < extra.size(); ++i) {
-      const auto at = std::find(argv.begin(), argv.end(), extra[i]);
-      if (at == argv.end() || at + 1 == argv.end()) continue;
-      *(at + 1) = extra[i + 1];
-      extra.erase(extra.begin() + static_cast<long>(i), extra.begin() + static_cast<long>(i) + 2);
-      --i;
+    // An option of `extra` that is already above replaces its value (e.g. a longer --command-timeout-ms).
+    for (std::size_t i = 0; i < extra.size(); ++i) {
+      const auto at = extra[i].rfind("--", 0) == 0 ? std::find(argv.begin(), argv.end(), extra[i]) : argv.end();
+      if (at != argv.end() && at + 1 != argv.end() && i + 1 < extra.size()) {
+        *(at + 1) = extra[++i];
+      } else {
+        argv.push_back(extra[i]);
+      }
     }
-    argv.insert(argv.end(), extra.begin(), extra.end());
     proc_ = std::make_unique<Process>(argv);
     EXPECT_EQ(proc_->readStdoutLine(10000), "API " + socket_) << proc_->stderrText();
   }
