@@ -332,6 +332,11 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
                 jstr(r, "record").c_str(), jstr(r, "report").c_str());
     const std::string prev = jstr(r, "previous_record", "");
     std::printf("previous session: %s\n", prev.empty() ? "none" : prev.c_str());
+    if (r.contains("plan_steps")) std::printf("session plan: %s steps (phalanx status shows where it is)\n", jnum(r, "plan_steps", 0).c_str());
+    if (r.contains("self_training")) {
+      std::printf("self-training: at most %s s, effort limits x %s\n", jnum(r["self_training"], "max_session_s", 1).c_str(),
+                  jnum(r["self_training"], "effort_scale", 2).c_str());
+    }
     return;
   }
   if (cmd == "stop") return printEndSummary(r);
