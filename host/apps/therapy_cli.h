@@ -1,6 +1,6 @@
 #pragma once
 // The `phalanx` CLI as a client of phalanxd's control API (docs/api.md), and the session-record tools.
-//   phalanx status | start | stop | exercise | mode | reset | limits | profiles | profile | recordings
+//   phalanx status | start | stop | pause | resume | exercise | mode | reset | limits | profiles | profile | recordings
 //   phalanx record export FILE [--csv|--mcap] [--out PATH] | record info FILE | record report FILE [--previous F] --out F
 //   phalanx record replay FILE [--set K=V] [--dashboard ADDRESS:PORT [--speed X] [--hold] [--allow-remote]]
 //   phalanx record progress --patient ID --records-dir DIR [--repeatability REP.json] [--out F.html] [--pdf F.pdf]
@@ -16,6 +16,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <thread>
 #include <iostream>
 #include <map>
@@ -34,6 +36,7 @@
 #include "phalanx/host/therapy/guidance.h"
 #include "phalanx/host/therapy/progress.h"
 #include "phalanx/host/therapy/report.h"
+#include "phalanx/host/yaml_keys.h"
 
 namespace phalanx::host::cli {
 
@@ -43,7 +46,8 @@ struct TherapyCli {
   bool json = false;
   std::map<std::string, CLI::App*> cmds;
   // start
-  std::string patient, exercise = "assessment", params, device, scenario;
+  std::string patient, exercise = "assessment", params, device, scenario, preset, plan_file;
+  bool self_training = false;
   double seconds = -1.0;
   long seed = -1;
   std::vector<std::string> effort_max;  // channel=value
@@ -91,11 +95,17 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   start->add_option("--scenario", t.scenario, "simulated hand (sim devices)");
   start->add_option("--seconds", t.seconds, "session length (0: until stop)")->check(inRange(0.0, 86400.0));
   start->add_option("--seed", t.seed, "simulation seed")->check(inRange(0L, 4294967295L));
+  start->add_option("--preset", t.preset, "first exercise: a preset of the patient's profile (instead of --exercise)");
+  start->add_option("--plan", t.plan_file, "a session plan (YAML: steps: [{exercise|preset, duration_s, repetitions}])");
+  start->add_flag("--self-training", t.self_training, "the patient trains alone: the profile's self_training limits");
   client("stop", "stop the session (device left safe; record closed; report written)");
+  client("pause", "pause the session: zero effort, the plan's clock stops");
+  client("resume", "resume a paused session where it was");
   for (const char* name : {"exercise", "mode"}) {
     CLI::App* sc = client(name, "switch the running session's exercise");
-    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp|tardieu|passive-rom|max-force")->required();
+    sc->add_option("name", t.exercise, "idle|assessment|resistance|assistance|record-pattern|playback|grasp|tardieu|passive-rom|max-force");
     sc->add_option("--params", t.params, "exercise parameters (JSON object)");
+    sc->add_option("--preset", t.preset, "a preset of the patient's profile (instead of the name)");
   }
   client("reset", "clear latched faults (e-stop reset) on the device");
   CLI::App* limits = client("limits", "show, or lower, the running session's limits");
@@ -284,10 +294,44 @@ inline void printFaultGuidance(const nlohmann::json& guidance) {
   }
 }
 
+/// One plan step in words: "resistance (preset gentle), 30 s, 10 repetitions".
+inline std::string planStepWords(const nlohmann::json& st) {
+  std::string w = jstr(st, "exercise");
+  if (st.contains("preset")) w += " (preset " + jstr(st, "preset") + ")";
+  w += ", " + jnum(st, "duration_s", 1) + " s";
+  if (st.value("target_repetitions", 0) > 0) w += ", " + jnum(st, "target_repetitions", 0) + " repetitions";
+  return w;
+}
+
+/// The session plan of a status or summary: where it is, then every step.
+inline void printPlan(const nlohmann::json& p, bool paused) {
+  if (!p.is_object()) return;
+  if (p.value("finished", false)) {
+    std::printf("  plan: all %s steps done\n", jnum(p, "steps", 0).c_str());
+  } else {
+    std::printf("  plan: step %s of %s, %s, %s s of %s s left, repetitions %s", jnum(p, "step", 0).c_str(),
+                jnum(p, "steps", 0).c_str(), jstr(p, "exercise").c_str(), jnum(p, "remaining_s", 1).c_str(),
+                jnum(p, "duration_s", 1).c_str(), jnum(p, "repetitions", 0).c_str());
+    if (p.value("target_repetitions", 0) > 0) std::printf(" of %s", jnum(p, "target_repetitions", 0).c_str());
+    std::printf("%s\n", paused ? " - PAUSED (the clock has stopped; phalanx resume continues)" : "");
+  }
+  int i = 0;
+  for (const auto& st : p.value("list", nlohmann::json::array())) {
+    std::printf("    %d. %s: %s", ++i, planStepWords(st).c_str(), jstr(st, "state").c_str());
+    if (jstr(st, "state") == "done") {
+      std::printf(", %s repetitions in %s s (%s)", jnum(st, "repetitions", 0).c_str(), jnum(st, "counted_s", 1).c_str(),
+                  jstr(st, "ended_by") == "repetitions" ? "target reached" : "its duration");
+    }
+    std::printf("\n");
+  }
+}
+
 inline void printSessionStatus(const nlohmann::json& s) {
   std::printf("session %s", s.value("phase", "?").c_str());
   if (s.contains("patient")) std::printf(", patient %s", s["patient"].get<std::string>().c_str());
   if (s.contains("exercise")) std::printf(", exercise %s", s["exercise"].get<std::string>().c_str());
+  if (s.value("paused", false)) std::printf(", PAUSED");
+  if (s.value("self_training", false)) std::printf(", self-training");
   if (s.contains("t_s")) {
     std::printf(", %s s, device %s, faults %s%s", humanNumber(s["t_s"].get<double>(), 1).c_str(),
                 s["device_mode"].get<std::string>().c_str(), s["faults"].get<std::string>().c_str(),
@@ -306,6 +350,7 @@ inline void printSessionStatus(const nlohmann::json& s) {
                   jnum(c, "effort_command", 3).c_str(), jnum(c, "effort_max", 3).c_str());
     }
   }
+  printPlan(s.value("plan", nlohmann::json()), s.value("paused", false));
   printFaultGuidance(s.value("fault_guidance", nlohmann::json()));
 }
 
@@ -329,6 +374,7 @@ inline void printEndSummary(const nlohmann::json& r) {
     if (r["report"].contains("path")) std::printf("report: %s\n", jstr(r["report"], "path").c_str());
     else std::printf("report: %s\n", jstr(r["report"], "error").c_str());
   }
+  printPlan(r.value("plan", nlohmann::json()), false);
   if (r.contains("error")) std::printf("the session ended with an error: %s\n", jstr(r, "error").c_str());
 }
 
@@ -346,9 +392,22 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
                 jstr(r, "record").c_str(), jstr(r, "report").c_str());
     const std::string prev = jstr(r, "previous_record", "");
     std::printf("previous session: %s\n", prev.empty() ? "none" : prev.c_str());
+    if (r.contains("plan_steps")) std::printf("session plan: %s steps (phalanx status shows where it is)\n", jnum(r, "plan_steps", 0).c_str());
+    if (r.contains("self_training")) {
+      std::printf("self-training: at most %s s, effort limits x %s\n", jnum(r["self_training"], "max_session_s", 1).c_str(),
+                  jnum(r["self_training"], "effort_scale", 2).c_str());
+    }
     return;
   }
   if (cmd == "stop") return printEndSummary(r);
+  if (cmd == "pause") {
+    std::printf("session paused: the device holds no effort and the plan's clock has stopped (phalanx resume continues)\n");
+    return;
+  }
+  if (cmd == "resume") {
+    std::printf("session resumed\n");
+    return;
+  }
   if (cmd == "exercise" || cmd == "mode") {
     std::printf("exercise %s: taken by the session at its next cycle\n", jstr(r, "exercise").c_str());
     return;
@@ -519,6 +578,49 @@ inline int runProgress(TherapyCli& t) {
 }
 
 /// Runs the parsed therapy/record subcommand; returns -1 if none of them was given.
+/// A YAML node as JSON: mappings, lists, and scalars as whole numbers, numbers, true/false or strings. The daemon
+/// validates the plan's fields; this only checks the file (size, syntax, duplicate keys).
+inline nlohmann::json yamlToJson(const YAML::Node& n) {
+  if (n.IsMap()) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const auto& kv : n) j[kv.first.as<std::string>()] = yamlToJson(kv.second);
+    return j;
+  }
+  if (n.IsSequence()) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const auto& e : n) j.push_back(yamlToJson(e));
+    return j;
+  }
+  if (!n.IsScalar()) return nullptr;
+  const std::string& s = n.Scalar();
+  if (n.Tag() == "!") return s;  // quoted: a string
+  long long i = 0;
+  double d = 0.0;
+  bool b = false;
+  if (YAML::convert<long long>::decode(n, i)) return i;
+  if (YAML::convert<double>::decode(n, d)) return d;
+  if (YAML::convert<bool>::decode(n, b)) return b;
+  return s;
+}
+
+/// --plan FILE: a YAML session plan (docs/therapy.md "Session plan") as the JSON of the start request.
+inline std::string readPlanFile(const std::string& path, nlohmann::json& out) {
+  std::ifstream in(path);
+  if (!in) return path + ": cannot read: " + std::strerror(errno);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  if (ss.str().size() > 64 * 1024) return path + ": larger than 64 KiB (a plan is a few hundred bytes)";
+  try {
+    const YAML::Node root = YAML::Load(ss.str());
+    if (std::string dup = findDuplicateKey(root); !dup.empty()) return path + ": " + dup;
+    if (!root.IsMap()) return path + ": expected a mapping with steps: [...]";
+    out = yamlToJson(root);
+  } catch (const YAML::Exception& e) {
+    return path + ": YAML syntax error at line " + std::to_string(e.mark.line + 1) + ": " + e.msg;
+  }
+  return {};
+}
+
 inline int runTherapyCommands(TherapyCli& t) {
   if (t.record->parsed() && t.rec_replay->parsed()) return runReplay(t);
   if (t.record->parsed()) {
@@ -597,13 +699,28 @@ inline int runTherapyCommands(TherapyCli& t) {
     } else {
       if (name == "start") {
         if (!t.patient.empty()) req["patient"] = t.patient;
-        req["exercise"] = t.exercise;
+        if (t.cmds["start"]->count("--exercise") > 0 || (t.preset.empty() && t.plan_file.empty())) req["exercise"] = t.exercise;
+        if (!t.preset.empty()) req["preset"] = t.preset;
+        if (t.self_training) req["self_training"] = true;
+        if (!t.plan_file.empty()) {
+          if (const std::string err = readPlanFile(t.plan_file, req["plan"]); !err.empty()) {
+            std::fprintf(stderr, "phalanx: error: --plan %s\n", err.c_str());
+            return 2;
+          }
+        }
         if (!t.device.empty()) req["device"] = t.device;
         if (!t.scenario.empty()) req["scenario"] = t.scenario;
         if (t.seconds >= 0) req["seconds"] = t.seconds;
         if (t.seed >= 0) req["seed"] = t.seed;
       }
-      if (name == "exercise" || name == "mode") req["exercise"] = t.exercise;
+      if (name == "exercise" || name == "mode") {
+        if (!t.preset.empty()) req["preset"] = t.preset;
+        if (t.preset.empty() && t.cmds[name]->count("name") == 0) {
+          std::fprintf(stderr, "phalanx: error: %s: give an exercise name or --preset NAME\n", name.c_str());
+          return 2;
+        }
+        if (t.cmds[name]->count("name") > 0) req["exercise"] = t.exercise;
+      }
       if ((name == "start" || name == "exercise" || name == "mode") && !t.params.empty()) {
         req["params"] = nlohmann::json::parse(t.params, nullptr, false);
         if (req["params"].is_discarded()) {

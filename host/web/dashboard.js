@@ -168,6 +168,45 @@ function showStatus(st) {
   document.getElementById('stop').disabled = !running;
   document.getElementById('reset').disabled = !running;
   document.getElementById('start').disabled = running;
+  document.getElementById('pause').disabled = !running || !!st.paused;
+  document.getElementById('resume').disabled = !running || !st.paused;
+  showPlan(running ? st.plan : null, !!st.paused);
+}
+
+// The session plan: where it is (countdown, repetitions) and every step.
+function planStepText(s) {
+  let t = s.exercise + (s.preset ? ' (preset ' + s.preset + ')' : '') + ', ' + s.duration_s + ' s';
+  if (s.target_repetitions > 0) t += ', ' + s.target_repetitions + ' repetitions';
+  t += ': ' + s.state;
+  if (s.state === 'done') {
+    t += ', ' + s.repetitions + ' repetitions in ' + s.counted_s.toFixed(1) + ' s (' +
+         (s.ended_by === 'repetitions' ? 'target reached' : 'its duration') + ')';
+  }
+  return t;
+}
+function showPlan(p, paused) {
+  const box = document.getElementById('plan');
+  if (!p || typeof p !== 'object') { box.style.display = 'none'; return; }
+  box.style.display = 'block';
+  document.getElementById('plan-step').textContent = String(p.step);
+  document.getElementById('plan-steps').textContent = String(p.steps);
+  document.getElementById('plan-exercise').textContent = p.exercise + (p.preset ? ' (preset ' + p.preset + ')' : '');
+  document.getElementById('plan-remaining').textContent = p.finished ? 'no time' : p.remaining_s.toFixed(1);
+  document.getElementById('plan-reps').textContent =
+      String(p.repetitions) + (p.target_repetitions > 0 ? ' of ' + p.target_repetitions : '');
+  document.getElementById('plan-paused').hidden = !paused;
+  const list = document.getElementById('plan-list');
+  const items = (p.list || []).map(planStepText);
+  const key = JSON.stringify(items);
+  if (list.dataset.key === key) return;
+  list.textContent = '';
+  (p.list || []).forEach((s, i) => {
+    const li = document.createElement('li');
+    li.className = s.state === 'to do' ? 'todo' : s.state;
+    li.textContent = items[i];
+    list.append(li);
+  });
+  list.dataset.key = key;
 }
 
 // `phalanx record replay FILE --dashboard`: the file, its speed and the replay time over the total; its
@@ -224,6 +263,32 @@ function showGuidance(list) {
   box.style.display = 'block';
 }
 
+// The presets of the chosen patient, listed in the exercise choice as "preset:<name>".
+let profilesById = {};
+function showPresets() {
+  const sel = document.getElementById('exercise-select');
+  const old = document.getElementById('preset-group');
+  if (old) old.remove();
+  const p = profilesById[document.getElementById('patient-select').value];
+  const names = p && p.presets ? Object.keys(p.presets) : [];
+  if (names.length === 0) return;
+  const g = document.createElement('optgroup');
+  g.id = 'preset-group';
+  g.label = 'presets of ' + p.patient;
+  for (const n of names) {
+    const o = document.createElement('option');
+    o.value = 'preset:' + n;
+    o.textContent = n + ' (' + p.presets[n].exercise + ')';
+    g.append(o);
+  }
+  sel.prepend(g);
+}
+/// The exercise choice as request fields: {preset} or {exercise}.
+function chosenExercise() {
+  const v = document.getElementById('exercise-select').value;
+  return v.startsWith('preset:') ? { preset: v.slice(7) } : { exercise: v };
+}
+
 // The exercise list shows the running exercise unless the therapist picked another one to change to.
 let shownExercise = null;
 let exercisePicked = false;
@@ -244,9 +309,11 @@ async function loadProfiles() {
   const sel = document.getElementById('patient-select');
   const keep = sel.value;
   while (sel.options.length > 1) sel.remove(1);
+  profilesById = {};
   for (const p of a.result) {
     const o = document.createElement('option');
     if (p.valid) {
+      profilesById[p.patient] = p;
       o.value = p.patient;
       o.textContent = p.patient + ' (' + p.device + ')';
     } else {
@@ -258,6 +325,7 @@ async function loadProfiles() {
     sel.append(o);
   }
   if ([...sel.options].some((o) => o.value === keep && !o.disabled)) sel.value = keep;
+  showPresets();
 }
 
 async function poll() {
@@ -310,12 +378,22 @@ document.getElementById('stop').addEventListener('click', () => request({ cmd: '
 document.getElementById('reset').addEventListener('click', () => request({ cmd: 'reset' }));
 document.getElementById('exercise-select').addEventListener('change', () => { exercisePicked = true; });
 document.getElementById('patient-select').addEventListener('focus', loadProfiles);
+document.getElementById('patient-select').addEventListener('change', showPresets);
 document.getElementById('change').addEventListener('click',
-  () => request({ cmd: 'exercise', exercise: document.getElementById('exercise-select').value }));
+  () => request(Object.assign({ cmd: 'exercise' }, chosenExercise())));
+document.getElementById('pause').addEventListener('click', () => request({ cmd: 'pause' }));
+document.getElementById('resume').addEventListener('click', () => request({ cmd: 'resume' }));
 document.getElementById('start').addEventListener('click', () => {
-  const body = { cmd: 'start', exercise: document.getElementById('exercise-select').value };
+  const body = { cmd: 'start' };
+  const text = document.getElementById('plan-input').value.trim();
+  if (text) {
+    try { body.plan = JSON.parse(text); } catch (e) { message('plan: not valid JSON: ' + e.message, true); return; }
+  } else {
+    Object.assign(body, chosenExercise());
+  }
   const p = document.getElementById('patient-select').value;
   if (p) body.patient = p;
+  if (document.getElementById('self-training').checked) body.self_training = true;
   request(body);
 });
 if (!TOKEN) message('no access token: open the URL phalanxd printed (…/#token=…)', true);

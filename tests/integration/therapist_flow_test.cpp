@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <climits>
@@ -18,6 +19,7 @@
 #include <thread>
 
 #include "phalanx/host/api/client.h"
+#include "phalanx/host/record/record_reader.h"
 #include "process.h"
 
 using phalanx::test::binPath;
@@ -86,7 +88,15 @@ class Daemon {
                                      // and a 100 ms command timeout: a loaded machine's stalls do not latch
                                      // faults of their own before the one the test causes.
                                      "--command-timeout-ms", "100"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
+    // An option of `extra` that is already above replaces its value (e.g. a longer --command-timeout-ms).
+    for (std::size_t i = 0; i < extra.size(); ++i) {
+      const auto at = extra[i].rfind("--", 0) == 0 ? std::find(argv.begin(), argv.end(), extra[i]) : argv.end();
+      if (at != argv.end() && at + 1 != argv.end() && i + 1 < extra.size()) {
+        *(at + 1) = extra[++i];
+      } else {
+        argv.push_back(extra[i]);
+      }
+    }
     proc_ = std::make_unique<Process>(argv);
     EXPECT_EQ(proc_->readStdoutLine(10000), "API " + socket_) << proc_->stderrText();
   }
@@ -417,4 +427,287 @@ TEST(TherapistFlow, AFaultIsExplainedAndTheLockedTimeIsLeftOutOfTheReport) {
   Process refuse({"/usr/bin/env", "python3", std::string(PHALANX_SOURCE_DIR) + "/tools/fhir-validate.py", d.dir() + "/broken.json"});
   EXPECT_EQ(refuse.wait(60000), 1) << refuse.stdoutText();
   EXPECT_NE(refuse.stdoutText().find("status"), std::string::npos) << refuse.stdoutText();
+}
+
+// ---- Issue #25 item 2: session plans, presets, pause/resume, self-training (docs/therapy.md "Session plan") ----
+namespace {
+
+const char* kPlanProfile =
+    "version: 1\npatient: p-plan\ndevice: glove5\n"
+    "rom_deg: {index_mcp: [0, 70], index_pip: [0, 90], index_dip: [0, 40]}\n"
+    "limits:\n  effort_max: {default: 3.0}\n"
+    "presets:\n  gentle: {exercise: resistance, params: {stiffness_per_rad: 0.5}}\n"
+    "  strong: {exercise: resistance, params: {stiffness_per_rad: 8}}\n"
+    "self_training:\n  allowed: [strong, assessment]\n  max_session_s: 4\n  effort_scale: 0.5\n";
+
+/// A daemon whose profiles directory also holds p-plan (presets, self-training). A 1 s command timeout: these
+/// tests count session time, and a loaded machine's stalls must not latch faults that stop the plan's clock.
+struct PlanDaemon : Daemon {
+  PlanDaemon() : Daemon("records", {"--command-timeout-ms", "1000"}) { std::ofstream(dir() + "/p-plan.yaml") << kPlanProfile; }
+  /// The refusal of a request ("" when it was accepted).
+  std::string refusal(const nlohmann::json& req) {
+    nlohmann::json resp;
+    EXPECT_EQ(phalanx::host::api::call(socket(), req, resp), "");
+    return resp.value("ok", false) ? "" : resp.value("error", std::string("?"));
+  }
+  nlohmann::json plan() { return api({{"cmd", "status"}})["session"].value("plan", nlohmann::json()); }
+};
+
+bool ended(const nlohmann::json& s) { return !s.value("session_running", true) && s.contains("last_session"); }
+
+/// The record of the last session, read with the project's reader.
+phalanx::host::record::SessionRecord lastRecord(Daemon& d) {
+  const nlohmann::json st = d.api({{"cmd", "status"}});
+  phalanx::host::record::SessionRecord rec;
+  const std::string path = st["last_session"]["session_record"].value("path", std::string());
+  EXPECT_EQ(phalanx::host::record::readRecord(path, rec), "") << path;
+  return rec;
+}
+
+std::size_t auxIndex(const phalanx::host::record::SessionRecord& rec, const std::string& name) {
+  const auto& names = rec.header["aux"];
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == name) return i;
+  }
+  ADD_FAILURE() << "no aux " << name;
+  return 0;
+}
+
+std::vector<nlohmann::json> eventsOf(const phalanx::host::record::SessionRecord& rec, const std::string& kind) {
+  std::vector<nlohmann::json> out;
+  for (const auto& e : rec.events) {
+    if (e.value("kind", std::string()) == kind) out.push_back(e);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(SessionPlanFlow, ABadPlanIsRefusedNamingTheFieldAndChangesNothing) {
+  PlanDaemon d;
+  const nlohmann::json ok_step = {{"exercise", "assessment"}, {"duration_s", 5}};
+  const std::vector<std::pair<nlohmann::json, std::string>> cases = {
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", {{"steps", {ok_step, {{"exercise", "resistence"}, {"duration_s", 5}}}}}}},
+       "plan.steps[1].exercise: 'resistence' is not one of idle, assessment, resistance, assistance, record-pattern, "
+       "playback, grasp, tardieu, passive-rom, max-force"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", {{"steps", {{{"exercise", "assessment"}, {"duration_s", 0}}}}}}},
+       "plan.steps[0].duration_s: must be in (0, 3600] s, got 0"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", {{"steps", {{{"preset", "gentel"}, {"duration_s", 5}}}}}}},
+       "plan.steps[0].preset: 'gentel' is not a preset of patient p-plan (presets: gentle, strong)"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"exercise", "assessment"}, {"plan", {{"steps", {ok_step}}}}},
+       "field 'plan': a plan names each step's exercise (leave out exercise, preset and params)"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"preset", "gentle"}, {"params", nlohmann::json::object()}},
+       "field 'preset': give a preset or an exercise with params, not both"},
+      {{{"cmd", "start"}, {"preset", "gentle"}}, "field 'preset': 'gentle' is not a preset of this session (no patient profile)"},
+      {{{"cmd", "start"}, {"patient", "p-ok"}, {"self_training", true}},
+       "field 'self_training': the profile of patient p-ok does not allow self-training (it has no self_training section)"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"self_training", true}, {"plan", {{"steps", {{{"preset", "gentle"}, {"duration_s", 5}}}}}}},
+       "plan.steps[0]: 'gentle' is not allowed in self-training for patient p-plan (allowed: assessment, strong)"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"self_training", true}, {"exercise", "resistance"}},
+       "self-training: 'resistance' is not allowed for patient p-plan (allowed: assessment, strong)"},
+      {{{"cmd", "start"}, {"self_training", "yes"}}, "field 'self_training': expected true or false"},
+      {{{"cmd", "pause"}}, "no session is running (nothing to pause)"},
+      {{{"cmd", "resume"}}, "no session is running (nothing to resume)"},
+      {{{"cmd", "pause"}, {"now", true}}, "field 'now' is not accepted by 'pause' (it takes no fields)"},
+  };
+  for (const auto& [req, error] : cases) {
+    EXPECT_EQ(d.refusal(req), error) << req.dump();
+    EXPECT_FALSE(d.api({{"cmd", "status"}})["session_running"].get<bool>()) << req.dump();
+  }
+  EXPECT_TRUE(d.api({{"cmd", "recordings"}}).empty()) << "a refused start creates no record";
+  // The CLI passes a plan file through; a bad one is refused by the daemon word for word, exit 1.
+  std::ofstream(d.dir() + "/bad-plan.yaml") << "steps:\n  - {exercise: assessment, duration_s: 5, repetitions: 2.5}\n";
+  int rc = 0;
+  Process& bad = d.cli({"start", "--patient", "p-plan", "--plan", d.dir() + "/bad-plan.yaml"}, &rc);
+  EXPECT_EQ(rc, 1);
+  EXPECT_EQ(bad.stderrText(), "phalanx: refused: plan.steps[0].repetitions: expected a whole number from 0 to 1000\n");
+  std::ofstream(d.dir() + "/dup-plan.yaml") << "steps: []\nsteps: []\n";
+  Process& dup = d.cli({"start", "--patient", "p-plan", "--plan", d.dir() + "/dup-plan.yaml"}, &rc);
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(dup.stderrText().find("dup-plan.yaml: steps: duplicate key (line 2; first at line 1)"), std::string::npos)
+      << dup.stderrText();
+  // The profiles listing carries the presets for the dashboard's exercise choice.
+  bool listed = false;
+  for (const auto& p : d.api({{"cmd", "profiles"}})) {
+    if (p.value("patient", "") != "p-plan") continue;
+    listed = true;
+    EXPECT_EQ(p["presets"]["strong"]["exercise"], "resistance");
+    EXPECT_EQ(p["presets"]["strong"]["params"]["stiffness_per_rad"], 8);
+    EXPECT_TRUE(p["self_training"].get<bool>());
+  }
+  EXPECT_TRUE(listed);
+}
+
+TEST(SessionPlanFlow, APlanStepsOnAtItsRepetitionsOrItsDurationCountedFromTheHandsMotion) {
+  PlanDaemon d;
+  // Index channel: the profile's range 0…200° (70 + 90 + 40), thresholds 50° / 150°; the simulated hand closes and
+  // opens every 1.5 s (glove_plant.cpp kCloseOpen: q_index ≈ 13° … 234°).
+  std::ofstream(d.dir() + "/plan.yaml") << "steps:\n  - {exercise: assessment, duration_s: 60, repetitions: 3}\n"
+                                           "  - {preset: gentle, duration_s: 2}\n";
+  int rc = 0;
+  Process& start = d.cli({"start", "--patient", "p-plan", "--plan", d.dir() + "/plan.yaml"}, &rc);
+  ASSERT_EQ(rc, 0) << start.stdoutText() << start.stderrText();
+  const std::string status = d.cli({"status"}, &rc).stdoutText();
+  std::printf("--- phalanx status during a plan\n%s", status.c_str());
+  EXPECT_NE(status.find("  plan: step 1 of 2, assessment, "), std::string::npos) << status;
+  EXPECT_NE(status.find("    1. assessment, 60 s, 3 repetitions: running"), std::string::npos) << status;
+  EXPECT_NE(status.find("    2. resistance (preset gentle), 2 s: to do"), std::string::npos) << status;
+  // The exercise shown is the one the step runs.
+  const nlohmann::json second = waitFor(d, [](const nlohmann::json& s) {
+    return !s.value("session_running", false) ||
+           (s["session"]["plan"].value("step", 0) == 2 && s["session"].value("exercise", "") == "resistance");
+  });
+  ASSERT_TRUE(second["session_running"].get<bool>()) << "the session ended before step 2 showed: " << second.dump();
+  EXPECT_EQ(second["session"]["plan"]["preset"], "gentle");
+  EXPECT_EQ(second["session"]["plan"]["list"][0]["repetitions"], 3);
+  // The last step's end ends the session by itself.
+  const nlohmann::json end = waitFor(d, ended, 30000);
+  ASSERT_TRUE(ended(end)) << end.dump();
+  const nlohmann::json& list = end["last_session"]["plan"]["list"];
+  EXPECT_EQ(list[0]["ended_by"], "repetitions");
+  EXPECT_EQ(list[0]["repetitions"], 3);
+  EXPECT_EQ(list[1]["ended_by"], "duration");
+  EXPECT_GE(list[1]["counted_s"].get<double>(), 2.0);
+  EXPECT_LT(list[1]["counted_s"].get<double>(), 2.01);
+
+  const auto rec = lastRecord(d);
+  const auto steps = eventsOf(rec, "plan-step-ended");
+  ASSERT_EQ(steps.size(), 2u);
+  const double t_end0 = steps[0]["t_s"].get<double>();
+  // Nothing paused or faulted: the step's counted time is its session time.
+  EXPECT_NEAR(steps[0]["counted_s"].get<double>(), t_end0 - rec.cycles.front().t_s, 0.05);
+  // The hand's maneuvers in the recorded index coordinate up to step 0's end, counted independently: a close
+  // through the range's middle (100°) and back. The counter needs an extended start (≤ 50°) before its first, so
+  // the hand completed 3 maneuvers, or 4 when the session began on the way up.
+  const std::size_t q = auxIndex(rec, "q_index_rad");
+  int maneuvers = 0;
+  bool above = static_cast<double>(rec.cycles.front().aux[q]) * 180.0 / M_PI > 100.0, closed = false;
+  for (const auto& c : rec.cycles) {
+    if (c.t_s > t_end0) break;
+    const bool now_above = static_cast<double>(c.aux[q]) * 180.0 / M_PI > 100.0;
+    if (now_above && !above) closed = true;
+    if (!now_above && above && closed) ++maneuvers;
+    above = now_above;
+  }
+  EXPECT_GE(maneuvers, 3);
+  EXPECT_LE(maneuvers, 4);
+  // 3 maneuvers of the 1.5 s cycle take at least 2 periods, and at most 4 plus the 0.5 s lead-in.
+  EXPECT_GE(steps[0]["counted_s"].get<double>(), 3.0);
+  EXPECT_LE(steps[0]["counted_s"].get<double>(), 6.5);
+  // The next exercise started where step 0 ended (the loop took it from the plan at its next cycle).
+  bool resistance_started = false;
+  for (const auto& e : eventsOf(rec, "exercise-started")) {
+    if (e["exercise_id"] == 2) {
+      resistance_started = true;
+      EXPECT_NEAR(e["t_s"].get<double>(), t_end0, 0.01);
+    }
+  }
+  EXPECT_TRUE(resistance_started);
+  const std::string report = slurp(end["last_session"]["report"]["path"].get<std::string>());
+  EXPECT_NE(report.find("<h2>Session plan</h2>"), std::string::npos);
+  EXPECT_NE(report.find("done: 3 repetitions in "), std::string::npos);
+  EXPECT_NE(report.find("resistance (preset gentle)"), std::string::npos);
+}
+
+TEST(SessionPlanFlow, PauseStopsThePlansClockInSessionTimeAndStopEndsAPausedSession) {
+  PlanDaemon d;
+  ASSERT_EQ(d.refusal({{"cmd", "start"}, {"patient", "p-plan"},
+                       {"plan", {{"steps", {{{"preset", "gentle"}, {"duration_s", 120}}}}}}}),
+            "");
+  auto t_of = [](const nlohmann::json& s) { return s["session"].value("t_s", 0.0); };
+  const nlohmann::json running = waitFor(d, [&](const nlohmann::json& s) { return s.contains("session") && t_of(s) > 1.0; });
+  ASSERT_GT(t_of(running), 1.0);
+  EXPECT_EQ(d.refusal({{"cmd", "resume"}}), "the session is not paused");
+  ASSERT_EQ(d.refusal({{"cmd", "pause"}}), "");
+  EXPECT_EQ(d.refusal({{"cmd", "pause"}}), "the session is already paused (resume continues it)");
+  EXPECT_EQ(d.refusal({{"cmd", "exercise"}, {"exercise", "assessment"}}),
+            "the session follows a plan (step 1 of 1): its steps change the exercise");
+  // Held: transparent, zero effort. Then a whole second of session time passes with the plan's clock stopped.
+  const nlohmann::json held = waitFor(d, [&](const nlohmann::json& s) { return s["session"].value("device_mode", "") == "transparent"; });
+  ASSERT_EQ(held["session"]["device_mode"], "transparent") << held.dump();
+  const double t1 = t_of(held);
+  const nlohmann::json a = waitFor(d, [&](const nlohmann::json& s) { return t_of(s) > t1 + 0.1; });
+  const nlohmann::json b = waitFor(d, [&](const nlohmann::json& s) { return t_of(s) > t_of(a) + 1.0; });
+  ASSERT_GT(t_of(b), t_of(a) + 1.0);
+  EXPECT_EQ(a["session"]["plan"]["elapsed_s"], b["session"]["plan"]["elapsed_s"]) << "paused: the clock stood still";
+  EXPECT_TRUE(b["session"]["paused"].get<bool>());
+  int rc = 0;
+  const std::string words = d.cli({"status"}, &rc).stdoutText();
+  EXPECT_NE(words.find(", PAUSED"), std::string::npos) << words;
+  EXPECT_NE(words.find("PAUSED (the clock has stopped; phalanx resume continues)"), std::string::npos) << words;
+  const double e_paused = b["session"]["plan"]["elapsed_s"].get<double>();
+  d.cli({"resume"}, &rc);
+  EXPECT_EQ(rc, 0);
+  const nlohmann::json resumed = waitFor(d, [&](const nlohmann::json& s) {
+    return s["session"]["plan"].value("elapsed_s", 0.0) > e_paused + 0.5 && s["session"].value("device_mode", "") == "setpoint";
+  });
+  EXPECT_GT(resumed["session"]["plan"]["elapsed_s"].get<double>(), e_paused + 0.5) << resumed.dump();
+  d.cli({"pause"}, &rc);
+  EXPECT_EQ(rc, 0);
+  waitFor(d, [&](const nlohmann::json& s) { return s["session"].value("device_mode", "") == "transparent"; });
+  // STOP of a paused session ends it at once.
+  const auto t0 = std::chrono::steady_clock::now();
+  Process& stop = d.cli({"stop"}, &rc);
+  EXPECT_EQ(rc, 0) << stop.stderrText();
+  EXPECT_FALSE(d.api({{"cmd", "status"}})["session_running"].get<bool>());
+  std::printf("stop of a paused session answered in %.2f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  EXPECT_NE(stop.stdoutText().find("device left safe"), std::string::npos) << stop.stdoutText();
+
+  // The record: both pauses and the resume as events; while held, every command transparent with zero effort;
+  // the plan counted exactly the session time outside the pauses.
+  const auto rec = lastRecord(d);
+  const auto pauses = eventsOf(rec, "api-pause"), resumes = eventsOf(rec, "api-resume");
+  ASSERT_EQ(pauses.size(), 2u);
+  ASSERT_EQ(resumes.size(), 1u);
+  const double p1 = pauses[0]["t_s"].get<double>(), r1 = resumes[0]["t_s"].get<double>(), p2 = pauses[1]["t_s"].get<double>();
+  std::vector<std::size_t> cmd_aux;
+  for (const char* ch : {"thumb", "index", "middle", "ring", "little"}) cmd_aux.push_back(auxIndex(rec, std::string("effort_cmd_") + ch));
+  long held_cycles = 0;
+  for (const auto& c : rec.cycles) {
+    // The event's time is the status's, up to 20 ms old: the loop holds from the cycle after the request.
+    if (!((c.t_s > p1 + 0.05 && c.t_s < r1) || c.t_s > p2 + 0.05)) continue;
+    ++held_cycles;
+    EXPECT_EQ(c.cmd_mode, 1) << "transparent at t " << c.t_s;
+    for (const std::size_t i : cmd_aux) EXPECT_EQ(c.aux[i], 0.0f) << "zero effort at t " << c.t_s;
+    if (HasFailure()) break;
+  }
+  EXPECT_GT(held_cycles, 500);
+  const double counted = d.api({{"cmd", "status"}})["last_session"]["plan"]["elapsed_s"].get<double>();
+  const double outside = (p1 - rec.cycles.front().t_s) + (p2 - r1);
+  EXPECT_NEAR(counted, outside, 0.1) << "the plan's clock counts session time outside the pauses";
+}
+
+TEST(SessionPlanFlow, SelfTrainingRunsWithinItsLimitsAndEndsAtItsMaximumLength) {
+  PlanDaemon d;
+  int rc = 0;
+  Process& start = d.cli({"start", "--patient", "p-plan", "--self-training", "--preset", "strong"}, &rc);
+  ASSERT_EQ(rc, 0) << start.stdoutText() << start.stderrText();
+  // The profile's 3 N, halved by effort_scale; the limits request can lower it, never raise it again.
+  const nlohmann::json limits = d.api({{"cmd", "limits"}});
+  EXPECT_DOUBLE_EQ(limits["effort_max"]["index"].get<double>(), 1.5) << limits.dump();
+  EXPECT_EQ(d.refusal({{"cmd", "limits"}, {"effort_max", {{"index", 2.0}}}}),
+            "limits.effort_max.index: must be in (0, 1.500000] N (the patient profile's limit; edit the profile to raise it)");
+  EXPECT_EQ(d.refusal({{"cmd", "exercise"}, {"preset", "gentle"}}),
+            "self-training: 'gentle' is not allowed for patient p-plan (allowed: assessment, strong)");
+  EXPECT_TRUE(d.api({{"cmd", "status"}})["session"].value("self_training", false));
+  // No --seconds: the session ends at the profile's max_session_s (4 s) by itself.
+  const nlohmann::json end = waitFor(d, ended, 30000);
+  ASSERT_TRUE(ended(end)) << end.dump();
+  const auto rec = lastRecord(d);
+  const double length = rec.cycles.back().t_s - rec.cycles.front().t_s;
+  // As `seconds` does: 4 s = 4000 cycles of the 1 kHz loop (late cycles on a loaded machine stretch t_s a little).
+  const long cycles = end["last_session"].value("cycles", 0L);
+  EXPECT_LE(cycles, 4000) << end["last_session"].dump();
+  EXPECT_GE(cycles, 3990) << end["last_session"].dump();
+  EXPECT_EQ(rec.header["self_training"]["effort_scale"], 0.5);
+  // Every commanded effort within the self-training limit, which the stiff preset (8 N/rad) reaches.
+  double peak = 0.0;
+  for (const char* ch : {"thumb", "index", "middle", "ring", "little"}) {
+    const std::size_t i = auxIndex(rec, std::string("effort_cmd_") + ch);
+    for (const auto& c : rec.cycles) peak = std::max(peak, static_cast<double>(std::fabs(c.aux[i])));
+  }
+  std::printf("self-training: peak commanded effort %.4f N (limit 1.5 N), %ld cycles, %.3f s\n", peak, cycles, length);
+  EXPECT_LE(peak, 1.5 + 1e-6);
+  EXPECT_GE(peak, 1.5 - 1e-3) << "the limit was reached (so the check above could fail)";
 }

@@ -141,6 +141,7 @@ class Proxy(threading.Thread):
         self.injected = {}
         self.stop_flag = False
         self.buf = b""
+        self.trace = {"to_fw_bytes": 0, "to_host_bytes": 0, "write_fw_since": None, "write_host_since": None}
 
     def request(self, kind, frames, rng):
         with self.lock:
@@ -174,18 +175,31 @@ class Proxy(threading.Thread):
         return bytes(body) + b"\0"
 
     def run(self):
+        try:
+            self._forward()
+            self.trace["exit"] = "stopped" if self.stop_flag else "returned"
+        except BaseException as e:  # evidence for the episode's meta.json
+            self.trace["exit"] = repr(e)
+            raise
+
+    def _forward(self):
+        t = self.trace
         while not self.stop_flag:
             r, _, _ = select.select([self.fw, self.master], [], [], 0.05)
             stalled = time.monotonic() < self.stall_until
             for fd in r:
                 try:
                     data = os.read(fd, 4096)
-                except OSError:
+                except OSError as e:
+                    t["exit_read_error"] = repr(e)
                     return
                 if not data or stalled:
                     continue  # a held link: the bytes are lost, as on a cable pulled for a while
                 if fd == self.master:
+                    t["write_fw_since"] = time.monotonic()
                     os.write(self.fw, data)
+                    t["write_fw_since"] = None
+                    t["to_fw_bytes"] += len(data)
                     continue
                 self.buf += data
                 out = []
@@ -195,9 +209,13 @@ class Proxy(threading.Thread):
                     self.buf = self.buf[i:]
                 if out:
                     try:
+                        t["write_host_since"] = time.monotonic()
                         os.write(self.master, b"".join(out))
-                    except OSError:
-                        pass
+                        t["write_host_since"] = None
+                        t["to_host_bytes"] += sum(len(x) for x in out)
+                    except OSError as e:
+                        t["write_host_errors"] = t.get("write_host_errors", 0) + 1
+                        t["write_host_error"] = repr(e)
 
     def close(self):
         self.stop_flag = True
@@ -285,6 +303,9 @@ def ep_link(ep, b, device, kind):
             break
         time.sleep(ep.rng.uniform(0.15, 0.5))
     d.wait(60)
+    now = time.monotonic()
+    ep.meta["proxy"] = {k: (round(now - v, 3) if k.endswith("_since") and v else v) for k, v in px.trace.items()}
+    ep.meta["proxy"]["alive"] = px.is_alive()
     px.close()
     for k, v in px.injected.items():
         ep.inject(k, v)

@@ -515,7 +515,8 @@ void Dashboard::publish(const nlohmann::json& resp) {
   if (r.contains("session")) {
     const nlohmann::json& s = r["session"];
     for (const char* k : {"phase", "patient", "record", "device", "exercise", "t_s", "cycles", "device_mode", "faults",
-                          "estop", "limited_cycles", "effort_unit", "fault_guidance", "replay"}) {
+                          "estop", "limited_cycles", "effort_unit", "fault_guidance", "paused", "plan",
+                          "self_training", "replay"}) {
       if (s.contains(k)) st[k] = s[k];
     }
     session = s.value("record", std::string()) + "|" + s.value("device", std::string());

@@ -21,6 +21,7 @@
 #include <regex>
 #include <set>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "phalanx/host/api/dashboard.h"
@@ -28,6 +29,7 @@
 #include "phalanx/host/config.h"
 #include "phalanx/host/therapy/profile.h"
 #include "phalanx/host/therapy/records_dir.h"
+#include "phalanx/host/therapy/session_plan.h"
 #include "phalanx/host/therapy/therapy_session.h"
 
 namespace phalanx::host::api {
@@ -166,8 +168,9 @@ class Daemon {
   nlohmann::json dispatch(const std::string& cmd, const nlohmann::json& req) {
     if (cmd == "version") {
       allowFields(req, {});
-      return {{"api_version", kApiVersion}, {"commands", {"version", "status", "start", "stop", "exercise", "reset",
-                                                          "limits", "profiles", "profile", "recordings"}}};
+      return {{"api_version", kApiVersion}, {"commands", {"version", "status", "start", "stop", "pause", "resume",
+                                                          "exercise", "reset", "limits", "profiles", "profile",
+                                                          "recordings"}}};
     }
     if (cmd == "status") {
       allowFields(req, {});
@@ -181,15 +184,23 @@ class Daemon {
       if (!was_running) throw RequestError{"no session is running"};
       return stopLocked();  // waits for the session's end: record closed, report written
     }
+    if (cmd == "pause" || cmd == "resume") {
+      allowFields(req, {});
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!running()) throw RequestError{"no session is running (nothing to " + cmd + ")"};
+      const std::string err = cmd == "pause" ? session_->pause() : session_->resume();
+      if (!err.empty()) throw RequestError{err};
+      return {{"paused", cmd == "pause"}};
+    }
     if (cmd == "exercise" || cmd == "mode") {
-      allowFields(req, {"exercise", "params"});
-      if (!req.contains("exercise") || !req["exercise"].is_string()) throw RequestError{"missing string field 'exercise'"};
+      allowFields(req, {"exercise", "params", "preset"});
       std::lock_guard<std::mutex> lock(mutex_);
       if (!running()) throw RequestError{"no session is running"};
-      const std::string err = session_->setExercise(req["exercise"].get<std::string>(),
-                                                    req.contains("params") ? req["params"] : nlohmann::json());
+      const auto [name, params] = exerciseOrPreset(req, session_->config().profile, session_->config().have_profile);
+      if (session_->config().self_training) checkSelfTrainingStep(session_->config().profile, req.contains("preset") ? strField(req, "preset", "") : name);
+      const std::string err = session_->setExercise(name, params);
       if (!err.empty()) throw RequestError{err};
-      return {{"exercise", req["exercise"]}};
+      return {{"exercise", name}};
     }
     if (cmd == "reset") {
       allowFields(req, {});
@@ -214,7 +225,9 @@ class Daemon {
       for (const auto& f : listDir(cfg_.profiles_dir, ".yaml")) {
         therapy::Profile p;
         const std::string err = therapy::loadProfileFile(cfg_.profiles_dir + "/" + f, p);
-        out.push_back(err.empty() ? nlohmann::json{{"file", f}, {"patient", p.patient}, {"device", p.device}, {"valid", true}}
+        out.push_back(err.empty() ? nlohmann::json{{"file", f}, {"patient", p.patient}, {"device", p.device}, {"valid", true},
+                                                   {"presets", therapy::presetsJson(p)},
+                                                   {"self_training", p.self_training.allowed}}
                                   : nlohmann::json{{"file", f}, {"valid", false}, {"error", err}});
       }
       return out;
@@ -225,8 +238,13 @@ class Daemon {
       loadPatient(strField(req, "patient", ""), p);
       nlohmann::json rom = nlohmann::json::object();
       for (const auto& [j, r] : p.rom_rad) rom[j] = {r.first * 180.0 / M_PI, r.second * 180.0 / M_PI};
-      return {{"patient", p.patient}, {"device", p.device}, {"size", p.size}, {"handedness", p.handedness},
-              {"rom_deg", rom}, {"file", p.source}};
+      nlohmann::json j{{"patient", p.patient}, {"device", p.device}, {"size", p.size}, {"handedness", p.handedness},
+                       {"rom_deg", rom}, {"file", p.source}, {"presets", therapy::presetsJson(p)}};
+      if (p.self_training.allowed) {
+        j["self_training"] = {{"allowed", p.self_training.steps}, {"max_session_s", p.self_training.max_session_s},
+                              {"effort_scale", p.self_training.effort_scale}};
+      }
+      return j;
     }
     if (cmd == "recordings") {
       allowFields(req, {"patient"});
@@ -244,7 +262,8 @@ class Daemon {
       return out;
     }
     throw RequestError{"unknown command '" + cmd +
-                       "' (commands: version, status, start, stop, exercise, reset, limits, profiles, profile, recordings)"};
+                       "' (commands: version, status, start, stop, pause, resume, exercise, reset, limits, profiles, "
+                       "profile, recordings)"};
   }
 
   void loadPatient(const std::string& patient, therapy::Profile& p) {
@@ -267,6 +286,56 @@ class Daemon {
 
   bool running() const { return session_ && !session_done_.load(); }
 
+  /// A request's exercise: `preset` (one of the profile's) or `exercise` with `params`, never both.
+  static std::pair<std::string, nlohmann::json> exerciseOrPreset(const nlohmann::json& req, const therapy::Profile& p,
+                                                                 bool have_profile, const std::string& def = "") {
+    if (req.contains("preset")) {
+      if (req.contains("exercise") || req.contains("params")) {
+        throw RequestError{"field 'preset': give a preset or an exercise with params, not both"};
+      }
+      const std::string name = strField(req, "preset", "");
+      for (const auto& x : p.presets) {
+        if (x.name == name) return {x.exercise, x.params};
+      }
+      std::string list;
+      for (const auto& x : p.presets) list += (list.empty() ? "" : ", ") + x.name;
+      throw RequestError{"field 'preset': '" + name + "' is not a preset of " +
+                         (have_profile ? "patient " + p.patient + " (presets: " + (list.empty() ? "none" : list) + ")"
+                                       : "this session (no patient profile)")};
+    }
+    if (def.empty() && (!req.contains("exercise") || !req["exercise"].is_string())) {
+      throw RequestError{"missing string field 'exercise' (or 'preset')"};
+    }
+    nlohmann::json params;
+    if (req.contains("params")) {
+      if (!req["params"].is_object()) throw RequestError{"field 'params': expected an object"};
+      params = req["params"];
+    }
+    return {strField(req, "exercise", def), params};
+  }
+
+  /// Self-training: only what the profile's self_training.allowed lists.
+  static void checkSelfTrainingStep(const therapy::Profile& p, const std::string& name) {
+    if (p.self_training.steps.count(name) != 0) return;
+    std::string list;
+    for (const auto& a : p.self_training.steps) list += (list.empty() ? "" : ", ") + a;
+    throw RequestError{"self-training: '" + name + "' is not allowed for patient " + p.patient + " (allowed: " + list + ")"};
+  }
+
+  /// self_training: true — the profile must allow it; its effort scale lowers the patient's limits (the same
+  /// limits stage) and its max_session_s bounds the session.
+  static void applySelfTraining(therapy::TherapySessionConfig& tcfg, RunOptions& opt) {
+    if (!tcfg.have_profile) throw RequestError{"field 'self_training': needs a patient whose profile allows self-training"};
+    const therapy::SelfTraining& st = tcfg.profile.self_training;
+    if (!st.allowed) {
+      throw RequestError{"field 'self_training': the profile of patient " + tcfg.profile.patient +
+                         " does not allow self-training (it has no self_training section)"};
+    }
+    for (std::size_t c = 0; c < tcfg.profile.limits.channel_count; ++c) tcfg.profile.limits.effort_max[c] *= st.effort_scale;
+    if (opt.seconds <= 0.0 || opt.seconds > st.max_session_s) opt.seconds = st.max_session_s;
+    tcfg.self_training = true;
+  }
+
   nlohmann::json status() {
     std::lock_guard<std::mutex> lock(mutex_);
     nlohmann::json j{{"api_version", kApiVersion}, {"session_running", running()}};
@@ -276,7 +345,8 @@ class Daemon {
   }
 
   nlohmann::json start(const nlohmann::json& req) {
-    allowFields(req, {"patient", "exercise", "params", "device", "scenario", "seconds", "seed"});
+    allowFields(req, {"patient", "exercise", "params", "preset", "plan", "self_training", "device", "scenario", "seconds",
+                      "seed"});
     std::lock_guard<std::mutex> lock(mutex_);
     if (running()) throw RequestError{"a session is already running (stop it first)"};
     if (thread_.joinable()) thread_.join();
@@ -286,11 +356,14 @@ class Daemon {
       loadPatient(patient, tcfg.profile);
       tcfg.have_profile = true;
     }
-    tcfg.exercise = strField(req, "exercise", "assessment");
-    if (req.contains("params")) {
-      if (!req["params"].is_object()) throw RequestError{"field 'params': expected an object"};
-      tcfg.exercise_params = req["params"];
+    if (req.contains("plan") && (req.contains("exercise") || req.contains("preset") || req.contains("params"))) {
+      throw RequestError{"field 'plan': a plan names each step's exercise (leave out exercise, preset and params)"};
     }
+    std::tie(tcfg.exercise, tcfg.exercise_params) = exerciseOrPreset(req, tcfg.profile, tcfg.have_profile, "assessment");
+    if (req.contains("self_training") && !req["self_training"].is_boolean()) {
+      throw RequestError{"field 'self_training': expected true or false"};
+    }
+    const bool self_training = req.value("self_training", false);
     RunOptions opt = cfg_.defaults;
     opt.device = strField(req, "device", opt.device);
     if (req.contains("device")) {
@@ -311,7 +384,8 @@ class Daemon {
       throw RequestError{(req.contains("seconds") ? "field 'seconds': " : "seconds: ") + err};
     }
     if (const std::string err = validate(opt); !err.empty()) throw RequestError{err};
-    // Validate the exercise before anything starts: a refused request changes nothing.
+    if (self_training) applySelfTraining(tcfg, opt);
+    // Validate the exercise (or plan) before anything starts: a refused request changes nothing.
     {
       std::string err;
       const std::string dev_name = opt.device.substr(opt.device.find(':') + 1);
@@ -321,12 +395,25 @@ class Daemon {
         if (tcfg.have_profile && opt.device.rfind("sim:", 0) == 0 && dev_name != tcfg.profile.device) {
           throw RequestError{"profile is for a " + tcfg.profile.device + ", the device is " + opt.device};
         }
+        if (req.contains("plan")) {
+          const std::set<std::string>* allowed = self_training ? &tcfg.profile.self_training.steps : nullptr;
+          if (const std::string perr = therapy::parsePlan(req["plan"], *device, tcfg.profile, allowed, tcfg.plan); !perr.empty()) {
+            throw RequestError{perr};
+          }
+          tcfg.exercise = tcfg.plan.steps[0].exercise;
+          tcfg.exercise_params = tcfg.plan.steps[0].params;
+        } else if (self_training) {
+          checkSelfTrainingStep(tcfg.profile, req.contains("preset") ? strField(req, "preset", "") : tcfg.exercise);
+        }
         auto pattern = std::make_shared<therapy::Pattern>(device->channelCount());
         if (!therapy::makeExercise(tcfg.exercise, tcfg.exercise_params, *device, tcfg.profile, pattern, err)) {
           throw RequestError{err};
         }
       } else if (opt.device.rfind("sim:", 0) == 0) {
         throw RequestError{err};
+      } else if (req.contains("plan") || self_training) {
+        throw RequestError{std::string(req.contains("plan") ? "field 'plan'" : "field 'self_training'") +
+                           ": cannot be checked before the device is known (give a patient: the profile names the device)"};
       }
     }
     // The previous session of this patient (its newest record), for the report's range-of-motion comparison;
@@ -360,8 +447,11 @@ class Daemon {
       s->finish(summary, rc);
       session_done_ = true;
     });
-    return {{"record", record}, {"report", tcfg.report_path}, {"exercise", tcfg.exercise},
-            {"previous_record", tcfg.previous_record}};
+    nlohmann::json answer{{"record", record}, {"report", tcfg.report_path}, {"exercise", tcfg.exercise},
+                          {"previous_record", tcfg.previous_record}};
+    if (!tcfg.plan.empty()) answer["plan_steps"] = tcfg.plan.steps.size();
+    if (self_training) answer["self_training"] = {{"max_session_s", opt.seconds}, {"effort_scale", tcfg.profile.self_training.effort_scale}};
+    return answer;
   }
 
   nlohmann::json stopLocked() {

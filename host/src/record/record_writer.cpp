@@ -257,6 +257,13 @@ nlohmann::json loopEventJson(const LoopEvent& e) {
       j["kind"] = "fault-bits";
       j["bits"] = e.code;
       break;
+    case LoopEvent::Kind::kPlanStepEnded:
+      j["kind"] = "plan-step-ended";
+      j["step"] = e.code;
+      j["ended_by"] = e.detail == 2 ? "repetitions" : "duration";
+      j["counted_s"] = e.value;
+      j["repetitions"] = e.count;
+      break;
   }
   return j;
 }

@@ -1,5 +1,7 @@
 #include "phalanx/host/therapy/exercise.h"
 
+#include "phalanx/host/therapy/session_plan.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -21,6 +23,13 @@ const char* exerciseName(ExerciseId id) {
     case ExerciseId::kMaxForce: return "max-force";
   }
   return "unknown";
+}
+
+bool isExerciseName(const std::string& name) {
+  for (int id = 0; id <= static_cast<int>(ExerciseId::kMaxForce); ++id) {
+    if (name == exerciseName(static_cast<ExerciseId>(id))) return true;
+  }
+  return false;
 }
 
 bool Pattern::append(const std::array<double, kMaxChannels>& q) {
@@ -129,25 +138,6 @@ bool readParams(const nlohmann::json& in, const std::map<std::string, ParamSpec>
 }
 
 /// The channel's close/open extremes: Σ over its joints of the measured ROM (profile) within the limits.
-void channelRange(const TherapyDevice& device, const Profile& profile, std::array<double, kMaxChannels>& open,
-                  std::array<double, kMaxChannels>& close) {
-  open.fill(0.0);
-  close.fill(0.0);
-  for (std::size_t j = 0; j < device.jointCount(); ++j) {
-    double lo = std::max(profile.limits.flexion_min_rad[j], 0.0);
-    double hi = profile.limits.flexion_max_rad[j];
-    for (const auto& [name, r] : profile.rom_rad) {
-      if (name == device.jointName(j)) {
-        lo = std::max(lo, r.first);
-        hi = std::min(hi, r.second);
-      }
-    }
-    if (hi < lo) hi = lo;
-    open[device.jointChannel(j)] += lo;
-    close[device.jointChannel(j)] += hi;
-  }
-}
-
 class Idle : public Exercise {
  public:
   ExerciseId id() const override { return ExerciseId::kIdle; }
@@ -489,6 +479,25 @@ nlohmann::json toJson(const std::map<std::string, double>& p) {
 
 }  // namespace
 
+void patientChannelRange(const TherapyDevice& device, const Profile& profile, std::array<double, kMaxChannels>& open,
+                         std::array<double, kMaxChannels>& close) {
+  open.fill(0.0);
+  close.fill(0.0);
+  for (std::size_t j = 0; j < device.jointCount(); ++j) {
+    double lo = std::max(profile.limits.flexion_min_rad[j], 0.0);
+    double hi = profile.limits.flexion_max_rad[j];
+    for (const auto& [name, r] : profile.rom_rad) {
+      if (name == device.jointName(j)) {
+        lo = std::max(lo, r.first);
+        hi = std::min(hi, r.second);
+      }
+    }
+    if (hi < lo) hi = lo;
+    open[device.jointChannel(j)] += lo;
+    close[device.jointChannel(j)] += hi;
+  }
+}
+
 std::unique_ptr<Exercise> makeExercise(const std::string& name, const nlohmann::json& params,
                                        const TherapyDevice& device, const Profile& profile,
                                        const std::shared_ptr<Pattern>& pattern, std::string& error) {
@@ -522,7 +531,7 @@ std::unique_ptr<Exercise> makeExercise(const std::string& name, const nlohmann::
       return nullptr;
     }
     std::array<double, kMaxChannels> lo{}, hi{}, open{}, close{};
-    channelRange(device, profile, lo, hi);
+    patientChannelRange(device, profile, lo, hi);
     for (std::size_t c = 0; c < n; ++c) {
       open[c] = lo[c] + p["open_fraction"] * (hi[c] - lo[c]);
       close[c] = lo[c] + p["close_fraction"] * (hi[c] - lo[c]);

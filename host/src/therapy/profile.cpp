@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -14,6 +15,7 @@
 #include <sstream>
 
 #include "phalanx/host/yaml_keys.h"
+#include "phalanx/host/therapy/exercise.h"
 #include "phalanx/host/therapy/records_dir.h"
 
 namespace phalanx::host::therapy {
@@ -69,8 +71,85 @@ std::set<std::string> jointNames(const TherapyDevice& d) {
   return s;
 }
 
+/// A YAML scalar as JSON: a number when it reads as one, else the string (exercise parameters are numbers, the
+/// grasp scene a string; makeExercise checks which).
+nlohmann::json scalarJson(const YAML::Node& n, const std::string& key) {
+  if (!n.IsScalar()) throw ProfileError{key + ": expected a number or a string"};
+  double v = 0.0;
+  if (YAML::convert<double>::decode(n, v)) {
+    if (!std::isfinite(v)) throw ProfileError{key + ": must be finite"};
+    return v;
+  }
+  return n.Scalar();
+}
+
+/// presets: {<name>: {exercise: <name>, params: {<param>: value}}}: each built once against the device so a bad
+/// parameter is refused here, naming it (presets.gentle.params.stiffness_per_rad: …).
+void parsePresets(const YAML::Node& node, const TherapyDevice& device, Profile& p) {
+  if (!node) return;
+  if (!node.IsMap()) throw ProfileError{"presets: expected a mapping <name>: {exercise, params}"};
+  for (const auto& kv : node) {
+    Preset preset;
+    preset.name = kv.first.as<std::string>();
+    const std::string where = "presets." + preset.name;
+    if (!std::regex_match(preset.name, std::regex("[A-Za-z0-9_-]{1,32}"))) {
+      throw ProfileError{where + ": a preset name is 1-32 letters, digits, '-' or '_'"};
+    }
+    requireKeys(kv.second, where, {"exercise", "params"});
+    if (!kv.second["exercise"]) throw ProfileError{where + ".exercise: missing"};
+    preset.exercise = text(kv.second["exercise"], where + ".exercise");
+    if (const YAML::Node params = kv.second["params"]) {
+      if (!params.IsMap()) throw ProfileError{where + ".params: expected a mapping <parameter>: value"};
+      for (const auto& pv : params) {
+        const std::string k = pv.first.as<std::string>();
+        preset.params[k] = scalarJson(pv.second, where + ".params." + k);
+      }
+    }
+    if (preset.exercise == "playback") throw ProfileError{where + ".exercise: playback needs a pattern recorded in the session; it cannot be a preset"};
+    std::string err;
+    auto pattern = std::make_shared<Pattern>(device.channelCount());
+    if (!makeExercise(preset.exercise, preset.params, device, p, pattern, err)) throw ProfileError{where + "." + err};
+    p.presets.push_back(std::move(preset));
+  }
+}
+
+/// self_training: {allowed: [<preset or exercise>...], max_session_s, effort_scale}.
+void parseSelfTraining(const YAML::Node& node, Profile& p) {
+  if (!node) return;
+  requireKeys(node, "self_training", {"allowed", "max_session_s", "effort_scale"});
+  SelfTraining st;
+  st.allowed = true;
+  const YAML::Node allowed = node["allowed"];
+  if (!allowed || !allowed.IsSequence() || allowed.size() == 0) {
+    throw ProfileError{"self_training.allowed: expected a non-empty list of presets or exercises"};
+  }
+  for (std::size_t i = 0; i < allowed.size(); ++i) {
+    const std::string key = "self_training.allowed[" + std::to_string(i) + "]";
+    const std::string name = text(allowed[i], key);
+    const bool preset = std::any_of(p.presets.begin(), p.presets.end(), [&](const Preset& x) { return x.name == name; });
+    if (!preset && !isExerciseName(name)) {
+      throw ProfileError{key + ": '" + name + "' is neither a preset of this profile nor an exercise"};
+    }
+    if (name == "playback") throw ProfileError{key + ": playback cannot be run alone (it needs a recorded pattern)"};
+    st.steps.insert(name);
+  }
+  if (!node["max_session_s"]) throw ProfileError{"self_training.max_session_s: missing (how long the patient may train alone)"};
+  st.max_session_s = number(node["max_session_s"], "self_training.max_session_s");
+  if (!(st.max_session_s > 0.0 && st.max_session_s <= 7200.0)) {
+    throw ProfileError{"self_training.max_session_s: must be in (0, 7200] s"};
+  }
+  if (node["effort_scale"]) {
+    st.effort_scale = number(node["effort_scale"], "self_training.effort_scale");
+    if (!(st.effort_scale > 0.0 && st.effort_scale <= 1.0)) {
+      throw ProfileError{"self_training.effort_scale: must be in (0, 1] (it can only lower the profile's effort_max)"};
+    }
+  }
+  p.self_training = std::move(st);
+}
+
 void parse(const YAML::Node& root, Profile& p) {
-  requireKeys(root, "", {"version", "patient", "device", "size", "handedness", "kinematics", "rom_deg", "limits"});
+  requireKeys(root, "", {"version", "patient", "device", "size", "handedness", "kinematics", "rom_deg", "limits",
+                          "presets", "self_training"});
   if (!root["version"]) throw ProfileError{"version: missing (this daemon reads version 1)"};
   if (number(root["version"], "version") != 1.0) throw ProfileError{"version: only version 1 is understood"};
   if (!root["patient"]) throw ProfileError{"patient: missing"};
@@ -180,6 +259,8 @@ void parse(const YAML::Node& root, Profile& p) {
       p.limits.flexion_max_rad[idx] = r.second;
     }
   }
+  parsePresets(root["presets"], *device, p);
+  parseSelfTraining(root["self_training"], p);
 }
 
 }  // namespace

@@ -283,10 +283,35 @@ std::pair<std::string, std::string> describeRequest(const nlohmann::json& e, con
   }
   if (kind == "api-limits") return {"effort limit lowered", list(e.value("effort_max", nlohmann::json::object()), " " + unit)};
   if (kind == "api-clear-faults") return {"reset faults (ClearFaults sent)", ""};
+  if (kind == "api-pause") return {"paused (zero effort; the plan's clock stopped)", ""};
+  if (kind == "api-resume") return {"resumed", ""};
   nlohmann::json rest = e;
   rest.erase("t_s");
   rest.erase("kind");
   return {kind.substr(kind.rfind("api-", 0) == 0 ? 4 : 0), rest.empty() ? "" : rest.dump()};
+}
+
+/// The session plan of the record's header with each step's outcome (its plan-step-ended event): done with its
+/// repetitions, counted seconds and what ended it, or "not done" (the session stopped before).
+nlohmann::json planOutcome(const record::SessionRecord& rec) {
+  nlohmann::json steps = nlohmann::json::array();
+  if (!rec.header["plan"].is_array()) return steps;
+  for (const auto& st : rec.header["plan"]) {
+    nlohmann::json j = st;
+    j["done"] = false;
+    steps.push_back(std::move(j));
+  }
+  for (const auto& e : rec.events) {
+    if (e.value("kind", std::string()) != "plan-step-ended") continue;
+    const std::size_t i = e.value("step", std::size_t{0});
+    if (i >= steps.size()) continue;
+    steps[i]["done"] = true;
+    steps[i]["repetitions_done"] = e.value("repetitions", 0);
+    steps[i]["counted_s"] = e.value("counted_s", 0.0);
+    steps[i]["ended_by"] = e.value("ended_by", std::string());
+    steps[i]["end_t_s"] = e.value("t_s", 0.0);
+  }
+  return steps;
 }
 
 std::vector<char> phaseMask(const Series& s, ExerciseId id) {
@@ -465,6 +490,7 @@ nlohmann::json metricsOf(const record::SessionRecord& rec, TherapyDevice& dev, S
   m["limit_onsets"] = limit_events;
   m["record_cycles_dropped"] = gaps;
   m["therapist_requests"] = requests;
+  if (rec.header.is_object() && rec.header.contains("plan")) m["plan"] = planOutcome(rec);
   return m;
 }
 
@@ -625,6 +651,30 @@ std::string writeReport(const std::string& record_path, const std::string& previ
       << "</td><td>" << fmt(e["end_s"].get<double>(), 1) << "</td></tr>";
   }
   h << "</table>";
+  if (m.contains("plan")) {
+    h << "<h2>Session plan</h2><p class='note'>Each step runs for its duration in session time (paused, faulted or "
+         "locked time does not count) or until its repetitions are done, whichever comes first. A repetition is one "
+         "flex-extend cycle of the counted channel between the thresholds shown.</p><table><tr><th>step</th>"
+         "<th>exercise</th><th>duration (s)</th><th>repetitions</th><th>channel, thresholds (°)</th><th>outcome</th></tr>";
+    int i = 0;
+    for (const auto& st : m["plan"]) {
+      const std::string what = st.value("exercise", std::string()) +
+                               (st.contains("preset") ? " (preset " + st.value("preset", std::string()) + ")" : "");
+      const nlohmann::json rr = st.value("rep_range_deg", nlohmann::json::array());
+      h << "<tr><td>" << ++i << "</td><td class='text'>" << esc(what) << "</td><td>" << fmt(st.value("duration_s", 0.0), 1)
+        << "</td><td>" << st.value("repetitions", 0) << "</td><td class='text'>" << esc(st.value("channel", std::string()))
+        << (rr.size() == 2 ? " " + fmt(rr[0].get<double>(), 0) + " / " + fmt(rr[1].get<double>(), 0) : "")
+        << "</td><td class='text'>";
+      if (st.value("done", false)) {
+        h << "done: " << st.value("repetitions_done", 0) << " repetitions in " << fmt(st.value("counted_s", 0.0), 1)
+          << " s (" << (st.value("ended_by", std::string()) == "repetitions" ? "target reached" : "its duration") << ")";
+      } else {
+        h << "<span class='warn'>not done</span> (the session ended before)";
+      }
+      h << "</td></tr>";
+    }
+    h << "</table>";
+  }
   if (m["excluded_s"].get<double>() > 0.0) {
     h << "<div class='excluded'><b>" << fmt(m["excluded_s"].get<double>(), 1)
       << " s excluded from every exercise metric below</b> (range of motion, transparency, tracking): the device "

@@ -74,44 +74,66 @@ void TherapyController::fillAux(std::array<float, record::kMaxAux>& aux) const {
   aux[4 * n + 1] = static_cast<float>(limited_bits_);
 }
 
+bool TherapyController::offerExerciseFromLoop(Exercise* exercise) {
+  Exercise* expected = nullptr;
+  return pending_.compare_exchange_strong(expected, exercise, std::memory_order_acq_rel);
+}
+
 void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_s, protocol::Command& cmd) {
   ++cycles_;
   device_->observe(tel, obs_);
-  const std::size_t n = device_->channelCount();
+  estimateRates(dt_s);
+  held_paused_ = paused_.load(std::memory_order_relaxed);
+  if (held_paused_) paused_s_ += dt_s;
+  const double t_ex = t_s - paused_s_;  // the exercise's clock stops while paused
+  takeMailboxes(t_ex);
+  out_.clear();
+  if (held_paused_) {
+    out_.mode = protocol::Mode::kTransparent;  // zero effort: the device follows the finger, holds nothing
+  } else if (active_) {
+    active_->update(tel, obs_, t_ex, dt_s, out_);
+  }
+  const uint32_t limited = limits_.apply(obs_, out_.effort);
+  if (limited != 0) ++limited_cycles_;
+  writeLimitAndFaultEvents(tel, t_s, limited);
+  commandFromOutput(cmd);
+  trackRom(dt_s);
+  publishStatus(tel, t_s);
+}
+
+void TherapyController::estimateRates(double dt_s) {
   const double a = dt_s / (dt_s + 1.0 / (2.0 * M_PI * kRateCutoffHz));
-  for (std::size_t c = 0; c < n; ++c) {
+  for (std::size_t c = 0; c < device_->channelCount(); ++c) {
     if (primed_ && dt_s > 0.0) {
       obs_.q_dot_rad_per_s[c] += a * ((obs_.q_rad[c] - last_q_[c]) / dt_s - obs_.q_dot_rad_per_s[c]);
     }
     last_q_[c] = obs_.q_rad[c];
   }
   primed_ = true;
+}
 
+void TherapyController::takeMailboxes(double t_ex) {
   if (limits_pending_.load(std::memory_order_acquire) && limits_mutex_.try_lock()) {
     limits_ = pending_limits_;
     limits_pending_.store(false, std::memory_order_release);
     limits_mutex_.unlock();
   }
-  if (pending_.load(std::memory_order_acquire) != nullptr && retired_.load(std::memory_order_acquire) == nullptr) {
-    Exercise* next = pending_.exchange(nullptr);
-    if (next != nullptr) {
-      retired_.store(active_.release(), std::memory_order_release);
-      active_.reset(next);
-      active_->start(obs_, t_s);
-      if (writer_ != nullptr) {
-        record::LoopEvent e;
-        e.t_s = t_s;
-        e.kind = record::LoopEvent::Kind::kExerciseStarted;
-        e.code = static_cast<uint16_t>(active_->id());
-        writer_->pushLoopEvent(e);
-      }
-    }
+  if (pending_.load(std::memory_order_acquire) == nullptr || retired_.load(std::memory_order_acquire) != nullptr) return;
+  Exercise* next = pending_.exchange(nullptr);
+  if (next == nullptr) return;
+  retired_.store(active_.release(), std::memory_order_release);
+  active_.reset(next);
+  active_->start(obs_, t_ex);
+  if (writer_ != nullptr) {
+    record::LoopEvent e;
+    e.t_s = t_ex + paused_s_;
+    e.kind = record::LoopEvent::Kind::kExerciseStarted;
+    e.code = static_cast<uint16_t>(active_->id());
+    writer_->pushLoopEvent(e);
   }
+}
 
-  out_.clear();
-  if (active_) active_->update(tel, obs_, t_s, dt_s, out_);
-  const uint32_t limited = limits_.apply(obs_, out_.effort);
-  if (limited != 0) ++limited_cycles_;
+void TherapyController::writeLimitAndFaultEvents(const TelemetryFrame& tel, double t_s, uint32_t limited) {
   if (writer_ != nullptr && (limited & ~limited_bits_) != 0) {
     record::LoopEvent e;
     e.t_s = t_s;
@@ -128,7 +150,10 @@ void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_
     writer_->pushLoopEvent(e);
   }
   last_faults_ = tel.fault_bits;
+}
 
+void TherapyController::commandFromOutput(protocol::Command& cmd) {
+  const std::size_t n = device_->channelCount();
   cmd.mode = out_.mode;
   std::array<float, kMaxChannels> setpoint{};
   if (out_.mode == protocol::Mode::kSetpoint) device_->commandFromEffort(out_.effort, setpoint);
@@ -139,9 +164,11 @@ void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_
     if (!drive) out_.effort[c] = 0.0;
     max_abs_command_ = std::fmax(max_abs_command_, std::fabs(out_.effort[c]));
   }
+}
 
+void TherapyController::trackRom(double dt_s) {
   const double a_rom = dt_s / (dt_s + 1.0 / (2.0 * M_PI * kRomCutoffHz));
-  const bool assessing = active_ && active_->id() == ExerciseId::kAssessment;
+  const bool assessing = active_ && active_->id() == ExerciseId::kAssessment && !held_paused_;
   for (std::size_t j = 0; j < device_->jointCount(); ++j) {
     if (!obs_.joint_valid[j]) continue;
     flex_lp_[j] = flex_lp_valid_[j] ? flex_lp_[j] + a_rom * (obs_.flexion_rad[j] - flex_lp_[j]) : obs_.flexion_rad[j];
@@ -155,28 +182,30 @@ void TherapyController::update(const TelemetryFrame& tel, double t_s, double dt_
       rom_max_[j] = std::fmax(rom_max_[j], flex_lp_[j]);
     }
   }
+}
 
-  if (t_s >= next_status_s_ && status_mutex_.try_lock()) {
-    next_status_s_ = t_s + kStatusPeriodS;
-    status_.valid = true;
-    status_.t_s = t_s;
-    status_.cycles = cycles_;
-    status_.device_mode = static_cast<uint8_t>(tel.mode);
-    status_.fault_bits = tel.fault_bits;
-    status_.state_flags = tel.state_flags;
-    status_.exercise = active_ ? active_->id() : ExerciseId::kIdle;
-    status_.q_rad = obs_.q_rad;
-    status_.target_q_rad = out_.target_q_rad;
-    status_.effort_measured = obs_.effort;
-    status_.effort_command = out_.effort;
-    status_.assist_gain = out_.assist_gain;
-    status_.effort_max = limits_.effort_max;
-    status_.flexion_rad = obs_.flexion_rad;
-    status_.rom_min_rad = rom_min_;
-    status_.rom_max_rad = rom_max_;
-    status_.limited_cycles = limited_cycles_;
-    status_mutex_.unlock();
-  }
+void TherapyController::publishStatus(const TelemetryFrame& tel, double t_s) {
+  if (t_s < next_status_s_ || !status_mutex_.try_lock()) return;
+  next_status_s_ = t_s + kStatusPeriodS;
+  status_.valid = true;
+  status_.t_s = t_s;
+  status_.cycles = cycles_;
+  status_.device_mode = static_cast<uint8_t>(tel.mode);
+  status_.fault_bits = tel.fault_bits;
+  status_.state_flags = tel.state_flags;
+  status_.exercise = active_ ? active_->id() : ExerciseId::kIdle;
+  status_.paused = held_paused_;
+  status_.q_rad = obs_.q_rad;
+  status_.target_q_rad = out_.target_q_rad;
+  status_.effort_measured = obs_.effort;
+  status_.effort_command = out_.effort;
+  status_.assist_gain = out_.assist_gain;
+  status_.effort_max = limits_.effort_max;
+  status_.flexion_rad = obs_.flexion_rad;
+  status_.rom_min_rad = rom_min_;
+  status_.rom_max_rad = rom_max_;
+  status_.limited_cycles = limited_cycles_;
+  status_mutex_.unlock();
 }
 
 void TherapyController::summarize(nlohmann::json& out) const {

@@ -16,7 +16,10 @@ namespace phalanx::host::therapy {
 TherapySession::TherapySession(TherapySessionConfig config)
     : config_(std::move(config)), writer_(config_.writer) {}
 
-TherapySession::~TherapySession() { writer_.close(); }
+TherapySession::~TherapySession() {
+  writer_.close();
+  delete plan_handover_;
+}
 
 namespace {
 /// runSession owns its controller; the session shares this one with the API, so a status request can never
@@ -68,6 +71,16 @@ std::unique_ptr<Controller> TherapySession::makeController(const protocol::Devic
   std::unique_ptr<Exercise> first =
       makeExercise(config_.exercise, config_.exercise_params, *device, config_.profile, pattern_, error);
   if (!first) return nullptr;
+  if (!config_.plan.empty()) {
+    // Every later step's exercise is built now, so the loop only hands a ready object over when a step ends.
+    std::vector<std::unique_ptr<Exercise>> later(config_.plan.steps.size());
+    for (std::size_t i = 1; i < later.size(); ++i) {
+      const PlanStep& st = config_.plan.steps[i];
+      later[i] = makeExercise(st.exercise, st.params, *device, config_.profile, pattern_, error);
+      if (!later[i]) return nullptr;
+    }
+    plan_ = std::make_unique<PlanRunner>(config_.plan, std::move(later));
+  }
   auto ctl = std::make_shared<TherapyController>(std::move(device), limits, std::move(first),
                                                  config_.record_path.empty() ? nullptr : &writer_);
   loop_ctl_ = ctl.get();
@@ -142,6 +155,9 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
   }
   h["exercise"] = config_.exercise.empty() ? "none (device default controller)" : config_.exercise;
   h["exercise_params"] = config_.exercise_params;
+  if (plan_ && loop_ctl_ != nullptr) h["plan"] = config_.plan.toJson(loop_ctl_->device());
+  if (config_.self_training) h["self_training"] = {{"max_session_s", config_.profile.self_training.max_session_s},
+                                                  {"effort_scale", config_.profile.self_training.effort_scale}};
   if (!writer_.isOpen()) {
     if (std::string create_err = writer_.create(config_.record_path); !create_err.empty()) return create_err;
   }
@@ -149,6 +165,7 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
 }
 
 void TherapySession::onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
+  runPlanCycle(t_s - last_t_s_, tel, cmd);
   last_t_s_ = t_s;
   if (!writer_.isOpen()) return;
   record::CycleRecord r;
@@ -174,6 +191,84 @@ void TherapySession::onCycle(uint64_t wake_ns, double t_s, const TelemetryFrame&
   writer_.pushCycle(r);
 }
 
+/// The plan's clock counts a cycle when the device is in the mode commanded (not latched safe or locked by a
+/// fault), no fault is latched, and the session is not paused. O(1), no allocation.
+void TherapySession::runPlanCycle(double dt_s, const TelemetryFrame& tel, const protocol::Command& cmd) {
+  PlanRunner* plan = plan_.get();
+  TherapyController* c = loop_ctl_;
+  if (plan == nullptr || c == nullptr) return;
+  if (plan_handover_ != nullptr && c->offerExerciseFromLoop(plan_handover_)) plan_handover_ = nullptr;
+  const bool counts = !c->heldPaused() && tel.fault_bits == 0 && tel.mode == cmd.mode;
+  const PlanRunner::Ended ended = plan->cycle(c->observation(), dt_s, counts);
+  if (ended == PlanRunner::Ended::kNo) return;
+  if (writer_.isOpen()) {
+    const PlanRunner::StepResult& r = plan->result(plan->endedStep());
+    record::LoopEvent e;
+    e.kind = record::LoopEvent::Kind::kPlanStepEnded;
+    e.t_s = last_t_s_ + dt_s;
+    e.code = static_cast<uint16_t>(plan->endedStep());
+    e.detail = static_cast<uint8_t>(ended);
+    e.value = static_cast<float>(static_cast<double>(r.elapsed_us.load()) * 1e-6);
+    e.count = r.repetitions.load();
+    writer_.pushLoopEvent(e);
+  }
+  if (Exercise* next = plan->takeNextExercise()) {
+    if (!c->offerExerciseFromLoop(next)) plan_handover_ = next;
+  }
+}
+
+nlohmann::json TherapySession::planJson() const {
+  const PlanRunner* plan = plan_.get();
+  if (plan == nullptr) return nullptr;
+  const auto& steps = plan->plan().steps;
+  const std::size_t i = plan->step();
+  const bool finished = plan->finished();
+  nlohmann::json list = nlohmann::json::array();
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const PlanStep& st = steps[k];
+    const bool done = k < i || finished;
+    nlohmann::json e{{"exercise", st.exercise}, {"duration_s", st.duration_s}, {"target_repetitions", st.repetitions},
+                     {"state", done ? "done" : k == i ? "running" : "to do"}};
+    if (!st.preset.empty()) e["preset"] = st.preset;
+    if (done) {
+      const PlanRunner::StepResult& r = plan->result(k);
+      e["repetitions"] = r.repetitions.load();
+      e["counted_s"] = static_cast<double>(r.elapsed_us.load()) * 1e-6;
+      e["ended_by"] = r.ended.load() == static_cast<uint8_t>(PlanRunner::Ended::kRepetitions) ? "repetitions" : "duration";
+    }
+    list.push_back(std::move(e));
+  }
+  const PlanStep& cur = steps[std::min(i, steps.size() - 1)];
+  const double elapsed = finished ? cur.duration_s : plan->elapsedS();
+  nlohmann::json j{{"step", std::min(i, steps.size() - 1) + 1}, {"steps", steps.size()}, {"finished", finished},
+                   {"exercise", cur.exercise}, {"duration_s", cur.duration_s}, {"elapsed_s", elapsed},
+                   {"remaining_s", std::max(0.0, cur.duration_s - elapsed)},
+                   {"repetitions", finished ? plan->result(steps.size() - 1).repetitions.load() : plan->repetitions()},
+                   {"target_repetitions", cur.repetitions}, {"list", list}};
+  if (!cur.preset.empty()) j["preset"] = cur.preset;
+  return j;
+}
+
+std::string TherapySession::pause() {
+  const auto c = controller();
+  if (c == nullptr) return "the session has no therapy controller (started without an exercise)";
+  if (phase_.load() == 2) return "the session has ended";
+  if (c->paused()) return "the session is already paused (resume continues it)";
+  c->setPaused(true);
+  if (writer_.isOpen()) writer_.pushEvent(statusJson().value("t_s", 0.0), "api-pause");
+  return {};
+}
+
+std::string TherapySession::resume() {
+  const auto c = controller();
+  if (c == nullptr) return "the session has no therapy controller (started without an exercise)";
+  if (phase_.load() == 2) return "the session has ended";
+  if (!c->paused()) return "the session is not paused";
+  c->setPaused(false);
+  if (writer_.isOpen()) writer_.pushEvent(statusJson().value("t_s", 0.0), "api-resume");
+  return {};
+}
+
 void TherapySession::onDeviceEvent(const protocol::Event& event) {
   if (!writer_.isOpen()) return;
   record::LoopEvent e;
@@ -195,6 +290,10 @@ std::string TherapySession::setExercise(const std::string& name, const nlohmann:
   const auto c = controller();
   if (c == nullptr) return "the session has no therapy controller (started without an exercise)";
   if (phase_.load() == 2) return "the session has ended";
+  if (plan_ && !plan_->finished()) {
+    return "the session follows a plan (step " + std::to_string(plan_->step() + 1) + " of " +
+           std::to_string(plan_->plan().steps.size()) + "): its steps change the exercise";
+  }
   std::string error;
   std::unique_ptr<Exercise> ex = makeExercise(name, params, c->device(), config_.profile, pattern_, error);
   if (!ex) return error;
@@ -271,6 +370,9 @@ nlohmann::json TherapySession::statusJson() const {
   const TherapyDevice& d = c->device();
   j["device"] = d.name();
   j["exercise"] = exerciseName(s.exercise);
+  j["paused"] = c->paused();
+  if (config_.self_training) j["self_training"] = true;
+  if (plan_) j["plan"] = planJson();
   if (!s.valid) return j;
   j["t_s"] = s.t_s;
   j["cycles"] = s.cycles;
@@ -347,6 +449,7 @@ int TherapySession::finish(const nlohmann::json& summary, int runner_rc) {
       end["report"] = err.empty() ? nlohmann::json{{"path", config_.report_path}} : nlohmann::json{{"error", err}};
     }
   }
+  if (plan_) end["plan"] = planJson();
   end["exit_code"] = rc;
   std::lock_guard<std::mutex> lock(mutex_);
   end_summary_ = std::move(end);

@@ -28,6 +28,8 @@ struct LoopEvent {
     kExerciseStarted = 2,  ///< code = therapy::ExerciseId
     kLimitActive = 3,      ///< code = bit per channel whose effort the patient limits changed (onset only)
     kFaultBits = 4,        ///< code = telemetry fault bits, when they change
+    kPlanStepEnded = 5,    ///< session plan: code = step index, detail = 1 duration / 2 repetitions reached,
+                           ///< value = the step's counted seconds, count = its repetitions
   };
   double t_s = 0.0;
   Kind kind = Kind::kDeviceEvent;
@@ -35,6 +37,7 @@ struct LoopEvent {
   uint8_t channel = 0;
   uint8_t detail = 0;
   float value = 0.0f;
+  uint32_t count = 0;
 };
 
 struct WriterConfig {

@@ -42,6 +42,8 @@ enum class ExerciseId : uint8_t {
   kMaxForce = 9,    ///< maximal voluntary force: the device holds the pose, the patient pushes as hard as they can
 };
 const char* exerciseName(ExerciseId id);
+/// Whether `name` is one of the exercises above (exerciseName of one of their ids).
+bool isExerciseName(const std::string& name);
 
 inline constexpr double kNoTarget = std::numeric_limits<double>::quiet_NaN();
 

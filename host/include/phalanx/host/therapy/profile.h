@@ -3,9 +3,12 @@
 /// impose, enforced by the daemon on top of the device's own limits.
 #include <array>
 #include <cstddef>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "phalanx/host/therapy/device.h"
 
@@ -28,6 +31,21 @@ struct PatientLimits {
   uint32_t apply(const Observation& obs, std::array<double, kMaxChannels>& effort) const;
 };
 
+/// A named exercise with its parameters, chosen by the therapist instead of typing parameters (`presets:`).
+struct Preset {
+  std::string name;
+  std::string exercise;
+  nlohmann::json params = nlohmann::json::object();
+};
+
+/// What the patient may do alone (`self_training:`); a self-training start is refused without it.
+struct SelfTraining {
+  bool allowed = false;               ///< the profile has a self_training section
+  std::set<std::string> steps;        ///< preset or exercise names the patient may run alone
+  double max_session_s = 0.0;         ///< the session ends after this long
+  double effort_scale = 1.0;          ///< (0, 1]: the profile's effort_max scaled by it while self-training
+};
+
 struct Profile {
   int version = 1;
   std::string patient;      ///< id: letters, digits, '-', '_' (1–64), not "anonymous"; no names on disk
@@ -38,6 +56,8 @@ struct Profile {
   /// Measured active range of motion per joint (rad, flexion positive) from the last assessment.
   std::vector<std::pair<std::string, std::pair<double, double>>> rom_rad;
   PatientLimits limits;     ///< resolved against the device
+  std::vector<Preset> presets;
+  SelfTraining self_training;
   std::string source;       ///< file it came from
 };
 

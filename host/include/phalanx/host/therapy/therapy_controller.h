@@ -25,6 +25,7 @@ struct StatusSnapshot {
   uint16_t fault_bits = 0;
   uint8_t state_flags = 0;
   ExerciseId exercise = ExerciseId::kIdle;
+  bool paused = false;  ///< the device was held paused (zero effort)
   std::size_t channels = 0;
   std::size_t joints = 0;
   std::array<double, kMaxChannels> q_rad{};
@@ -64,6 +65,10 @@ class TherapyController : public Controller {
   void offerLimits(const PatientLimits& limits);
   PatientLimits limits() const;
   StatusSnapshot status() const;
+  /// Pause: from the next cycle the device is held transparent with zero effort (through the limits stage like
+  /// any command) and the exercise's clock stops; resume continues it where it was.
+  void setPaused(bool paused) { paused_.store(paused, std::memory_order_relaxed); }
+  bool paused() const { return paused_.load(std::memory_order_relaxed); }
   const TherapyDevice& device() const { return *device_; }
 
   // --- loop thread ---
@@ -71,8 +76,23 @@ class TherapyController : public Controller {
   std::size_t auxCount() const { return 4 * device_->channelCount() + 2; }
   /// Aux values of the last update(), in auxNames() order.
   void fillAux(std::array<float, record::kMaxAux>& aux) const;
+  /// The last update()'s observation (channel coordinates for the session plan's repetition count).
+  const Observation& observation() const { return obs_; }
+  /// Whether the last update() held the device paused.
+  bool heldPaused() const { return held_paused_; }
+  /// The session plan's next exercise (ownership passes; no allocation): queued like offerExercise's, started at
+  /// the next cycle. False (nothing taken) while another exercise is still queued.
+  bool offerExerciseFromLoop(Exercise* exercise);
 
  private:
+  // loop stages of update()
+  void estimateRates(double dt_s);
+  void takeMailboxes(double t_ex);
+  void writeLimitAndFaultEvents(const TelemetryFrame& tel, double t_s, uint32_t limited);
+  void commandFromOutput(protocol::Command& cmd);
+  void trackRom(double dt_s);
+  void publishStatus(const TelemetryFrame& tel, double t_s);
+
   std::unique_ptr<TherapyDevice> device_;
   PatientLimits limits_;
   std::unique_ptr<Exercise> active_;
@@ -98,6 +118,9 @@ class TherapyController : public Controller {
   std::array<bool, kMaxJoints> rom_seen_{};
   std::array<double, kMaxJoints> flex_lp_{};
   std::array<bool, kMaxJoints> flex_lp_valid_{};
+  std::atomic<bool> paused_{false};
+  bool held_paused_ = false;
+  double paused_s_ = 0.0;  // session time spent paused: the exercise's clock is t_s − paused_s_
   double next_status_s_ = 0.0;
   double max_abs_command_ = 0.0;
 };

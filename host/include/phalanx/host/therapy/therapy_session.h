@@ -18,6 +18,7 @@
 #include "phalanx/host/record/record_writer.h"
 #include "phalanx/host/therapy/patient_guard.h"
 #include "phalanx/host/therapy/profile.h"
+#include "phalanx/host/therapy/session_plan.h"
 #include "phalanx/host/therapy/therapy_controller.h"
 
 namespace phalanx::host::therapy {
@@ -32,6 +33,11 @@ struct TherapySessionConfig {
   std::string report_path;      ///< "" = no report; written at session end from the record
   std::string previous_record;  ///< earlier session of the same patient, for the report's comparison
   std::string transparency_reference;  ///< "" or a device-free recording for the report's transparency r
+  /// A session plan (validated by parsePlan); its step 0 must be `exercise`/`exercise_params`. The session ends
+  /// when its last step ends.
+  SessionPlan plan;
+  /// Self-training (the profile's self_training): `profile.limits` already carry its effort scale.
+  bool self_training = false;
   record::WriterConfig writer = compressedWriter();
   static record::WriterConfig compressedWriter() {
     record::WriterConfig w;
@@ -52,7 +58,10 @@ class TherapySession : public SessionHooks {
   void onDeviceEvent(const protocol::Event& event) override;
   PatientLimitStage* patientLimits() override { return loop_guard_; }
   /// The API's stop, or the record's writer failed (real time: two atomic loads).
-  bool stopRequested() override { return stop_.load(std::memory_order_relaxed) || writer_.failed(); }
+  /// The API's stop, the record's writer failed, or the session plan's last step ended (real time: atomic loads).
+  bool stopRequested() override {
+    return stop_.load(std::memory_order_relaxed) || writer_.failed() || (plan_ && plan_->finished());
+  }
   bool takeClearFaultsRequest() override { return clear_faults_.exchange(false, std::memory_order_relaxed); }
   void onEnd(const nlohmann::json& summary) override;
 
@@ -70,6 +79,9 @@ class TherapySession : public SessionHooks {
   void requestClearFaults();
   /// Switch exercise: validated against the device and profile; "" or the reason it was refused.
   std::string setExercise(const std::string& name, const nlohmann::json& params);
+  /// Pause / resume the exercise (and the plan's clock); "" or why not (no session, ended, already so).
+  std::string pause();
+  std::string resume();
   /// Tighten limits at run time (never above the profile's/device's): effort_max per channel name.
   std::string setLimits(const nlohmann::json& request);
   nlohmann::json limitsJson() const;
@@ -97,6 +109,10 @@ class TherapySession : public SessionHooks {
   PatientGuard* loop_guard_ = nullptr;           // the session thread's own pointer
   std::shared_ptr<Pattern> pattern_;
   const protocol::DeviceLayout* layout_ = nullptr;
+  std::unique_ptr<PlanRunner> plan_;  // built in makeController, before the loop runs
+  Exercise* plan_handover_ = nullptr;  // session thread: a step's exercise not yet taken by the controller
+  void runPlanCycle(double dt_s, const TelemetryFrame& tel, const protocol::Command& cmd);
+  nlohmann::json planJson() const;
   std::atomic<bool> stop_{false};
   std::atomic<bool> clear_faults_{false};
   std::atomic<int> phase_{0};
