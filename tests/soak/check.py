@@ -196,6 +196,20 @@ def summary_of(path):
         return None, f"summary is not JSON: {e}"
 
 
+TELEMETRY_TIMEOUT_MS = 500  # phalanxd's default telemetry_timeout_ms (host/include/phalanx/host/daemon.h)
+
+
+def check_silence_claim(res, where, link_error, silence_ms):
+    """A daemon behind the soak's proxy that ended on a lost link: true only if the proxy sent it nothing for
+    longer than the telemetry timeout, and the silence it reports is no longer than the one the proxy measured
+    (5 ms allowed for the two processes' clock reads)."""
+    m = re.match(r"no telemetry from the device for (\d+) ms", link_error)
+    res.count("link.silent_past_timeout", 1)
+    res.check("exit-report", bool(m) and int(m[1]) > TELEMETRY_TIMEOUT_MS and int(m[1]) <= silence_ms + 5, where,
+              f"exit 6 ({link_error!r}) only after a silence past the {TELEMETRY_TIMEOUT_MS} ms telemetry timeout, "
+              f"no longer than the proxy's longest: {silence_ms} ms")
+
+
 def check_daemon(res, ep_dir, meta, d, limits):
     where = f"{os.path.basename(ep_dir)} {meta['kind']} {meta['device']} {d['name']}"
     rc = d.get("exit")
@@ -227,6 +241,8 @@ def check_daemon(res, ep_dir, meta, d, limits):
         res.count("daemon_exit.SIGKILL", 1)
     if summary is not None and rc == 6:
         res.check("exit-report", bool(summary.get("link_error")), where, "exit 6 names the link error")
+    if summary is not None and rc == 6 and "link_silence_ms" in d:
+        check_silence_claim(res, where, summary.get("link_error") or "", d["link_silence_ms"])
     if summary is not None and rc == 7:
         rec_err = (summary.get("recording") or {}).get("error") or summary.get("error")
         res.check("exit-report", bool(rec_err), where, "exit 7 names the recording's error")

@@ -186,6 +186,22 @@ for what, fn in (("outputs safe three ticks after the injected sensor fault", la
     res, v = violations(doctored(sensor, "case-" + fn.__name__, fn))
     expect(v == ["fault-safe"], f"doctored: {what}: violations of {v} (expected ['fault-safe']) {res.violations[:1]}")
 
+# A daemon behind the proxy may end on a lost link only after the proxy really sent it nothing for longer than the
+# telemetry timeout.
+def claims_lost_link(d):
+    p = os.path.join(d, "daemon.json")
+    summary = json.load(open(p))
+    summary["link_error"] = "no telemetry from the device for 501 ms (telemetry_timeout_ms 500)"
+    json.dump(summary, open(p, "w"))
+    edit_meta(d, lambda m: m["daemons"][0].update(exit=6, link_silence_ms=min(m["daemons"][0]["link_silence_ms"], 300)))
+
+
+stall = real("link_stall_short", "glove5", 9)
+res, v = violations(stall)
+expect(not v, f"a real short-stall episode passes ({res.violations[:2]})")
+res, v = violations(doctored(stall, "case-claims-lost-link", claims_lost_link))
+expect(v == ["exit-report"], f"doctored: exit 6 for no telemetry although the proxy's longest silence was 300 ms: {v}")
+
 print(f"selftest: {len(FAILS)} failures; evidence in {TMP}")
 if not FAILS:
     shutil.rmtree(TMP, ignore_errors=True)
