@@ -241,6 +241,12 @@ def check_daemon(res, ep_dir, meta, d, limits):
         res.count("daemon_exit.SIGKILL", 1)
     if summary is not None and rc == 6:
         res.check("exit-report", bool(summary.get("link_error")), where, "exit 6 names the link error")
+    if summary is not None and "expect_reconnects" in d:
+        o = summary.get("outages") or {}
+        res.check("exit-report", o.get("count") == o.get("reconnects") == d["expect_reconnects"] and
+                  o.get("connected_at_end") is True, where,
+                  f"the unplugged port: {d['expect_reconnects']} outage reported, reconnected, connected at the end "
+                  f"(outages {o})")
     if summary is not None and rc == 6 and "link_silence_ms" in d:
         check_silence_claim(res, where, summary.get("link_error") or "", d["link_silence_ms"])
     if summary is not None and rc == 7:

@@ -34,7 +34,7 @@ import check  # noqa: E402
 DEVICES = ("glove5", "sea_finger", "pantograph")
 KINDS = ("clean", "kill9_daemon", "kill9_firmware", "corrupt_frames", "truncate_frames", "flood_frames",
          "link_stall_short", "link_stall_long", "disk_full", "client_bad", "api_garbage", "dashboard_garbage",
-         "modbus_garbage", "sensor_range", "sensor_stuck", "estop_press")
+         "modbus_garbage", "link_replug", "sensor_range", "sensor_stuck", "estop_press")
 # Every daemon runs without real-time priority (the machine is shared) and with a 100 ms command timeout, so a
 # busy machine's scheduling hiccup is not mistaken for a fault (the watchdog then still trips within 100 ms).
 COMMON = ["--no-realtime", "--command-timeout-ms", "100"]
@@ -127,14 +127,16 @@ class Proxy(threading.Thread):
     """A pseudo-terminal between firmware-sim and the daemon that forwards bytes and, on request, damages the
     device-to-host stream frame by frame (frames end with 0x00: COBS, docs/protocol.md) or holds all traffic."""
 
-    def __init__(self, fw_pty):
+    def __init__(self, fw_pty, link_path=None):
         super().__init__(daemon=True)
         self.fw = os.open(fw_pty, os.O_RDWR | os.O_NOCTTY)
         tty.setraw(self.fw)
-        self.master, slave = os.openpty()
-        tty.setraw(slave)
-        self.slave_path = os.ttyname(slave)
-        self.slave = slave  # kept open so the daemon's close does not hang the master up
+        self._open_host_side()
+        self.link_path = link_path  # a stable name (a symlink to the pty) for a link that is unplugged and back
+        self.replugs = 0
+        self.plug = None  # "unplug" | "replug", done by the proxy thread
+        if link_path:
+            os.symlink(self.slave_path, link_path)
         self.lock = threading.Lock()
         self.damage = None  # (kind, frames left, rng)
         self.stall_until = 0.0
@@ -174,6 +176,34 @@ class Proxy(threading.Thread):
             return junk + bytes(body) + b"\0"
         return bytes(body) + b"\0"
 
+    def _open_host_side(self):
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.slave_path = os.ttyname(slave)
+        self.slave = slave  # kept open so the daemon's close does not hang the master up
+
+    def unplug(self):
+        """The host's port goes away (the daemon's descriptor hangs up), as a USB serial adapter pulled out."""
+        self.plug = "unplug"
+
+    def replug(self):
+        """A new port under the same name (the symlink moved atomically to a new pty)."""
+        self.plug = "replug"
+
+    def _replug(self):
+        """The proxy thread's side of unplug()/replug(): only it touches the descriptors."""
+        if self.plug == "unplug" and self.master is not None:
+            os.close(self.master)
+            os.close(self.slave)
+            self.master = self.slave = None
+        elif self.plug == "replug" and self.master is None:
+            self._open_host_side()
+            tmp = self.link_path + ".new"
+            os.symlink(self.slave_path, tmp)
+            os.replace(tmp, self.link_path)
+            self.replugs += 1
+        self.plug = None
+
     def watch(self):
         """From now on (the daemon's start) keep the longest time the host was sent nothing."""
         self.last_to_host = self.last_from_host = time.monotonic()
@@ -188,6 +218,12 @@ class Proxy(threading.Thread):
 
     def run(self):
         while not self.stop_flag:
+            if self.plug:
+                self._replug()
+            if self.master is None:  # unplugged: the device's bytes go nowhere
+                if select.select([self.fw], [], [], 0.05)[0]:
+                    os.read(self.fw, 4096)
+                continue
             r, _, _ = select.select([self.fw, self.master], [], [], 0.05)
             now = time.monotonic()
             stalled = now < self.stall_until
@@ -221,7 +257,8 @@ class Proxy(threading.Thread):
         self.stop_flag = True
         self.join(2)
         for fd in (self.fw, self.master, self.slave):
-            os.close(fd)
+            if fd is not None:
+                os.close(fd)
 
 
 def sim_args(ep, device, seconds, record_ext="csv", truth=True):
@@ -311,6 +348,28 @@ def ep_link(ep, b, device, kind):
     px.close()
     for k, v in px.injected.items():
         ep.inject(k, v)
+    fw.stop()
+
+
+def ep_link_replug(ep, b, device):
+    """The host's serial port unplugged for 0.3–1.5 s and back under the same name: the daemon reports the lost
+    link, sends nothing, reconnects (a new handshake, its start-up parameters, the faults the outage latched read
+    and cleared) and ends its session normally (exit 0), connected."""
+    fw = Firmware(ep, b, device, ep.rng.randrange(1, 10000))
+    px = Proxy(fw.pty, link_path=ep.path("ttyPHALANX"))
+    px.start()
+    d = Daemon(ep, b, COMMON + ["--device", f"serial:{px.link_path}", "--json", "--mode", "transparent",
+                                "--seconds", "6", "--record", ep.path("record.csv")], "daemon", [0],
+               record="record.csv", truth="truth.csv")
+    d.info["expect_reconnects"] = 1
+    time.sleep(ep.rng.uniform(1.5, 2.5))
+    if d.p.poll() is None:
+        px.unplug()
+        ep.inject("link_unplug")
+        time.sleep(ep.rng.uniform(0.3, 1.5))
+        px.replug()
+    d.wait(60)
+    px.close()
     fw.stop()
 
 
@@ -607,6 +666,7 @@ RUNNERS = {
     "link_stall_long": lambda e, b, dv: ep_link(e, b, dv, "link_stall_long"),
     "disk_full": ep_disk_full, "client_bad": ep_client_bad, "api_garbage": ep_api_garbage,
     "dashboard_garbage": ep_dashboard_garbage, "modbus_garbage": ep_modbus_garbage,
+    "link_replug": ep_link_replug,
     "sensor_range": lambda e, b, dv: ep_input_fault(e, b, dv, "sensor_range"),
     "sensor_stuck": lambda e, b, dv: ep_input_fault(e, b, dv, "sensor_stuck"),
     "estop_press": lambda e, b, dv: ep_input_fault(e, b, dv, "estop_press"),

@@ -278,3 +278,22 @@ TEST(LinkRecovery, ReopenedByteStreamDropsTheCutFrameWithoutCountingIt) {
   for (size_t i = n / 3; i < n; ++i) e.push(a[i]);
   EXPECT_EQ(e.stats().total_rejected(), 1u);
 }
+
+// A reopened port that starts at a frame boundary (a new pseudo-terminal, a re-enumerated CDC-ACM port): its first
+// frame is whole and taken — it is typically the device's answer to the new handshake. (Dropping it unjudged, as
+// the decoder once did, cost every reconnect a 2 s handshake retry: the soak's link_replug episodes.)
+TEST(LinkRecovery, ReopenedByteStreamTakesAWholeFirstFrame) {
+  protocol::HelloAck ack;
+  ack.session_id = 0xCF35B4E3u;
+  uint8_t a[protocol::kMaxEncodedFrame];
+  const size_t n = protocol::encodeFrame(ack, a);
+  protocol::StreamDecoder d;
+  for (size_t i = 0; i < n / 2; ++i) EXPECT_FALSE(d.push(a[i]));  // the frame the unplug cut
+  d.resync();
+  bool got = false;
+  for (size_t i = 0; i < n; ++i) got = d.push(a[i]);
+  ASSERT_TRUE(got);
+  EXPECT_EQ(d.frame().id, static_cast<uint8_t>(protocol::MsgId::kHelloAck));
+  EXPECT_EQ(d.stats().total_rejected(), 0u);
+  EXPECT_EQ(d.stats().frames_ok, 1u);
+}

@@ -77,14 +77,10 @@ std::vector<uint8_t> refEncodeFrame(uint8_t id, const uint8_t* payload, size_t l
   return out;
 }
 
-// The byte-at-a-time stream decoder as it was before issue 20.
+// The byte-at-a-time stream decoder as it was before issue 20 (with resync() as the decoder has it now).
 class RefDecoder {
  public:
   bool push(uint8_t byte) {
-    if (hunting_) {
-      hunting_ = byte != 0;
-      return false;
-    }
     if (byte != 0) {
       if (raw_len_ < sizeof raw_) {
         raw_[raw_len_++] = byte;
@@ -97,7 +93,15 @@ class RefDecoder {
     const bool overflow = overflow_;
     raw_len_ = 0;
     overflow_ = false;
+    const bool quiet = after_resync_;
+    after_resync_ = false;
     if (n == 0 && !overflow) return false;
+    const DecodeStats before = stats;
+    if (judge(n, overflow)) return true;
+    if (quiet) stats = before;  // the first frame after resync() is not counted when rejected
+    return false;
+  }
+  bool judge(size_t n, bool overflow) {
     if (overflow) {
       ++stats.framing_errors;
       return false;
@@ -129,13 +133,13 @@ class RefDecoder {
   void resync() {
     raw_len_ = 0;
     overflow_ = false;
-    hunting_ = true;
+    after_resync_ = true;
   }
   Frame frame;
   DecodeStats stats;
 
  private:
-  bool hunting_ = false;
+  bool after_resync_ = false;
   uint8_t raw_[kMaxEncodedFrame] = {};
   uint8_t decoded_[kMaxFrameBody] = {};
   size_t raw_len_ = 0;

@@ -420,10 +420,6 @@ BodyStatus checkBody(const uint8_t* body, size_t len, Frame& out) {
 }
 
 bool StreamDecoder::push(uint8_t byte) {
-  if (hunting_) {
-    hunting_ = byte != 0;
-    return false;
-  }
   if (byte != 0) {
     if (raw_len_ < sizeof raw_) {
       raw_[raw_len_++] = byte;
@@ -440,24 +436,18 @@ bool StreamDecoder::feed(const uint8_t*& data, const uint8_t* end) {
     const size_t avail = static_cast<size_t>(end - data);
     const auto* zero = static_cast<const uint8_t*>(std::memchr(data, 0, avail));
     const size_t run = zero != nullptr ? static_cast<size_t>(zero - data) : avail;
-    if (!hunting_) {
-      if (run <= sizeof raw_ - raw_len_) {
-        std::memcpy(raw_ + raw_len_, data, run);
-        raw_len_ += run;
-      } else {
-        raw_len_ = sizeof raw_;  // the content no longer matters: the frame is discarded at its delimiter
-        overflow_ = true;
-      }
+    if (run <= sizeof raw_ - raw_len_) {
+      std::memcpy(raw_ + raw_len_, data, run);
+      raw_len_ += run;
+    } else {
+      raw_len_ = sizeof raw_;  // the content no longer matters: the frame is discarded at its delimiter
+      overflow_ = true;
     }
     if (zero == nullptr) {
       data = end;
       return false;
     }
     data = zero + 1;
-    if (hunting_) {
-      hunting_ = false;
-      continue;
-    }
     if (judge()) return true;
   }
   return false;
@@ -466,9 +456,19 @@ bool StreamDecoder::feed(const uint8_t*& data, const uint8_t* end) {
 bool StreamDecoder::judge() {
   const size_t n = raw_len_;
   const bool overflow = overflow_;
+  const bool first_after_resync = after_resync_;
   raw_len_ = 0;
   overflow_ = false;
+  after_resync_ = false;
   if (n == 0 && !overflow) return false;  // back-to-back delimiters are idle fill, not errors
+  if (!first_after_resync) return judgeCollected(n, overflow);
+  const DecodeStats before = stats_;
+  if (judgeCollected(n, overflow)) return true;
+  stats_ = before;  // the tail of a frame the interruption cut: dropped, not counted
+  return false;
+}
+
+bool StreamDecoder::judgeCollected(size_t n, bool overflow) {
   if (overflow) {
     ++stats_.framing_errors;
     return false;

@@ -82,17 +82,20 @@ class StreamDecoder {
   bool push(uint8_t byte);
   const Frame& frame() const { return frame_; }
   const DecodeStats& stats() const { return stats_; }
-  /// The stream was interrupted (a serial port reopened after a hang-up): drop what was collected and ignore
-  /// bytes up to the next delimiter, so that a frame cut by the interruption is neither judged nor counted.
+  /// The stream was interrupted (a serial port reopened after a hang-up): drop what was collected. The first frame
+  /// after it is judged like any other but, if rejected, not counted: it may be the tail of a frame the
+  /// interruption cut. A whole first frame (a reopened port starts at a frame boundary, as a new pseudo-terminal
+  /// or a re-enumerated CDC-ACM port does) is taken: it is often the device's answer to the new handshake.
   void resync() {
     raw_len_ = 0;
     overflow_ = false;
-    hunting_ = true;
+    after_resync_ = true;
   }
 
  private:
-  bool judge();  // at a delimiter: COBS-decode raw_ in place and check the body
-  bool hunting_ = false;
+  bool judge();  // at a delimiter: the collected frame, quietly when it is the first after resync()
+  bool judgeCollected(size_t n, bool overflow);  // COBS-decode raw_ in place and check the body
+  bool after_resync_ = false;
   uint8_t raw_[kMaxEncodedFrame] = {};
   size_t raw_len_ = 0;
   bool overflow_ = false;
