@@ -397,8 +397,9 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
     const std::string prev = jstr(r, "previous_record", "");
     std::printf("previous session: %s\n", prev.empty() ? "none" : prev.c_str());
     if (r.contains("plan_steps")) {
-      std::printf("session plan%s: %s steps (phalanx status shows where it is)\n",
-                  r.contains("plan") ? (" " + jstr(r, "plan")).c_str() : "", jnum(r, "plan_steps", 0).c_str());
+      std::printf("session plan%s: %s %s (phalanx status shows where it is)\n",
+                  r.contains("plan") ? (" " + jstr(r, "plan")).c_str() : "", jnum(r, "plan_steps", 0).c_str(),
+                  r.value("plan_steps", 0) == 1 ? "step" : "steps");
     }
     if (r.contains("self_training")) {
       std::printf("self-training: at most %s s, effort limits x %s\n", jnum(r["self_training"], "max_session_s", 1).c_str(),
@@ -451,7 +452,8 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
     const nlohmann::json plans = r.value("plans", nlohmann::json::object());
     if (!plans.empty()) std::printf("session plans (phalanx start --patient %s --plan NAME)\n", jstr(r, "patient").c_str());
     for (const auto& [name, pl] : plans.items()) {
-      std::printf("  %-16s %s steps, %s s\n", name.c_str(), jnum(pl, "steps", 0).c_str(), jnum(pl, "duration_s", 0).c_str());
+      std::printf("  %-16s %s %s, %s s\n", name.c_str(), jnum(pl, "steps", 0).c_str(),
+                  pl.value("steps", 0) == 1 ? "step" : "steps", jnum(pl, "duration_s", 1).c_str());
     }
     return;
   }
