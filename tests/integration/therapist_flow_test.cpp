@@ -749,7 +749,9 @@ TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNam
 
   // The profiles listing and the profile carry each plan's step count and length (the dashboard's plan choice).
   for (const auto& p : d.api({{"cmd", "profiles"}})) {
-    if (p.value("patient", "") == "p-plan") EXPECT_EQ(p["plans"]["warmup"], nlohmann::json({{"steps", 2}, {"duration_s", 62.0}}));
+    if (p.value("patient", "") == "p-plan") {
+      EXPECT_EQ(p["plans"]["warmup"], nlohmann::json({{"steps", 2}, {"duration_s", 62.0}}));
+    }
   }
   EXPECT_EQ(d.api({{"cmd", "profile"}, {"patient", "p-plan"}})["plans"]["short"],
             nlohmann::json({{"steps", 1}, {"duration_s", 5.0}}));
