@@ -767,7 +767,10 @@ TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNam
   ASSERT_TRUE(resp.value("ok", false)) << resp.dump();
   EXPECT_EQ(resp["result"]["plan"], "warmup");
   EXPECT_EQ(resp["result"]["plan_steps"], 2);
+  // The plan shows in the status once the session's loop runs.
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
   const nlohmann::json plan = d.plan();
+  ASSERT_TRUE(plan.is_object()) << d.api({{"cmd", "status"}}).dump();
   EXPECT_EQ(plan.value("name", ""), "warmup");
   EXPECT_EQ(plan["list"][0]["target_repetitions"], 3);
   EXPECT_EQ(plan["list"][1]["preset"], "gentle");
@@ -783,6 +786,7 @@ TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNam
   ASSERT_EQ(rc, 0) << start.stdoutText() << start.stderrText();
   EXPECT_NE(start.stdoutText().find("session plan short: 1 step (phalanx status shows where it is)"), std::string::npos)
       << start.stdoutText();
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
   const std::string status = d.cli({"status"}, &rc).stdoutText();
   EXPECT_NE(status.find("  plan short: step 1 of 1, assessment, "), std::string::npos) << status;
   const nlohmann::json end = waitFor(d, ended, 30000);
@@ -795,7 +799,10 @@ TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNam
                                                   {"self_training", true}}, resp), "");
   ASSERT_TRUE(resp.value("ok", false)) << resp.dump();
   EXPECT_EQ(resp["result"]["self_training"]["effort_scale"], 0.5);
-  EXPECT_DOUBLE_EQ(d.api({{"cmd", "limits"}})["effort_max"]["index"].get<double>(), 1.5);
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
+  const nlohmann::json limits = d.api({{"cmd", "limits"}});
+  ASSERT_TRUE(limits.is_object()) << limits.dump();
+  EXPECT_DOUBLE_EQ(limits["effort_max"]["index"].get<double>(), 1.5);
   d.api({{"cmd", "stop"}});
 
   // A file named like a plan, in the CLI's working directory: the file wins (documented in docs/therapy.md).
@@ -803,7 +810,9 @@ TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNam
   Process file_wins({"/usr/bin/env", "-C", d.dir(), "PHALANX_SOCKET=" + d.socket(), "PHALANX_CLIENT_CONFIG=/nonexistent-ok",
                      binPath("phalanx"), "start", "--patient", "p-plan", "--plan", "warmup"});
   ASSERT_EQ(file_wins.wait(60000), 0) << file_wins.stdoutText() << file_wins.stderrText();
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
   const nlohmann::json from_file = d.plan();
+  ASSERT_TRUE(from_file.is_object()) << d.api({{"cmd", "status"}}).dump();
   EXPECT_EQ(from_file.value("steps", 0), 1) << from_file.dump();
   EXPECT_EQ(from_file.value("exercise", ""), "idle");
   EXPECT_FALSE(from_file.contains("name"));
