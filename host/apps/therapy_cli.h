@@ -6,6 +6,7 @@
 //   phalanx record progress --patient ID --records-dir DIR [--repeatability REP.json] [--out F.html] [--pdf F.pdf]
 #include <CLI/CLI.hpp>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -96,7 +97,9 @@ inline void addTherapyCommands(CLI::App& app, TherapyCli& t) {
   start->add_option("--seconds", t.seconds, "session length (0: until stop)")->check(inRange(0.0, 86400.0));
   start->add_option("--seed", t.seed, "simulation seed")->check(inRange(0L, 4294967295L));
   start->add_option("--preset", t.preset, "first exercise: a preset of the patient's profile (instead of --exercise)");
-  start->add_option("--plan", t.plan_file, "a session plan (YAML: steps: [{exercise|preset, duration_s, repetitions}])");
+  start->add_option("--plan", t.plan_file,
+                    "FILE.yaml (steps: [{exercise|preset, duration_s, repetitions}]) or NAME, a plan of the patient's "
+                    "profile; an existing file wins over a name");
   start->add_flag("--self-training", t.self_training, "the patient trains alone: the profile's self_training limits");
   client("stop", "stop the session (device left safe; record closed; report written)");
   client("pause", "pause the session: zero effort, the plan's clock stops");
@@ -309,7 +312,8 @@ inline void printPlan(const nlohmann::json& p, bool paused) {
   if (p.value("finished", false)) {
     std::printf("  plan: all %s steps done\n", jnum(p, "steps", 0).c_str());
   } else {
-    std::printf("  plan: step %s of %s, %s, %s s of %s s left, repetitions %s", jnum(p, "step", 0).c_str(),
+    std::printf("  plan%s: step %s of %s, %s, %s s of %s s left, repetitions %s",
+                p.contains("name") ? (" " + jstr(p, "name")).c_str() : "", jnum(p, "step", 0).c_str(),
                 jnum(p, "steps", 0).c_str(), jstr(p, "exercise").c_str(), jnum(p, "remaining_s", 1).c_str(),
                 jnum(p, "duration_s", 1).c_str(), jnum(p, "repetitions", 0).c_str());
     if (p.value("target_repetitions", 0) > 0) std::printf(" of %s", jnum(p, "target_repetitions", 0).c_str());
@@ -392,7 +396,11 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
                 jstr(r, "record").c_str(), jstr(r, "report").c_str());
     const std::string prev = jstr(r, "previous_record", "");
     std::printf("previous session: %s\n", prev.empty() ? "none" : prev.c_str());
-    if (r.contains("plan_steps")) std::printf("session plan: %s steps (phalanx status shows where it is)\n", jnum(r, "plan_steps", 0).c_str());
+    if (r.contains("plan_steps")) {
+      std::printf("session plan%s: %s %s (phalanx status shows where it is)\n",
+                  r.contains("plan") ? (" " + jstr(r, "plan")).c_str() : "", jnum(r, "plan_steps", 0).c_str(),
+                  r.value("plan_steps", 0) == 1 ? "step" : "steps");
+    }
     if (r.contains("self_training")) {
       std::printf("self-training: at most %s s, effort limits x %s\n", jnum(r["self_training"], "max_session_s", 1).c_str(),
                   jnum(r["self_training"], "effort_scale", 2).c_str());
@@ -440,6 +448,12 @@ inline void printHuman(const std::string& cmd, const nlohmann::json& r) {
     for (const std::string& j : anatomicalKeys(rom)) {
       std::printf("  %-11s %6s … %s\n", j.c_str(), humanNumber(rom[j][0].get<double>(), 1).c_str(),
                   humanNumber(rom[j][1].get<double>(), 1).c_str());
+    }
+    const nlohmann::json plans = r.value("plans", nlohmann::json::object());
+    if (!plans.empty()) std::printf("session plans (phalanx start --patient %s --plan NAME)\n", jstr(r, "patient").c_str());
+    for (const auto& [name, pl] : plans.items()) {
+      std::printf("  %-16s %s %s, %s s\n", name.c_str(), jnum(pl, "steps", 0).c_str(),
+                  pl.value("steps", 0) == 1 ? "step" : "steps", jnum(pl, "duration_s", 1).c_str());
     }
     return;
   }
@@ -578,29 +592,17 @@ inline int runProgress(TherapyCli& t) {
 }
 
 /// Runs the parsed therapy/record subcommand; returns -1 if none of them was given.
-/// A YAML node as JSON: mappings, lists, and scalars as whole numbers, numbers, true/false or strings. The daemon
-/// validates the plan's fields; this only checks the file (size, syntax, duplicate keys).
-inline nlohmann::json yamlToJson(const YAML::Node& n) {
-  if (n.IsMap()) {
-    nlohmann::json j = nlohmann::json::object();
-    for (const auto& kv : n) j[kv.first.as<std::string>()] = yamlToJson(kv.second);
-    return j;
-  }
-  if (n.IsSequence()) {
-    nlohmann::json j = nlohmann::json::array();
-    for (const auto& e : n) j.push_back(yamlToJson(e));
-    return j;
-  }
-  if (!n.IsScalar()) return nullptr;
-  const std::string& s = n.Scalar();
-  if (n.Tag() == "!") return s;  // quoted: a string
-  long long i = 0;
-  double d = 0.0;
-  bool b = false;
-  if (YAML::convert<long long>::decode(n, i)) return i;
-  if (YAML::convert<double>::decode(n, d)) return d;
-  if (YAML::convert<bool>::decode(n, b)) return b;
-  return s;
+/// --plan ARG names a file (read here) when a file of that path exists, or when it has a '/' or a YAML/JSON
+/// extension (so a mistyped path is refused as unreadable, not sent as a plan name); otherwise it is the name of
+/// a plan of the patient's profile. An existing file wins over a profile plan of the same name.
+inline bool isPlanFileArgument(const std::string& arg) {
+  struct stat st {};
+  if (::stat(arg.c_str(), &st) == 0) return true;
+  auto ends = [&](const char* ext) {
+    const std::string e(ext);
+    return arg.size() >= e.size() && arg.compare(arg.size() - e.size(), e.size(), e) == 0;
+  };
+  return arg.find('/') != std::string::npos || ends(".yaml") || ends(".yml") || ends(".json");
 }
 
 /// --plan FILE: a YAML session plan (docs/therapy.md "Session plan") as the JSON of the start request.
@@ -702,7 +704,9 @@ inline int runTherapyCommands(TherapyCli& t) {
         if (t.cmds["start"]->count("--exercise") > 0 || (t.preset.empty() && t.plan_file.empty())) req["exercise"] = t.exercise;
         if (!t.preset.empty()) req["preset"] = t.preset;
         if (t.self_training) req["self_training"] = true;
-        if (!t.plan_file.empty()) {
+        if (!t.plan_file.empty() && !isPlanFileArgument(t.plan_file)) {
+          req["plan"] = t.plan_file;  // the name of a plan of the patient's profile: the daemon resolves it
+        } else if (!t.plan_file.empty()) {
           if (const std::string err = readPlanFile(t.plan_file, req["plan"]); !err.empty()) {
             std::fprintf(stderr, "phalanx: error: --plan %s\n", err.c_str());
             return 2;

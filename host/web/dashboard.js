@@ -188,6 +188,7 @@ function showPlan(p, paused) {
   const box = document.getElementById('plan');
   if (!p || typeof p !== 'object') { box.style.display = 'none'; return; }
   box.style.display = 'block';
+  document.getElementById('plan-name').textContent = p.name || '';
   document.getElementById('plan-step').textContent = String(p.step);
   document.getElementById('plan-steps').textContent = String(p.steps);
   document.getElementById('plan-exercise').textContent = p.exercise + (p.preset ? ' (preset ' + p.preset + ')' : '');
@@ -283,6 +284,21 @@ function showPresets() {
   }
   sel.prepend(g);
 }
+// The session plans of the chosen patient's profile: "name — N steps, T s".
+function showPlans() {
+  const sel = document.getElementById('plan-select');
+  const keep = sel.value;
+  while (sel.options.length > 1) sel.remove(1);
+  const p = profilesById[document.getElementById('patient-select').value];
+  const plans = p && p.plans ? p.plans : {};
+  for (const [n, pl] of Object.entries(plans)) {
+    const o = document.createElement('option');
+    o.value = n;
+    o.textContent = n + ' \u2014 ' + pl.steps + (pl.steps === 1 ? ' step, ' : ' steps, ') + pl.duration_s + ' s';
+    sel.append(o);
+  }
+  if ([...sel.options].some((o) => o.value === keep)) sel.value = keep;
+}
 /// The exercise choice as request fields: {preset} or {exercise}.
 function chosenExercise() {
   const v = document.getElementById('exercise-select').value;
@@ -326,6 +342,7 @@ async function loadProfiles() {
   }
   if ([...sel.options].some((o) => o.value === keep && !o.disabled)) sel.value = keep;
   showPresets();
+  showPlans();
 }
 
 async function poll() {
@@ -378,15 +395,22 @@ document.getElementById('stop').addEventListener('click', () => request({ cmd: '
 document.getElementById('reset').addEventListener('click', () => request({ cmd: 'reset' }));
 document.getElementById('exercise-select').addEventListener('change', () => { exercisePicked = true; });
 document.getElementById('patient-select').addEventListener('focus', loadProfiles);
-document.getElementById('patient-select').addEventListener('change', showPresets);
+document.getElementById('patient-select').addEventListener('change', () => { showPresets(); showPlans(); });
 document.getElementById('change').addEventListener('click',
   () => request(Object.assign({ cmd: 'exercise' }, chosenExercise())));
 document.getElementById('pause').addEventListener('click', () => request({ cmd: 'pause' }));
 document.getElementById('resume').addEventListener('click', () => request({ cmd: 'resume' }));
 document.getElementById('start').addEventListener('click', () => {
   const body = { cmd: 'start' };
+  const named = document.getElementById('plan-select').value;
   const text = document.getElementById('plan-input').value.trim();
-  if (text) {
+  if (named && text) {
+    message('start: a plan is chosen and another typed under advanced: clear one of them', true);
+    return;
+  }
+  if (named) {
+    body.plan = named;  // the daemon takes the plan from the patient's profile
+  } else if (text) {
     try { body.plan = JSON.parse(text); } catch (e) { message('plan: not valid JSON: ' + e.message, true); return; }
   } else {
     Object.assign(body, chosenExercise());

@@ -539,8 +539,9 @@ TEST(Dashboard, HeadlessChromiumShowsAReplayAndItsControlsAreRefused) {
   std::system(("rm -rf " + dir).c_str());
 }
 
-// Issue #25 item 2: a session plan started from the page counts down and counts repetitions, the exercise shown is
-// the step's, pause stops the countdown, the presets are in the exercise choice; screenshots kept as artefacts.
+// Issue #25 item 2: a session plan of the patient's profile, picked from the page's plan choice and started there,
+// counts down and counts repetitions, the exercise shown is the step's, pause stops the countdown, the presets are
+// in the exercise choice; screenshots kept as artefacts.
 TEST(Dashboard, APlanStartedFromThePageCountsDownCountsRepetitionsAndPauses) {
   const std::string exe = Chromium::executable();
   if (exe.empty()) {
@@ -549,9 +550,6 @@ TEST(Dashboard, APlanStartedFromThePageCountsDownCountsRepetitionsAndPauses) {
                     "browser test of the session plan did not run";
   }
   DashDaemon d;
-  std::ofstream(d.dir() + "/sea-plan.yaml")
-      << "version: 1\npatient: sea-plan\ndevice: sea_finger\nlimits:\n  effort_max: 0.2\n"
-         "presets:\n  gentle: {exercise: resistance, params: {stiffness_per_rad: 0.02}}\n";
   // The simulated finger's close/open (sea_plant.h kCloseOpen: MCP ± 0.30 rad at 0.5 Hz about its rest) measured
   // first through the API over more than one period: the repetition thresholds at 25 % and 75 % of that swing.
   ASSERT_TRUE(d.api({{"cmd", "start"}, {"exercise", "assessment"}}).value("ok", false));
@@ -570,6 +568,13 @@ TEST(Dashboard, APlanStartedFromThePageCountsDownCountsRepetitionsAndPauses) {
   std::printf("mcp swing %.1f° … %.1f° over %.1f s\n", lo, hi, t - t_first);
   ASSERT_GT(hi - lo, 20.0) << "the finger moves (±17° about its rest)";
   const double extend = lo + 0.25 * (hi - lo), flex = lo + 0.75 * (hi - lo);
+  // The therapist's plan lives in the profile (the daemon reads the profiles directory at each request).
+  std::ofstream(d.dir() + "/sea-plan.yaml")
+      << "version: 1\npatient: sea-plan\ndevice: sea_finger\nlimits:\n  effort_max: 0.2\n"
+         "presets:\n  gentle: {exercise: resistance, params: {stiffness_per_rad: 0.02}}\n"
+         "plans:\n  warmup:\n    steps:\n"
+         "      - {exercise: assessment, duration_s: 60, repetitions: 2, channel: mcp, rep_range_deg: ["
+      << extend << ", " << flex << "]}\n      - {preset: gentle, duration_s: 30}\n";
 
   Chromium chrome(exe, d.dir() + "/chromium-profile", d.dir() + "/chromium.log");
   ASSERT_TRUE(chrome.ok());
@@ -597,17 +602,19 @@ TEST(Dashboard, APlanStartedFromThePageCountsDownCountsRepetitionsAndPauses) {
                        " s.dispatchEvent(new Event('change')); return true; })()");
   EXPECT_TRUE(until("[...document.getElementById('exercise-select').options].some(o => o.value === 'preset:gentle'"
                     " && o.textContent === 'gentle (resistance)')", 20));
-  const nlohmann::json plan = {
-      {"steps",
-       {{{"exercise", "assessment"}, {"duration_s", 60}, {"repetitions", 2}, {"channel", "mcp"}, {"rep_range_deg", {extend, flex}}},
-        {{"preset", "gentle"}, {"duration_s", 30}}}}};
-  chrome.eval(session, "(() => { document.getElementById('plan-editor').open = true; document.getElementById('plan-input').value = " +
-                           nlohmann::json(plan.dump()).dump() + "; document.getElementById('start').click(); return true; })()");
+  // The plan choice lists the profile's plan with its step count and length; picking it and pressing start
+  // sends {"plan": "warmup"} (the advanced JSON box stays empty).
+  EXPECT_TRUE(until("[...document.getElementById('plan-select').options].some(o => o.value === 'warmup'"
+                    " && o.textContent === 'warmup \u2014 2 steps, 90 s')", 20))
+      << chrome.eval(session, "[...document.getElementById('plan-select').options].map(o => o.textContent).join('|')").dump();
+  chrome.eval(session, "(() => { const s = document.getElementById('plan-select'); s.value = 'warmup';"
+                       " s.dispatchEvent(new Event('change')); document.getElementById('start').click(); return true; })()");
   const std::string read_plan =
       "({shown: getComputedStyle(document.getElementById('plan')).display !== 'none',"
       " step: document.getElementById('plan-step').textContent, exercise: document.getElementById('plan-exercise').textContent,"
       " remaining: document.getElementById('plan-remaining').textContent, reps: document.getElementById('plan-reps').textContent,"
       " paused: !document.getElementById('plan-paused').hidden, running: document.getElementById('exercise').textContent,"
+      " name: document.getElementById('plan-name').textContent,"
       " list: document.getElementById('plan-list').innerText, message: document.getElementById('message').textContent})";
   ASSERT_TRUE(until("getComputedStyle(document.getElementById('plan')).display !== 'none'"))
       << chrome.eval(session, read_plan).dump();
@@ -615,6 +622,8 @@ TEST(Dashboard, APlanStartedFromThePageCountsDownCountsRepetitionsAndPauses) {
   std::printf("plan panel at its start: %s\n", p0.dump().c_str());
   EXPECT_EQ(p0.value("step", ""), "1");
   EXPECT_EQ(p0.value("exercise", ""), "assessment");
+  EXPECT_EQ(p0.value("name", ""), "warmup");
+  EXPECT_EQ(d.api({{"cmd", "status"}})["result"]["session"]["plan"].value("name", ""), "warmup");
   // It counts down and counts repetitions from the finger's motion.
   ASSERT_TRUE(until("document.getElementById('plan-reps').textContent === '1 of 2'"));
   const nlohmann::json p1 = chrome.eval(session, read_plan);

@@ -438,7 +438,10 @@ const char* kPlanProfile =
     "limits:\n  effort_max: {default: 3.0}\n"
     "presets:\n  gentle: {exercise: resistance, params: {stiffness_per_rad: 0.5}}\n"
     "  strong: {exercise: resistance, params: {stiffness_per_rad: 8}}\n"
-    "self_training:\n  allowed: [strong, assessment]\n  max_session_s: 4\n  effort_scale: 0.5\n";
+    "self_training:\n  allowed: [strong, assessment]\n  max_session_s: 4\n  effort_scale: 0.5\n"
+    "plans:\n  warmup: {steps: [{exercise: assessment, duration_s: 60, repetitions: 3}, {preset: gentle, duration_s: 2}]}\n"
+    "  short: {steps: [{exercise: assessment, duration_s: 5}]}\n"
+    "  alone: {steps: [{preset: strong, duration_s: 2}]}\n";
 
 /// A daemon whose profiles directory also holds p-plan (presets, self-training). A 1 s command timeout: these
 /// tests count session time, and a loaded machine's stalls must not latch faults that stop the plan's clock.
@@ -710,4 +713,108 @@ TEST(SessionPlanFlow, SelfTrainingRunsWithinItsLimitsAndEndsAtItsMaximumLength) 
   std::printf("self-training: peak commanded effort %.4f N (limit 1.5 N), %ld cycles, %.3f s\n", peak, cycles, length);
   EXPECT_LE(peak, 1.5 + 1e-6);
   EXPECT_GE(peak, 1.5 - 1e-3) << "the limit was reached (so the check above could fail)";
+}
+
+// A plan of the patient's profile (`plans:`) started by its name: over the API ({"plan": "warmup"}) and the CLI
+// (--plan NAME); an unknown name is refused naming it and listing the profile's plans; self-training's list applies
+// to a named plan as to an inline one; a file of the same name as a plan wins on the CLI.
+TEST(SessionPlanFlow, AProfilePlanStartsByNameOverTheApiAndTheCliAndAnUnknownNameIsRefused) {
+  PlanDaemon d;
+  const std::vector<std::pair<nlohmann::json, std::string>> cases = {
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", "warmpu"}},
+       "field 'plan': 'warmpu' is not a plan of patient p-plan (plans: warmup, short, alone)"},
+      {{{"cmd", "start"}, {"patient", "p-ok"}, {"plan", "warmup"}},
+       "field 'plan': 'warmup' is not a plan of patient p-ok (plans: none)"},
+      {{{"cmd", "start"}, {"plan", "warmup"}}, "field 'plan': 'warmup' names a plan of a patient's profile: give the patient"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", 7}},
+       "field 'plan': expected a plan {\"steps\": [...]} or the name of a plan of the patient's profile"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", "warmup"}, {"preset", "gentle"}},
+       "field 'plan': a plan names each step's exercise (leave out exercise, preset and params)"},
+      {{{"cmd", "start"}, {"patient", "p-plan"}, {"plan", "warmup"}, {"self_training", true}},
+       "plans.warmup.steps[1]: 'gentle' is not allowed in self-training for patient p-plan (allowed: assessment, strong)"},
+  };
+  for (const auto& [req, error] : cases) {
+    EXPECT_EQ(d.refusal(req), error) << req.dump();
+    EXPECT_FALSE(d.api({{"cmd", "status"}})["session_running"].get<bool>()) << req.dump();
+  }
+  int rc = 0;
+  Process& unknown = d.cli({"start", "--patient", "p-plan", "--plan", "warmpu"}, &rc);
+  EXPECT_EQ(rc, 1);
+  EXPECT_EQ(unknown.stderrText(),
+            "phalanx: refused: field 'plan': 'warmpu' is not a plan of patient p-plan (plans: warmup, short, alone)\n");
+  Process& typo = d.cli({"start", "--patient", "p-plan", "--plan", "warmup.yaml"}, &rc);
+  EXPECT_EQ(rc, 2) << "a YAML name is a file, never sent as a plan name";
+  EXPECT_NE(typo.stderrText().find("phalanx: error: --plan warmup.yaml: cannot read: "), std::string::npos) << typo.stderrText();
+  EXPECT_TRUE(d.api({{"cmd", "recordings"}}).empty()) << "a refused start creates no record";
+
+  // The profiles listing and the profile carry each plan's step count and length (the dashboard's plan choice).
+  for (const auto& p : d.api({{"cmd", "profiles"}})) {
+    if (p.value("patient", "") == "p-plan") {
+      EXPECT_EQ(p["plans"]["warmup"], nlohmann::json({{"steps", 2}, {"duration_s", 62.0}}));
+    }
+  }
+  EXPECT_EQ(d.api({{"cmd", "profile"}, {"patient", "p-plan"}})["plans"]["short"],
+            nlohmann::json({{"steps", 1}, {"duration_s", 5.0}}));
+  const std::string shown = d.cli({"profile", "p-plan"}, &rc).stdoutText();
+  EXPECT_NE(shown.find("session plans (phalanx start --patient p-plan --plan NAME)\n  alone            1 step, 2 s\n"
+                       "  short            1 step, 5 s\n  warmup           2 steps, 62 s\n"),
+            std::string::npos)
+      << shown;
+
+  // API: started by name, the session runs the profile's steps and says which plan it follows.
+  nlohmann::json resp;
+  ASSERT_EQ(phalanx::host::api::call(d.socket(), {{"cmd", "start"}, {"patient", "p-plan"}, {"plan", "warmup"}}, resp), "");
+  ASSERT_TRUE(resp.value("ok", false)) << resp.dump();
+  EXPECT_EQ(resp["result"]["plan"], "warmup");
+  EXPECT_EQ(resp["result"]["plan_steps"], 2);
+  // The plan shows in the status once the session's loop runs.
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
+  const nlohmann::json plan = d.plan();
+  ASSERT_TRUE(plan.is_object()) << d.api({{"cmd", "status"}}).dump();
+  EXPECT_EQ(plan.value("name", ""), "warmup");
+  EXPECT_EQ(plan["list"][0]["target_repetitions"], 3);
+  EXPECT_EQ(plan["list"][1]["preset"], "gentle");
+  EXPECT_EQ(plan["list"][1]["duration_s"], 2.0);
+  d.api({{"cmd", "stop"}});
+  const auto rec = lastRecord(d);
+  EXPECT_EQ(rec.header.value("plan_name", ""), "warmup");
+  ASSERT_EQ(rec.header["plan"].size(), 2u);
+  EXPECT_EQ(rec.header["plan"][1]["preset"], "gentle");
+
+  // CLI: --plan NAME (no such file) is the profile's plan; the short one (5 s) ends by itself at its duration.
+  Process& start = d.cli({"start", "--patient", "p-plan", "--plan", "short"}, &rc);
+  ASSERT_EQ(rc, 0) << start.stdoutText() << start.stderrText();
+  EXPECT_NE(start.stdoutText().find("session plan short: 1 step (phalanx status shows where it is)"), std::string::npos)
+      << start.stdoutText();
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
+  const std::string status = d.cli({"status"}, &rc).stdoutText();
+  EXPECT_NE(status.find("  plan short: step 1 of 1, assessment, "), std::string::npos) << status;
+  const nlohmann::json end = waitFor(d, ended, 30000);
+  ASSERT_TRUE(ended(end)) << end.dump();
+  EXPECT_EQ(end["last_session"]["plan"]["name"], "short");
+  EXPECT_EQ(end["last_session"]["plan"]["list"][0]["ended_by"], "duration");
+
+  // Self-training: a named plan whose steps are all allowed starts, with the self-training limits.
+  ASSERT_EQ(phalanx::host::api::call(d.socket(), {{"cmd", "start"}, {"patient", "p-plan"}, {"plan", "alone"},
+                                                  {"self_training", true}}, resp), "");
+  ASSERT_TRUE(resp.value("ok", false)) << resp.dump();
+  EXPECT_EQ(resp["result"]["self_training"]["effort_scale"], 0.5);
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
+  const nlohmann::json limits = d.api({{"cmd", "limits"}});
+  ASSERT_TRUE(limits.is_object()) << limits.dump();
+  EXPECT_DOUBLE_EQ(limits["effort_max"]["index"].get<double>(), 1.5);
+  d.api({{"cmd", "stop"}});
+
+  // A file named like a plan, in the CLI's working directory: the file wins (documented in docs/therapy.md).
+  std::ofstream(d.dir() + "/warmup") << "steps:\n  - {exercise: idle, duration_s: 30}\n";
+  Process file_wins({"/usr/bin/env", "-C", d.dir(), "PHALANX_SOCKET=" + d.socket(), "PHALANX_CLIENT_CONFIG=/nonexistent-ok",
+                     binPath("phalanx"), "start", "--patient", "p-plan", "--plan", "warmup"});
+  ASSERT_EQ(file_wins.wait(60000), 0) << file_wins.stdoutText() << file_wins.stderrText();
+  waitFor(d, [](const nlohmann::json& s) { return s.contains("session") && s["session"].contains("plan"); });
+  const nlohmann::json from_file = d.plan();
+  ASSERT_TRUE(from_file.is_object()) << d.api({{"cmd", "status"}}).dump();
+  EXPECT_EQ(from_file.value("steps", 0), 1) << from_file.dump();
+  EXPECT_EQ(from_file.value("exercise", ""), "idle");
+  EXPECT_FALSE(from_file.contains("name"));
+  d.api({{"cmd", "stop"}});
 }

@@ -106,6 +106,12 @@ TEST(Profile, ARepeatedKeyIsRefusedInsteadOfTheLastOneWinning) {
 TEST(Profile, TheShippedDemoProfileIsValid) {
   Profile p;
   EXPECT_EQ(loadProfileFile(std::string(PHALANX_SOURCE_DIR) + "/config/profiles/demo-001.yaml", p), "");
+  // Its example preset and plan (the format a user copies).
+  ASSERT_EQ(p.presets.size(), 1u);
+  ASSERT_EQ(p.plans.size(), 1u);
+  EXPECT_EQ(p.plans[0].name, "first-visit");
+  EXPECT_EQ(p.plans[0].step_count, 3u);
+  EXPECT_DOUBLE_EQ(p.plans[0].total_s, 240.0);
 }
 
 TEST(PatientLimits, ClampEffortAndNeverPushAJointFurtherOutOfItsRange) {

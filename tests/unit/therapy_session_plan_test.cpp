@@ -252,6 +252,85 @@ TEST(ProfilePresets, PresetsAndSelfTrainingAreValidatedKeyByKey) {
   }
 }
 
+// A profile's plans (`plans:`) go through the plan parser at load: the same steps as an inline plan, errors naming
+// the file, the plan and the field.
+TEST(ProfilePlans, APlanOfTheProfileParsesAsTheSameInlinePlanAndIsListed) {
+  Profile p;
+  ASSERT_EQ(loadProfileText(std::string(kProfile) +
+                                "plans:\n  warmup:\n    steps:\n"
+                                "      - {exercise: assessment, duration_s: 30, repetitions: 5}\n"
+                                "      - {preset: gentle, duration_s: 60, channel: middle}\n"
+                                "  test: {steps: [{exercise: resistance, params: {rest_deg: 10}, duration_s: 5, "
+                                "rep_range_deg: [20, 120]}]}\n",
+                            "p-1.yaml", p),
+            "");
+  ASSERT_EQ(p.plans.size(), 2u);
+  const NamedPlan* warmup = findPlan(p, "warmup");
+  ASSERT_NE(warmup, nullptr);
+  EXPECT_EQ(findPlan(p, "warm-up"), nullptr);
+  EXPECT_EQ(warmup->step_count, 2u);
+  EXPECT_DOUBLE_EQ(warmup->total_s, 90.0);
+  EXPECT_EQ(plansJson(p), nlohmann::json::parse(R"({"warmup": {"steps": 2, "duration_s": 90.0},
+                                                     "test": {"steps": 1, "duration_s": 5.0}})"));
+  EXPECT_EQ(planList(p), "warmup, test");  // the file's order
+  // Parsed again (as `start` does): the steps an inline plan of the same fields gives.
+  Fixture f;
+  SessionPlan from_profile, from_inline;
+  ASSERT_EQ(parsePlan(warmup->plan, *f.device, p, nullptr, from_profile, "plans.warmup"), "");
+  ASSERT_EQ(f.parse(R"({"steps": [{"exercise": "assessment", "duration_s": 30, "repetitions": 5},
+                                   {"preset": "gentle", "duration_s": 60, "channel": "middle"}]})",
+                    from_inline),
+            "");
+  EXPECT_EQ(from_profile.toJson(*f.device), from_inline.toJson(*f.device));
+  EXPECT_EQ(from_profile.steps[0].repetitions, 5u);
+  EXPECT_EQ(from_profile.steps[1].preset, "gentle");
+  // Self-training's list is applied when the plan starts, not at load: checked against a narrower list, the same
+  // stored plan is refused naming the profile's plan and its step.
+  std::set<std::string> only_assessment = {"assessment"};
+  EXPECT_EQ(parsePlan(warmup->plan, *f.device, p, &only_assessment, from_profile, "plans.warmup"),
+            "plans.warmup.steps[1]: 'gentle' is not allowed in self-training for patient p-1 (allowed: assessment)");
+}
+
+TEST(ProfilePlans, EveryBadPlanIsRefusedNamingTheFileThePlanAndTheField) {
+  const std::string base = "version: 1\npatient: p-3\ndevice: glove5\nlimits: {effort_max: 4}\n"
+                           "presets: {gentle: {exercise: resistance}}\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"plans: {w: {steps: [{exercise: assessment, duration_s: 0}]}}",
+       "p-3.yaml: plans.w.steps[0].duration_s: must be in (0, 3600] s, got 0"},
+      {"plans: {w: {steps: [{exercise: assessment, duration_s: 5}, {preset: gentel, duration_s: 5}]}}",
+       "p-3.yaml: plans.w.steps[1].preset: 'gentel' is not a preset of patient p-3 (presets: gentle)"},
+      {"plans: {w: {steps: [{preset: gentle, params: {}, duration_s: 5}]}}",
+       "p-3.yaml: plans.w.steps[0].params: a preset's parameters are the profile's (give an exercise to set them)"},
+      {"plans: {w: {steps: [{exercise: resistance, params: {stiffness_per_rad: 99}, duration_s: 5}]}}",
+       "p-3.yaml: plans.w.steps[0].params.stiffness_per_rad: 99 is outside [0, 20] effort/rad"},
+      {"plans: {w: {steps: [{exercise: assessment, duration_s: 5, repetitions: 2.5}]}}",
+       "p-3.yaml: plans.w.steps[0].repetitions: expected a whole number from 0 to 1000"},
+      {"plans: {w: {steps: [{exercise: assessment, duration_s: '5'}]}}",
+       "p-3.yaml: plans.w.steps[0].duration_s: expected a number"},
+      {"plans: {w: {steps: [{exercise: assessment, duration_s: 5, repeats: 3}]}}",
+       "p-3.yaml: plans.w.steps[0].repeats: unknown field (accepted: channel, duration_s, exercise, params, preset, "
+       "rep_range_deg, repetitions)"},
+      {"plans: {w: {steps: [{exercise: playback, duration_s: 5}]}}",
+       "p-3.yaml: plans.w.steps[0].exercise: playback needs a pattern recorded in the session; it cannot be a plan step"},
+      {"plans: {w: {steps: []}}", "p-3.yaml: plans.w.steps: expected 1 to 32 steps, got 0"},
+      {"plans: {w: {stpes: []}}", "p-3.yaml: plans.w.stpes: unknown field (accepted: steps)"},
+      {"plans: {w: [a]}", "p-3.yaml: plans.w: expected an object {\"steps\": [...]}"},
+      {"plans: {w: }", "p-3.yaml: plans.w: expected an object {\"steps\": [...]}"},
+      {"plans: [w]", "p-3.yaml: plans: expected a mapping <name>: {steps: [...]}"},
+      {"plans: {\"a b\": {steps: [{exercise: assessment, duration_s: 5}]}}",
+       "p-3.yaml: plans.a b: a plan name is 1-32 letters, digits, '-' or '_'"},
+      {"plans:\n  w: {steps: [{exercise: assessment, duration_s: 5}]}\n  w: {steps: [{exercise: idle, duration_s: 5}]}",
+       "p-3.yaml: plans.w: duplicate key (line 8; first at line 7)"},
+  };
+  for (const auto& [extra, error] : cases) {
+    Profile p;
+    p.patient = "unchanged";
+    EXPECT_EQ(loadProfileText(base + extra + "\n", "p-3.yaml", p), error) << extra;
+    EXPECT_EQ(p.patient, "unchanged");
+    EXPECT_TRUE(p.plans.empty());
+  }
+}
+
 TEST(PlanRunner, StepsEndAtTheirDurationOrRepetitionsCountingOnlyCountedTime) {
   Fixture f;
   SessionPlan plan;

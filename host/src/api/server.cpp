@@ -227,6 +227,7 @@ class Daemon {
         const std::string err = therapy::loadProfileFile(cfg_.profiles_dir + "/" + f, p);
         out.push_back(err.empty() ? nlohmann::json{{"file", f}, {"patient", p.patient}, {"device", p.device}, {"valid", true},
                                                    {"presets", therapy::presetsJson(p)},
+                                                   {"plans", therapy::plansJson(p)},
                                                    {"self_training", p.self_training.allowed}}
                                   : nlohmann::json{{"file", f}, {"valid", false}, {"error", err}});
       }
@@ -239,7 +240,8 @@ class Daemon {
       nlohmann::json rom = nlohmann::json::object();
       for (const auto& [j, r] : p.rom_rad) rom[j] = {r.first * 180.0 / M_PI, r.second * 180.0 / M_PI};
       nlohmann::json j{{"patient", p.patient}, {"device", p.device}, {"size", p.size}, {"handedness", p.handedness},
-                       {"rom_deg", rom}, {"file", p.source}, {"presets", therapy::presetsJson(p)}};
+                       {"rom_deg", rom}, {"file", p.source}, {"presets", therapy::presetsJson(p)},
+                       {"plans", therapy::plansJson(p)}};
       if (p.self_training.allowed) {
         j["self_training"] = {{"allowed", p.self_training.steps}, {"max_session_s", p.self_training.max_session_s},
                               {"effort_scale", p.self_training.effort_scale}};
@@ -314,6 +316,27 @@ class Daemon {
     return {strField(req, "exercise", def), params};
   }
 
+  /// The plan a start asks for: an inline {"steps": [...]}, or the name of a plan of the patient's profile (then
+  /// `where` becomes "plans.<name>", so the parser's errors name the profile's plan).
+  static const nlohmann::json& requestedPlan(const nlohmann::json& field, const therapy::TherapySessionConfig& tcfg,
+                                             std::string& where) {
+    if (field.is_object()) return field;
+    if (!field.is_string()) {
+      throw RequestError{"field 'plan': expected a plan {\"steps\": [...]} or the name of a plan of the patient's profile"};
+    }
+    const std::string name = field.get<std::string>();
+    if (!tcfg.have_profile) {
+      throw RequestError{"field 'plan': '" + name + "' names a plan of a patient's profile: give the patient"};
+    }
+    const therapy::NamedPlan* named = therapy::findPlan(tcfg.profile, name);
+    if (named == nullptr) {
+      throw RequestError{"field 'plan': '" + name + "' is not a plan of patient " + tcfg.profile.patient +
+                         " (plans: " + therapy::planList(tcfg.profile) + ")"};
+    }
+    where = "plans." + name;
+    return named->plan;
+  }
+
   /// Self-training: only what the profile's self_training.allowed lists.
   static void checkSelfTrainingStep(const therapy::Profile& p, const std::string& name) {
     if (p.self_training.steps.count(name) != 0) return;
@@ -359,6 +382,8 @@ class Daemon {
     if (req.contains("plan") && (req.contains("exercise") || req.contains("preset") || req.contains("params"))) {
       throw RequestError{"field 'plan': a plan names each step's exercise (leave out exercise, preset and params)"};
     }
+    std::string plan_where = "plan";
+    const nlohmann::json plan_json = req.contains("plan") ? requestedPlan(req["plan"], tcfg, plan_where) : nlohmann::json();
     std::tie(tcfg.exercise, tcfg.exercise_params) = exerciseOrPreset(req, tcfg.profile, tcfg.have_profile, "assessment");
     if (req.contains("self_training") && !req["self_training"].is_boolean()) {
       throw RequestError{"field 'self_training': expected true or false"};
@@ -397,9 +422,11 @@ class Daemon {
         }
         if (req.contains("plan")) {
           const std::set<std::string>* allowed = self_training ? &tcfg.profile.self_training.steps : nullptr;
-          if (const std::string perr = therapy::parsePlan(req["plan"], *device, tcfg.profile, allowed, tcfg.plan); !perr.empty()) {
+          if (const std::string perr = therapy::parsePlan(plan_json, *device, tcfg.profile, allowed, tcfg.plan, plan_where);
+              !perr.empty()) {
             throw RequestError{perr};
           }
+          if (req["plan"].is_string()) tcfg.plan.name = req["plan"].get<std::string>();
           tcfg.exercise = tcfg.plan.steps[0].exercise;
           tcfg.exercise_params = tcfg.plan.steps[0].params;
         } else if (self_training) {
@@ -450,6 +477,7 @@ class Daemon {
     nlohmann::json answer{{"record", record}, {"report", tcfg.report_path}, {"exercise", tcfg.exercise},
                           {"previous_record", tcfg.previous_record}};
     if (!tcfg.plan.empty()) answer["plan_steps"] = tcfg.plan.steps.size();
+    if (!tcfg.plan.name.empty()) answer["plan"] = tcfg.plan.name;
     if (self_training) answer["self_training"] = {{"max_session_s", opt.seconds}, {"effort_scale", tcfg.profile.self_training.effort_scale}};
     return answer;
   }

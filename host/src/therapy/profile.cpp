@@ -17,6 +17,7 @@
 #include "phalanx/host/yaml_keys.h"
 #include "phalanx/host/therapy/exercise.h"
 #include "phalanx/host/therapy/records_dir.h"
+#include "phalanx/host/therapy/session_plan.h"
 
 namespace phalanx::host::therapy {
 namespace {
@@ -113,6 +114,28 @@ void parsePresets(const YAML::Node& node, const TherapyDevice& device, Profile& 
   }
 }
 
+/// plans: {<name>: {steps: [...]}}: each step as an inline plan's (docs/therapy.md "Session plan"), checked by the
+/// plan parser against the device and this profile's presets and ranges, so errors read
+/// "plans.warmup.steps[1].duration_s: …". Runs after parsePresets (steps may name presets).
+void parsePlans(const YAML::Node& node, const TherapyDevice& device, Profile& p) {
+  if (!node) return;
+  if (!node.IsMap()) throw ProfileError{"plans: expected a mapping <name>: {steps: [...]}"};
+  for (const auto& kv : node) {
+    NamedPlan named;
+    named.name = kv.first.as<std::string>();
+    const std::string where = "plans." + named.name;
+    if (!std::regex_match(named.name, std::regex("[A-Za-z0-9_-]{1,32}"))) {
+      throw ProfileError{where + ": a plan name is 1-32 letters, digits, '-' or '_'"};
+    }
+    named.plan = yamlToJson(kv.second);
+    SessionPlan plan;
+    if (std::string err = parsePlan(named.plan, device, p, nullptr, plan, where); !err.empty()) throw ProfileError{err};
+    named.step_count = plan.steps.size();
+    named.total_s = plan.totalS();
+    p.plans.push_back(std::move(named));
+  }
+}
+
 /// self_training: {allowed: [<preset or exercise>...], max_session_s, effort_scale}.
 void parseSelfTraining(const YAML::Node& node, Profile& p) {
   if (!node) return;
@@ -149,7 +172,7 @@ void parseSelfTraining(const YAML::Node& node, Profile& p) {
 
 void parse(const YAML::Node& root, Profile& p) {
   requireKeys(root, "", {"version", "patient", "device", "size", "handedness", "kinematics", "rom_deg", "limits",
-                          "presets", "self_training"});
+                          "presets", "plans", "self_training"});
   if (!root["version"]) throw ProfileError{"version: missing (this daemon reads version 1)"};
   if (number(root["version"], "version") != 1.0) throw ProfileError{"version: only version 1 is understood"};
   if (!root["patient"]) throw ProfileError{"patient: missing"};
@@ -260,6 +283,7 @@ void parse(const YAML::Node& root, Profile& p) {
     }
   }
   parsePresets(root["presets"], *device, p);
+  parsePlans(root["plans"], *device, p);
   parseSelfTraining(root["self_training"], p);
 }
 

@@ -191,24 +191,43 @@ nlohmann::json presetsJson(const Profile& profile) {
   return out;
 }
 
+nlohmann::json plansJson(const Profile& profile) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& p : profile.plans) out[p.name] = {{"steps", p.step_count}, {"duration_s", p.total_s}};
+  return out;
+}
+
+const NamedPlan* findPlan(const Profile& profile, const std::string& name) {
+  for (const auto& p : profile.plans) {
+    if (p.name == name) return &p;
+  }
+  return nullptr;
+}
+
+std::string planList(const Profile& profile) {
+  std::string list;
+  for (const auto& p : profile.plans) list += (list.empty() ? "" : ", ") + p.name;
+  return list.empty() ? "none" : list;
+}
+
 std::string parsePlan(const nlohmann::json& j, const TherapyDevice& device, const Profile& profile,
-                      const std::set<std::string>* allowed, SessionPlan& out) {
+                      const std::set<std::string>* allowed, SessionPlan& out, const std::string& where) {
   Profile resolved = profile;  // a session without a profile counts within the device's own joint bounds
   if (resolved.limits.joint_count != device.jointCount()) resolved.limits = PatientLimits::deviceDefaults(device);
   try {
-    if (!j.is_object()) throw PlanError{"plan: expected an object {\"steps\": [...]}"};
-    allowKeys(j, "plan", {"steps"});
-    if (!j.contains("steps") || !j["steps"].is_array()) throw PlanError{"plan.steps: expected a list of steps"};
+    if (!j.is_object()) throw PlanError{where + ": expected an object {\"steps\": [...]}"};
+    allowKeys(j, where, {"steps"});
+    if (!j.contains("steps") || !j["steps"].is_array()) throw PlanError{where + ".steps: expected a list of steps"};
     const std::size_t n = j["steps"].size();
     if (n == 0 || n > kMaxPlanSteps) {
-      throw PlanError{"plan.steps: expected 1 to " + std::to_string(kMaxPlanSteps) + " steps, got " + std::to_string(n)};
+      throw PlanError{where + ".steps: expected 1 to " + std::to_string(kMaxPlanSteps) + " steps, got " + std::to_string(n)};
     }
     SessionPlan plan;
     for (std::size_t i = 0; i < n; ++i) {
-      plan.steps.push_back(parseStep(j["steps"][i], "plan.steps[" + std::to_string(i) + "]", device, resolved, allowed));
+      plan.steps.push_back(parseStep(j["steps"][i], where + ".steps[" + std::to_string(i) + "]", device, resolved, allowed));
     }
     if (plan.totalS() > kMaxPlanTotalS) {
-      throw PlanError{"plan.steps: the durations add up to " + fmt(plan.totalS()) + " s, more than the " +
+      throw PlanError{where + ".steps: the durations add up to " + fmt(plan.totalS()) + " s, more than the " +
                       fmt(kMaxPlanTotalS) + " s a plan may last"};
     }
     out = std::move(plan);

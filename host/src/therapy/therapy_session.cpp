@@ -156,6 +156,7 @@ std::string TherapySession::onStart(const protocol::DeviceLayout& layout, const 
   h["exercise"] = config_.exercise.empty() ? "none (device default controller)" : config_.exercise;
   h["exercise_params"] = config_.exercise_params;
   if (plan_ && loop_ctl_ != nullptr) h["plan"] = config_.plan.toJson(loop_ctl_->device());
+  if (plan_ && !config_.plan.name.empty()) h["plan_name"] = config_.plan.name;
   if (config_.self_training) h["self_training"] = {{"max_session_s", config_.profile.self_training.max_session_s},
                                                   {"effort_scale", config_.profile.self_training.effort_scale}};
   if (!writer_.isOpen()) {
@@ -246,6 +247,7 @@ nlohmann::json TherapySession::planJson() const {
                    {"repetitions", finished ? plan->result(steps.size() - 1).repetitions.load() : plan->repetitions()},
                    {"target_repetitions", cur.repetitions}, {"list", list}};
   if (!cur.preset.empty()) j["preset"] = cur.preset;
+  if (!plan->plan().name.empty()) j["name"] = plan->plan().name;
   return j;
 }
 

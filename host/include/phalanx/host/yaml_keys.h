@@ -7,6 +7,8 @@
 
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 namespace phalanx::host {
 
 /// The first repeated mapping key anywhere in node (in document order) as "<path>: duplicate key (line L; first at
@@ -15,6 +17,11 @@ namespace phalanx::host {
 /// kMaxYamlDepth (a self-referencing alias is endlessly deep) or with more than kMaxYamlNodes nodes once its
 /// aliases are expanded is refused too, by path, since it cannot be checked.
 std::string findDuplicateKey(const YAML::Node& node);
+
+/// A YAML node as JSON: mappings, lists, and scalars as whole numbers, numbers, true/false or strings (a quoted
+/// scalar stays a string; a null is null). Used where a YAML file carries what the API takes as JSON (session
+/// plans of `phalanx start --plan FILE` and of a profile's `plans:`); the JSON's reader validates the fields.
+nlohmann::json yamlToJson(const YAML::Node& n);
 
 inline constexpr int kMaxYamlDepth = 64;
 inline constexpr long kMaxYamlNodes = 1000000;

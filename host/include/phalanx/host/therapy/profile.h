@@ -38,6 +38,16 @@ struct Preset {
   nlohmann::json params = nlohmann::json::object();
 };
 
+/// A session plan kept in the profile (`plans:`), started by name. Validated at load with the plan parser
+/// (parsePlan, against the device and this profile's presets and ranges) and parsed again at `start` (so
+/// self-training's `allowed` is checked there, as for an inline plan).
+struct NamedPlan {
+  std::string name;
+  nlohmann::json plan;        ///< {"steps": [...]}: the profile's YAML as the API's inline plan
+  std::size_t step_count = 0;
+  double total_s = 0.0;       ///< all steps' durations
+};
+
 /// What the patient may do alone (`self_training:`); a self-training start is refused without it.
 struct SelfTraining {
   bool allowed = false;               ///< the profile has a self_training section
@@ -57,6 +67,7 @@ struct Profile {
   std::vector<std::pair<std::string, std::pair<double, double>>> rom_rad;
   PatientLimits limits;     ///< resolved against the device
   std::vector<Preset> presets;
+  std::vector<NamedPlan> plans;
   SelfTraining self_training;
   std::string source;       ///< file it came from
 };

@@ -52,6 +52,7 @@ struct PlanStep {
 };
 
 struct SessionPlan {
+  std::string name;          ///< "" (inline) or the profile plan it came from
   std::vector<PlanStep> steps;
   bool empty() const { return steps.empty(); }
   double totalS() const;
@@ -61,13 +62,20 @@ struct SessionPlan {
 
 /// The presets of a profile (`presets:`) as the API lists them: {name: {exercise, params}}.
 nlohmann::json presetsJson(const Profile& profile);
+/// The plans of a profile (`plans:`) as the API lists them: {name: {steps (count), duration_s (all steps)}}.
+nlohmann::json plansJson(const Profile& profile);
+/// The profile's plan of that name, or nullptr.
+const NamedPlan* findPlan(const Profile& profile, const std::string& name);
+/// "a, b" (the names of the profile's plans) or "none".
+std::string planList(const Profile& profile);
 
 /// Validates `j` ({"steps": [...]}) against the device and the profile (its presets, ranges); when `allowed` is
 /// non-null, every step's preset or exercise must be in it (self-training). Every field is checked; errors name
-/// it: "plan.steps[1].duration_s: must be in (0, 3600] s". Each step's exercise is built once to check its
-/// parameters. `out` changes only when the whole plan is valid. Returns "" or the error.
+/// it after `where` ("plan", or "plans.<name>" for a profile's plan): "plan.steps[1].duration_s: must be in
+/// (0, 3600] s". Each step's exercise is built once to check its parameters. `out` changes only when the whole
+/// plan is valid. Returns "" or the error.
 std::string parsePlan(const nlohmann::json& j, const TherapyDevice& device, const Profile& profile,
-                      const std::set<std::string>* allowed, SessionPlan& out);
+                      const std::set<std::string>* allowed, SessionPlan& out, const std::string& where = "plan");
 
 /// The loop's view of a running plan. Built before the session starts with every step's exercise prebuilt (step 0's
 /// is the session's first exercise), so advancing hands over a ready object and allocates nothing. cycle() is
