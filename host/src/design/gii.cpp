@@ -367,10 +367,11 @@ SearchResult cullingSearch(const MinimaxProblem& pb, const SearchOptions& opt) {
         const std::size_t b = S * t / T, e = S * (t + 1) / T;
         SigmaPair sp;
         for (std::size_t s = b; s < e; ++s) {
-          if ((s & 63) == 0) {
+          if (((s - b) & 63) == 0) {  // blocks of 64 from this thread's start: [b, e) counted exactly once
             if (stop.load(std::memory_order_relaxed)) break;
-            live.pass_done.fetch_add(64, std::memory_order_relaxed);
-            live.jacobians.fetch_add(64, std::memory_order_relaxed);
+            const std::uint64_t block = std::min<std::size_t>(64, e - s);  // the last block may be shorter
+            live.pass_done.fetch_add(block, std::memory_order_relaxed);
+            live.jacobians.fetch_add(block, std::memory_order_relaxed);
           }
           pb.evaluate(g, s, &member, 1, &sp);
           ++P.n;
