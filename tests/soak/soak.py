@@ -78,6 +78,15 @@ class Daemon:
         ep.meta["daemons"].append(self.info)
         self.p = subprocess.Popen([os.path.join(bin_dir, "phalanxd"), *args], stdout=self.out, stderr=self.err)
 
+    def wait_for_loop(self, timeout):
+        """Until the daemon says its control loop started (stderr), it exited, or timeout seconds."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and self.p.poll() is None:
+            with open(self.ep.path(f"{self.name}.stderr"), errors="replace") as f:
+                if "control loop started" in f.read():
+                    return
+            time.sleep(0.02)
+
     def kill9(self):
         self.info["kill_wall_ns"] = time.time_ns()
         self.p.send_signal(signal.SIGKILL)
@@ -330,8 +339,10 @@ def ep_link(ep, b, device, kind):
     d = Daemon(ep, b, COMMON + ["--device", f"serial:{px.slave_path}", "--json", "--mode", "transparent",
                                 "--seconds", str(seconds), "--record", ep.path("record.csv")], "daemon",
                [6] if stall_long else [0, 6], record="record.csv", truth="truth.csv")
+    # Faults go in once the daemon's control loop runs (a loaded machine can take seconds to start it: a stall
+    # during its start-up is not the outage this episode is about), until 0.8 s before its end.
+    d.wait_for_loop(30)
     t_end = time.monotonic() + seconds - 0.8
-    time.sleep(1.0)
     while time.monotonic() < t_end and d.p.poll() is None:
         if kind in ("corrupt_frames", "truncate_frames", "flood_frames"):
             px.request(kind.split("_")[0], ep.rng.randrange(1, 6), ep.rng)
