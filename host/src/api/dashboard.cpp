@@ -532,16 +532,16 @@ void Dashboard::publish(const nlohmann::json& resp) {
         const nlohmann::json& v = s["joints"][name];
         meta["joints"].push_back(name);
         meta["joint_channels"].push_back(v.value("channel", std::string()));
-        sample["j"].push_back(num(v["flexion_deg"]));
+        sample["j"].push_back(num(v.value("flexion_deg", nlohmann::json())));
       }
       for (const std::string& name : therapy::anatomicalKeys(s["channels"])) {
         const nlohmann::json& v = s["channels"][name];
         meta["channels"].push_back(name);
-        sample["q"].push_back(num(v["q_deg"]));
-        sample["tg"].push_back(num(v["target_deg"]));
-        sample["em"].push_back(num(v["effort_measured"]));
-        sample["ec"].push_back(num(v["effort_command"]));
-        sample["lim"].push_back(num(v["effort_max"]));
+        sample["q"].push_back(num(v.value("q_deg", nlohmann::json())));
+        sample["tg"].push_back(num(v.value("target_deg", nlohmann::json())));
+        sample["em"].push_back(num(v.value("effort_measured", nlohmann::json())));
+        sample["ec"].push_back(num(v.value("effort_command", nlohmann::json())));
+        sample["lim"].push_back(num(v.value("effort_max", nlohmann::json())));
       }
     }
   }
