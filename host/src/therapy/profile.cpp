@@ -84,6 +84,12 @@ nlohmann::json scalarJson(const YAML::Node& n, const std::string& key) {
   return n.Scalar();
 }
 
+/// A preset's or plan's name: 1-32 letters, digits, '-' or '_' (what: "preset" or "plan").
+void requireName(const std::string& name, const std::string& where, const char* what) {
+  static const std::regex kName("[A-Za-z0-9_-]{1,32}");
+  if (!std::regex_match(name, kName)) throw ProfileError{where + ": a " + what + " name is 1-32 letters, digits, '-' or '_'"};
+}
+
 /// presets: {<name>: {exercise: <name>, params: {<param>: value}}}: each built once against the device so a bad
 /// parameter is refused here, naming it (presets.gentle.params.stiffness_per_rad: …).
 void parsePresets(const YAML::Node& node, const TherapyDevice& device, Profile& p) {
@@ -93,9 +99,7 @@ void parsePresets(const YAML::Node& node, const TherapyDevice& device, Profile& 
     Preset preset;
     preset.name = kv.first.as<std::string>();
     const std::string where = "presets." + preset.name;
-    if (!std::regex_match(preset.name, std::regex("[A-Za-z0-9_-]{1,32}"))) {
-      throw ProfileError{where + ": a preset name is 1-32 letters, digits, '-' or '_'"};
-    }
+    requireName(preset.name, where, "preset");
     requireKeys(kv.second, where, {"exercise", "params"});
     if (!kv.second["exercise"]) throw ProfileError{where + ".exercise: missing"};
     preset.exercise = text(kv.second["exercise"], where + ".exercise");
@@ -124,9 +128,7 @@ void parsePlans(const YAML::Node& node, const TherapyDevice& device, Profile& p)
     NamedPlan named;
     named.name = kv.first.as<std::string>();
     const std::string where = "plans." + named.name;
-    if (!std::regex_match(named.name, std::regex("[A-Za-z0-9_-]{1,32}"))) {
-      throw ProfileError{where + ": a plan name is 1-32 letters, digits, '-' or '_'"};
-    }
+    requireName(named.name, where, "plan");
     named.plan = yamlToJson(kv.second);
     SessionPlan plan;
     if (std::string err = parsePlan(named.plan, device, p, nullptr, plan, where); !err.empty()) throw ProfileError{err};
