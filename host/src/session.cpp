@@ -29,6 +29,13 @@ void HostSession::sendHello(uint32_t session_id, DeviceType expected) {
   // A new session (also after a reconnect) starts a new telemetry sequence baseline: a gap across the outage is
   // the outage, reported by the daemon, not frames lost inside a session.
   have_tel_seq_ = false;
+  // On a byte stream the device may hold the start of a frame a previous host wrote and never finished (its
+  // process died, or closing the port discarded the rest): without a delimiter first, the Hello would be read as
+  // that frame's tail and fail its CRC. A lone 0x00 ends such a fragment and is idle fill to a device holding none.
+  if (link_ != nullptr) {
+    const uint8_t delimiter = 0;
+    link_->write(&delimiter, 1);
+  }
   sendMsg(h);
 }
 

@@ -123,6 +123,18 @@ TEST_F(CoreTest, HandshakeReportsIdentityAndLayout) {
   EXPECT_EQ(host.deviceInfo().setpoint_count, 2);
 }
 
+TEST_F(CoreTest, AHelloAfterAFrameAPreviousHostLeftUnfinishedIsAnswered) {
+  // A previous host process wrote the first half of a command and went away (killed, or its close discarded the
+  // rest): the device holds that fragment when the next host's Hello arrives.
+  uint8_t f[protocol::kMaxEncodedFrame];
+  const size_t n = protocol::encodeFrame(command(0.5f), f);
+  pipe.end(1).write(f, n / 2);
+  tick();
+  openSession();
+  EXPECT_EQ(host.deviceInfo().firmware_build_id, kBuildId);
+  EXPECT_EQ(core.rxErrors(), 1u) << "the fragment is one damaged frame, the delimiter before the Hello none";
+}
+
 TEST_F(CoreTest, HandshakeRefusesTheWrongDeviceType) {
   host.sendHello(1, protocol::DeviceType::kGlove5);
   tick();
