@@ -80,6 +80,7 @@ class SimInstrumentServer {
   void* mapping_ = nullptr;
   int listen_fd_ = -1;
   int pty_master_ = -1;
+  int pty_slave_keepalive_ = -1;  ///< rtu: held open so the master never reads as hung up between clients
   unsigned port_ = 0;
   std::atomic<bool> running_{false};
   std::atomic<bool> responsive_{true};
