@@ -20,6 +20,7 @@
 #include <regex>
 #include <thread>
 
+#include "phalanx/host/modbus/instrument.h"
 #include "phalanx/host/session.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/realtime.h"
@@ -249,6 +250,53 @@ TEST(FirmwareInstrument, RtuOnAPseudoTerminalServesTheRigLoadCellThroughAnotherR
   // float32 in holding registers 7-8, low word first (mbpoll's default order); mbpoll prints six digits.
   checkAgainstTruth("rtu", "table=holding,address=7,type=float32,word_order=little,scale=1", "4:float", 7, false, 1.0,
                     1e-6);
+}
+
+// --instrument-noise on the rig at rest (no host: the load cell's truth is exactly 0), read by the project's own
+// client (InstrumentClient, the bench's) at 500 Hz: the served values scatter with the standard deviation asked for.
+// Bounds, for n >= 200 samples: the sample deviation within 20 % of sigma (4 relative standard errors 1/sqrt(2n))
+// and the mean within 3 mN·m of the truth (4 standard errors sigma/sqrt(n)).
+TEST(FirmwareInstrument, NoiseOnTheServedValueHasTheRequestedStandardDeviation) {
+  namespace mb = phalanx::host::modbus;
+  const std::string truth_path = tmpPath("noise.truth.csv");
+  Process fw({binPath("firmware-sim"), "--device", "sea_rig", "--seconds", "60", "--seed", "7", "--truth", truth_path,
+              "--instrument", "tcp:0", "--instrument-noise", "0.01"});
+  std::string pty, line;
+  ASSERT_TRUE(startLines(fw, pty, line)) << line << fw.stderrText();
+  EXPECT_NE(line.find(" noise 0.01"), std::string::npos) << line;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(line, m, std::regex("^instrument: modbus tcp 127\\.0\\.0\\.1:([0-9]+) "))) << line;
+  mb::InstrumentConfig cfg;
+  cfg.port = static_cast<unsigned>(std::stoul(m[1]));
+  cfg.scale = 1e-5;
+  cfg.poll_hz = 500;
+  mb::InstrumentClient client(cfg);
+  ASSERT_EQ(client.start(), "");
+  std::vector<double> v;
+  uint64_t last_ns = 0;
+  for (int i = 0; i < 5000 && v.size() < 300; ++i) {
+    const mb::InstrumentReading r = client.latest(phalanx::linux_hal::monotonicNs());
+    if (r.valid && r.sample_ns != last_ns) {
+      v.push_back(r.value);
+      last_ns = r.sample_ns;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  client.stop();
+  fw.signal(SIGTERM);
+  ASSERT_EQ(fw.wait(10000), 0) << fw.stderrText();
+  ASSERT_GE(v.size(), 200u) << client.statsJson(phalanx::linux_hal::monotonicNs()).dump();
+  double mean = 0.0, ss = 0.0;
+  for (double x : v) mean += x / static_cast<double>(v.size());
+  for (double x : v) ss += (x - mean) * (x - mean);
+  const double sd = std::sqrt(ss / static_cast<double>(v.size() - 1));
+  std::printf("noise: %zu samples, mean %.5f N*m, sd %.5f N*m\n", v.size(), mean, sd);
+  const phalanx::test::TruthCsv truth = phalanx::test::readTruthCsv(truth_path);
+  ASSERT_GT(truth.rows(), 100u);
+  for (size_t k = 0; k < truth.rows(); ++k) ASSERT_EQ(truth.at("truth_load_cell_mcp_Nm", k), 0.0) << "row " << k;
+  EXPECT_NEAR(sd, 0.01, 0.002);
+  EXPECT_NEAR(mean, 0.0, 0.003);
+  unlink(truth_path.c_str());
 }
 
 TEST(FirmwareInstrument, BadInstrumentArgumentsExit2NamingTheProblem) {
