@@ -120,14 +120,22 @@ class TruthLog {
 /// (plus Gaussian noise of --instrument-noise N*m, N, ... seeded from --seed) and quantised by the register map.
 class TruthInstrument {
  public:
-  struct Options {
-    std::string where;   ///< tcp:PORT | rtu ("": no instrument)
-    std::string signal;  ///< a truth column ("": the device's instrumentSignal())
-    double noise_sd = 0.0;
-    std::string map;     ///< --instrument-map key=value,...
-  };
+  void addOptions(CLI::App& cli) {
+    cli.add_option("--instrument", o_.where,
+                   "serve one truth quantity as a Modbus amplifier: tcp:PORT (127.0.0.1; 0: a free port) or rtu (a new "
+                   "pseudo-terminal); prints \"instrument: modbus ...\" (docs/modbus.md)");
+    cli.add_option("--instrument-signal", o_.signal,
+                   "the truth column served (default: glove5 pad_force_index_N, sea_rig load_cell_mcp_Nm, sea_finger "
+                   "sea_torque_mcp_Nm, pantograph hand_force_x_N)");
+    cli.add_option("--instrument-noise", o_.noise_sd,
+                   "Gaussian noise on the served value: its standard deviation in the signal's SI unit (seeded from --seed)");
+    cli.add_option("--instrument-map", o_.map,
+                   "register map, key=value,... of unit_id, table (input|holding), address, type "
+                   "(int16|uint16|int32|uint32|float32), word_order (big|little), scale, offset (default int32, scale 1e-5)");
+  }
   /// Check the options against the device; "" or the problem (a bad argument: exit 2).
-  std::string configure(const Options& o, const phalanx::fw_sim::SimDevice& dev, const std::string& device, uint32_t seed) {
+  std::string configure(const phalanx::fw_sim::SimDevice& dev, const std::string& device, uint32_t seed) {
+    const Options& o = o_;
     if (o.where.empty()) {
       if (!o.signal.empty() || o.noise_sd != 0.0 || !o.map.empty()) {
         return "--instrument-signal, --instrument-noise and --instrument-map need --instrument";
@@ -187,9 +195,10 @@ class TruthInstrument {
       if (std::string err = server_->startRtu(path); !err.empty()) return err;
       where = "rtu " + path;
     }
-    char tail[96];
-    std::snprintf(tail, sizeof tail, " signal %s noise %.9g", signal_.c_str(), noise_sd_);
-    line = "instrument: modbus " + where + " " + phalanx::instrument::describeRegisterMap(map_) + tail;
+    char noise[32];
+    std::snprintf(noise, sizeof noise, "%.9g", noise_sd_);
+    line = "instrument: modbus " + where + " " + phalanx::instrument::describeRegisterMap(map_) + " signal " + signal_ +
+           " noise " + noise;
     return {};
   }
   /// truth: this tick's truthValues().
@@ -217,6 +226,13 @@ class TruthInstrument {
     if (ends("_m")) return "m";
     return "";
   }
+  struct Options {
+    std::string where;   ///< tcp:PORT | rtu ("": no instrument)
+    std::string signal;  ///< a truth column ("": the device's instrumentSignal())
+    double noise_sd = 0.0;
+    std::string map;     ///< --instrument-map key=value,...
+  };
+  Options o_;
   bool enabled_ = false;
   phalanx::instrument::InstrumentConfig map_{};
   unsigned port_ = 0;
@@ -301,17 +317,8 @@ int main(int argc, char** argv) {
   cli.add_option("--tty", tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
   std::string truth_path;
   cli.add_option("--truth", truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
-  TruthInstrument::Options inst_opt;
-  cli.add_option("--instrument", inst_opt.where,
-                 "serve one truth quantity as a Modbus amplifier: tcp:PORT (127.0.0.1; 0: a free port) or rtu (a new "
-                 "pseudo-terminal); prints \"instrument: modbus ...\" (docs/modbus.md)");
-  cli.add_option("--instrument-signal", inst_opt.signal,
-                 "the truth column served (default: glove5 pad_force_index_N, sea_rig load_cell_mcp_Nm, sea_finger "
-                 "sea_torque_mcp_Nm, pantograph hand_force_x_N)");
-  cli.add_option("--instrument-noise", inst_opt.noise_sd, "Gaussian noise on the served value, standard deviation in its SI unit (seeded from --seed)");
-  cli.add_option("--instrument-map", inst_opt.map,
-                 "register map, key=value,... of unit_id, table (input|holding), address, type "
-                 "(int16|uint16|int32|uint32|float32), word_order (big|little), scale, offset (default int32, scale 1e-5)");
+  TruthInstrument instrument;
+  instrument.addOptions(cli);
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
   std::vector<std::string> inject_args;
   cli.add_option("--inject", inject_args,
@@ -351,8 +358,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  TruthInstrument instrument;
-  if (const std::string err = instrument.configure(inst_opt, *dev, device, dev_opt.seed); !err.empty()) {
+  if (const std::string err = instrument.configure(*dev, device, dev_opt.seed); !err.empty()) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
     return 2;
   }
@@ -422,7 +428,7 @@ int main(int argc, char** argv) {
     instrument.update(truth_values);
     std::string line;
     if (const std::string err = instrument.start(line); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: --instrument %s: %s\n", inst_opt.where.c_str(), err.c_str());
+      std::fprintf(stderr, "firmware-sim: error: --instrument: %s\n", err.c_str());
       return 3;
     }
     std::printf("%s\n", line.c_str());

@@ -170,7 +170,9 @@ std::string SimInstrumentServer::startTcp(unsigned port) {
   modbus_set_byte_timeout(ctx, 0, 50000);
   mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, map_.address, map_.registers(), map_.address, map_.registers());
   listen_fd_ = modbus_tcp_listen(ctx, 4);
-  if (mapping_ == nullptr || listen_fd_ < 0) return std::string("instrument server: cannot listen: ") + modbus_strerror(errno);
+  if (mapping_ == nullptr || listen_fd_ < 0) {
+    return "instrument server: cannot listen on 127.0.0.1:" + std::to_string(port) + ": " + modbus_strerror(errno);
+  }
   sockaddr_in sa{};
   socklen_t len = sizeof sa;
   if (getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&sa), &len) == 0) port_ = ntohs(sa.sin_port);

@@ -2,8 +2,9 @@
 /// Reference instruments over Modbus: a client for a load-cell / torque-transducer amplifier (Modbus TCP or RTU
 /// over a serial line) polled from its own thread, and — for simulation — an amplifier server backed by a value
 /// the simulation sets (the plant's true joint torque; the register map and the server are
-/// phalanx/instrument/modbus_instrument.h). The consumer (bench or loop) only ever reads the latest sample through a wait-free TripleBuffer, with its age, so a slow or dead instrument cannot block it and stale
-/// data is detected rather than used.
+/// phalanx/instrument/modbus_instrument.h). The consumer (bench or loop) only ever reads the latest sample through
+/// a wait-free TripleBuffer, with its age, so a slow or dead instrument cannot block it and stale data is detected
+/// rather than used.
 #include <atomic>
 #include <cstdint>
 #include <string>
