@@ -26,10 +26,10 @@
 
 #include "phalanx/fw/core.h"
 #include "phalanx/fw_sim/sim_device.h"
-#include "phalanx/instrument/modbus_instrument.h"
 #include "phalanx/linux/can_link.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/ffs_link.h"
+#include "phalanx/linux/modbus_instrument.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/sim/board.h"
 
@@ -172,7 +172,7 @@ class TruthInstrument {
     map_.scale = 1e-5;
     map_.unit = unitOf(signal_);
     if (!o.map.empty()) {
-      if (const std::string err = phalanx::instrument::parseRegisterMap(o.map, "--instrument-map", map_); !err.empty()) {
+      if (const std::string err = phalanx::linux_hal::parseRegisterMap(o.map, "--instrument-map", map_); !err.empty()) {
         return err;
       }
     }
@@ -180,7 +180,7 @@ class TruthInstrument {
     std::seed_seq seq{seed, 0x696e7374u};  // "inst": a stream of its own, apart from the plant's sensor noise
     rng_.seed(seq);
     enabled_ = true;
-    server_ = std::make_unique<phalanx::instrument::SimInstrumentServer>(map_);
+    server_ = std::make_unique<phalanx::linux_hal::SimInstrumentServer>(map_);
     return {};
   }
   bool enabled() const { return enabled_; }
@@ -197,7 +197,7 @@ class TruthInstrument {
     }
     char noise[32];
     std::snprintf(noise, sizeof noise, "%.9g", noise_sd_);
-    line = "instrument: modbus " + where + " " + phalanx::instrument::describeRegisterMap(map_) + " signal " + signal_ +
+    line = "instrument: modbus " + where + " " + phalanx::linux_hal::describeRegisterMap(map_) + " signal " + signal_ +
            " noise " + noise;
     return {};
   }
@@ -234,14 +234,14 @@ class TruthInstrument {
   };
   Options o_;
   bool enabled_ = false;
-  phalanx::instrument::InstrumentConfig map_{};
+  phalanx::linux_hal::InstrumentConfig map_{};
   unsigned port_ = 0;
   std::string signal_;
   size_t index_ = 0;
   double noise_sd_ = 0.0;
   std::mt19937_64 rng_;
   std::normal_distribution<double> gauss_{0.0, 1.0};
-  std::unique_ptr<phalanx::instrument::SimInstrumentServer> server_;
+  std::unique_ptr<phalanx::linux_hal::SimInstrumentServer> server_;
 };
 
 class LogObserver : public phalanx::fw::CoreObserver {

@@ -155,7 +155,7 @@ TEST(ModbusInstrument, NoAmplifierMeansNeverValidAndAlwaysStale) {
 
 // firmware-sim's --instrument-map: key=value pairs over the register map's keys, validated as a whole.
 TEST(ModbusInstrument, RegisterMapListParsesValidatesAndDescribesItself) {
-  namespace in = phalanx::instrument;
+  namespace in = phalanx::linux_hal;
   in::InstrumentConfig c;
   c.scale = 1e-5;
   ASSERT_EQ(in::parseRegisterMap("table=holding,address=7,type=float32,word_order=little,scale=1,offset=-0.5,unit_id=3",

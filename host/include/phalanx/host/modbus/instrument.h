@@ -2,7 +2,7 @@
 /// Reference instruments over Modbus: a client for a load-cell / torque-transducer amplifier (Modbus TCP or RTU
 /// over a serial line) polled from its own thread, and — for simulation — an amplifier server backed by a value
 /// the simulation sets (the plant's true joint torque; the register map and the server are
-/// phalanx/instrument/modbus_instrument.h). The consumer (bench or loop) only ever reads the latest sample through
+/// phalanx/linux/modbus_instrument.h). The consumer (bench or loop) only ever reads the latest sample through
 /// a wait-free TripleBuffer, with its age, so a slow or dead instrument cannot block it and stale data is detected
 /// rather than used.
 #include <atomic>
@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "phalanx/host/modbus/triple_buffer.h"
-#include "phalanx/instrument/modbus_instrument.h"
+#include "phalanx/linux/modbus_instrument.h"
 
 namespace YAML {
 class Node;
@@ -22,12 +22,12 @@ class Node;
 namespace phalanx::host::modbus {
 
 // The register map and the simulated amplifier live in phalanx_modbus_instrument (firmware-sim serves one too).
-using phalanx::instrument::decodeInstrument;
-using phalanx::instrument::encodeInstrument;
-using phalanx::instrument::InstrumentConfig;
-using phalanx::instrument::SimInstrumentServer;
-using phalanx::instrument::validateInstrumentConfig;
-using phalanx::instrument::validateRegisterMap;
+using phalanx::linux_hal::decodeInstrument;
+using phalanx::linux_hal::encodeInstrument;
+using phalanx::linux_hal::InstrumentConfig;
+using phalanx::linux_hal::SimInstrumentServer;
+using phalanx::linux_hal::validateInstrumentConfig;
+using phalanx::linux_hal::validateRegisterMap;
 
 /// Read `instrument:` YAML into c; "" or "<key>: <problem>" (prefix names the mapping).
 std::string loadInstrumentConfig(const YAML::Node& node, const std::string& prefix, InstrumentConfig& c);

@@ -1,4 +1,4 @@
-#include "phalanx/instrument/modbus_instrument.h"
+#include "phalanx/linux/modbus_instrument.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -19,7 +19,7 @@
 #include <cstring>
 #include <vector>
 
-namespace phalanx::instrument {
+namespace phalanx::linux_hal {
 namespace {
 
 bool parseUnsigned(const std::string& s, unsigned long& out) {
@@ -303,4 +303,4 @@ void SimInstrumentServer::serveRtu() {
   }
 }
 
-}  // namespace phalanx::instrument
+}  // namespace phalanx::linux_hal

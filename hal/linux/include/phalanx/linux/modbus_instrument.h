@@ -9,7 +9,7 @@
 #include <string>
 #include <thread>
 
-namespace phalanx::instrument {
+namespace phalanx::linux_hal {
 
 /// Where the value lives on the amplifier and how raw registers become SI units: value = raw · scale + offset.
 struct InstrumentConfig {
@@ -89,4 +89,4 @@ class SimInstrumentServer {
   std::thread thread_;
 };
 
-}  // namespace phalanx::instrument
+}  // namespace phalanx::linux_hal
