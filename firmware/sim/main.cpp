@@ -6,15 +6,21 @@
 // hang-up (USB unplug).
 // Prints "PTY <path>" (or "CAN <if> node <n> <fd|fd-compact|classic>", "USB <dir>", "TTY <path>") on stdout once the link
 // is up; logs events and safe-state entries on stderr.
+// With --instrument tcp:PORT | rtu one quantity of the plant's truth is also served as a Modbus amplifier (a reference
+// instrument the host does not simulate; docs/modbus.md "firmware-sim's instrument"), announced by an
+// "instrument: modbus ..." line on stdout after the link's.
 #include <signal.h>
 #include <sys/prctl.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <cerrno>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -23,6 +29,7 @@
 #include "phalanx/linux/can_link.h"
 #include "phalanx/linux/fd_link.h"
 #include "phalanx/linux/ffs_link.h"
+#include "phalanx/linux/modbus_instrument.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/sim/board.h"
 
@@ -87,14 +94,14 @@ class TruthLog {
     const std::vector<std::string> columns = dev.truthColumns();
     for (const std::string& c : columns) std::fprintf(f_, ",truth_%s", c.c_str());
     std::fputc('\n', f_);
-    values_.assign(columns.size(), 0.0);
     return {};
   }
-  void write(uint64_t device_time_us, const phalanx::fw_sim::SimDevice& dev) {
+  bool isOpen() const { return f_ != nullptr; }
+  /// values: this tick's dev.truthValues(), in truthColumns() order.
+  void write(uint64_t device_time_us, const std::vector<double>& values) {
     if (f_ == nullptr) return;
-    dev.truthValues(values_.data());
     std::fprintf(f_, "%llu", static_cast<unsigned long long>(device_time_us));
-    for (double v : values_) std::fprintf(f_, ",%.9g", v);
+    for (double v : values) std::fprintf(f_, ",%.9g", v);
     std::fputc('\n', f_);
   }
   /// false when a write failed (disk full): reported at exit, the truth file is then incomplete.
@@ -107,7 +114,134 @@ class TruthLog {
 
  private:
   std::FILE* f_ = nullptr;
-  std::vector<double> values_;
+};
+
+/// --instrument: one truth quantity served as a Modbus amplifier, set every tick from the values --truth writes
+/// (plus Gaussian noise of --instrument-noise N*m, N, ... seeded from --seed) and quantised by the register map.
+class TruthInstrument {
+ public:
+  void addOptions(CLI::App& cli) {
+    cli.add_option("--instrument", o_.where,
+                   "serve one truth quantity as a Modbus amplifier: tcp:PORT (127.0.0.1; 0: a free port) or rtu (a new "
+                   "pseudo-terminal); prints \"instrument: modbus ...\" (docs/modbus.md)");
+    cli.add_option("--instrument-signal", o_.signal,
+                   "the truth column served (default: glove5 pad_force_index_N, sea_rig load_cell_mcp_Nm, sea_finger "
+                   "sea_torque_mcp_Nm, pantograph hand_force_x_N)");
+    cli.add_option("--instrument-noise", o_.noise_sd,
+                   "Gaussian noise on the served value: its standard deviation in the signal's SI unit (seeded from --seed)");
+    cli.add_option("--instrument-map", o_.map,
+                   "register map, key=value,... of unit_id, table (input|holding), address, type "
+                   "(int16|uint16|int32|uint32|float32), word_order (big|little), scale, offset (default int32, scale 1e-5)");
+  }
+  /// Check the options against the device; "" or the problem (a bad argument: exit 2).
+  std::string configure(const phalanx::fw_sim::SimDevice& dev, const std::string& device, uint32_t seed) {
+    const Options& o = o_;
+    if (o.where.empty()) {
+      if (!o.signal.empty() || o.noise_sd != 0.0 || !o.map.empty()) {
+        return "--instrument-signal, --instrument-noise and --instrument-map need --instrument";
+      }
+      return {};
+    }
+    if (o.where == "rtu") {
+      map_.transport = "rtu";
+    } else if (o.where.rfind("tcp:", 0) == 0) {
+      const std::string port = o.where.substr(4);
+      if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+          std::stoul(port) > 65535ul) {
+        return "--instrument '" + o.where + "': the port must be an integer in [0, 65535] (0: a free port)";
+      }
+      map_.transport = "tcp";
+      port_ = static_cast<unsigned>(std::stoul(port));
+    } else {
+      return "--instrument '" + o.where + "': unknown transport (tcp:PORT on 127.0.0.1, or rtu on a new pseudo-terminal)";
+    }
+    if (!std::isfinite(o.noise_sd) || o.noise_sd < 0.0) return "--instrument-noise: must be a finite standard deviation >= 0";
+    const std::vector<std::string> columns = dev.truthColumns();
+    signal_ = o.signal.empty() ? dev.instrumentSignal() : o.signal.rfind("truth_", 0) == 0 ? o.signal.substr(6) : o.signal;
+    index_ = columns.size();
+    for (size_t i = 0; i < columns.size(); ++i) {
+      if (columns[i] == signal_) index_ = i;
+    }
+    if (index_ == columns.size()) {
+      std::string list;
+      for (const std::string& c : columns) list += (list.empty() ? "" : ", ") + c;
+      return "--instrument-signal '" + o.signal + "': " + device + "'s truth has no such quantity (" + list + ")";
+    }
+    // The simulated amplifier of docs/modbus.md: int32 counts of 1e-5 SI units (10 µN·m on a torque cell).
+    map_.type = "int32";
+    map_.scale = 1e-5;
+    map_.unit = unitOf(signal_);
+    if (!o.map.empty()) {
+      if (const std::string err = phalanx::linux_hal::parseRegisterMap(o.map, "--instrument-map", map_); !err.empty()) {
+        return err;
+      }
+    }
+    noise_sd_ = o.noise_sd;
+    std::seed_seq seq{seed, 0x696e7374u};  // "inst": a stream of its own, apart from the plant's sensor noise
+    rng_.seed(seq);
+    enabled_ = true;
+    server_ = std::make_unique<phalanx::linux_hal::SimInstrumentServer>(map_);
+    return {};
+  }
+  bool enabled() const { return enabled_; }
+  /// Start serving; "" or the problem (exit 3, like a link that cannot be opened). line: where a client finds it.
+  std::string start(std::string& line) {
+    std::string where;
+    if (map_.transport == "tcp") {
+      if (std::string err = server_->startTcp(port_); !err.empty()) return err;
+      where = "tcp 127.0.0.1:" + std::to_string(server_->port());
+    } else {
+      std::string path;
+      if (std::string err = server_->startRtu(path); !err.empty()) return err;
+      where = "rtu " + path;
+    }
+    char noise[32];
+    std::snprintf(noise, sizeof noise, "%.9g", noise_sd_);
+    line = "instrument: modbus " + where + " " + phalanx::linux_hal::describeRegisterMap(map_) + " signal " + signal_ +
+           " noise " + noise;
+    return {};
+  }
+  /// truth: this tick's truthValues().
+  void update(const std::vector<double>& truth) {
+    if (!server_) return;
+    double v = truth[index_];
+    if (noise_sd_ > 0.0) v += noise_sd_ * gauss_(rng_);
+    server_->set(v);
+  }
+  void stop() {
+    if (server_) server_->stop();
+  }
+  uint64_t requests() const { return server_ ? server_->requests() : 0; }
+
+ private:
+  /// The SI unit a truth column's name ends in (truthColumns' convention), as the register map's label.
+  static std::string unitOf(const std::string& column) {
+    auto ends = [&](const char* suffix) {
+      const size_t n = std::strlen(suffix);
+      return column.size() > n && column.compare(column.size() - n, n, suffix) == 0;
+    };
+    if (ends("_Nm")) return "N*m";
+    if (ends("_N")) return "N";
+    if (ends("_rad")) return "rad";
+    if (ends("_m")) return "m";
+    return "";
+  }
+  struct Options {
+    std::string where;   ///< tcp:PORT | rtu ("": no instrument)
+    std::string signal;  ///< a truth column ("": the device's instrumentSignal())
+    double noise_sd = 0.0;
+    std::string map;     ///< --instrument-map key=value,...
+  };
+  Options o_;
+  bool enabled_ = false;
+  phalanx::linux_hal::InstrumentConfig map_{};
+  unsigned port_ = 0;
+  std::string signal_;
+  size_t index_ = 0;
+  double noise_sd_ = 0.0;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> gauss_{0.0, 1.0};
+  std::unique_ptr<phalanx::linux_hal::SimInstrumentServer> server_;
 };
 
 class LogObserver : public phalanx::fw::CoreObserver {
@@ -183,6 +317,8 @@ int main(int argc, char** argv) {
   cli.add_option("--tty", tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
   std::string truth_path;
   cli.add_option("--truth", truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
+  TruthInstrument instrument;
+  instrument.addOptions(cli);
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
   std::vector<std::string> inject_args;
   cli.add_option("--inject", inject_args,
@@ -222,6 +358,11 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  if (const std::string err = instrument.configure(*dev, device, dev_opt.seed); !err.empty()) {
+    std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+    return 2;
+  }
+  std::vector<double> truth_values(dev->truthColumns().size(), 0.0);
   linux_hal::PtyMaster link;  // stays closed when the link is CAN, USB or a tty
   linux_hal::SerialLink tty;
   linux_hal::CanLink can;
@@ -281,6 +422,17 @@ int main(int argc, char** argv) {
   } else {
     std::printf("PTY %s\n", link.slavePath().c_str());
   }
+  if (instrument.enabled()) {
+    // The first tick's truth is served from the start, never a value the plant did not have.
+    dev->truthValues(truth_values.data());
+    instrument.update(truth_values);
+    std::string line;
+    if (const std::string err = instrument.start(line); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: --instrument: %s\n", err.c_str());
+      return 3;
+    }
+    std::printf("%s\n", line.c_str());
+  }
   std::fflush(stdout);
 
   const uint64_t period_us = 1000000u / tick_hz;
@@ -298,7 +450,12 @@ int main(int argc, char** argv) {
     dev->plant().advance(sub_dt_s, substeps, board.io());
     board.clock().advanceUs(period_us);
     injector.apply(board.clock().nowUs(), board.io(), stderr);
-    truth.write(board.clock().nowUs(), *dev);
+    if (truth.isOpen() || instrument.enabled()) {
+      // One truth per tick for both: the instrument serves what the truth file says, before this tick's telemetry.
+      dev->truthValues(truth_values.data());
+      truth.write(board.clock().nowUs(), truth_values);
+      instrument.update(truth_values);
+    }
     const uint64_t deadline_us = core.commandDeadlineUs();
     if (use_ffs) {
       ffs.service();
@@ -351,6 +508,10 @@ int main(int argc, char** argv) {
                core.rxStats().crc_errors, core.rxStats().framing_errors, core.counters().frames_invalid,
                core.counters().frames_wrong_direction, core.counters().tx_dropped, core.faultBits());
   tick_times.print();
+  if (instrument.enabled()) {
+    std::fprintf(stderr, "firmware-sim: instrument requests=%llu\n", static_cast<unsigned long long>(instrument.requests()));
+    instrument.stop();
+  }
   if (!truth.close()) std::fprintf(stderr, "firmware-sim: error: --truth %s: a write failed; the file is incomplete\n", truth_path.c_str());
   printLinkStats(use_ffs ? &ffs : nullptr, use_can ? &can : nullptr);
   return 0;

@@ -117,6 +117,9 @@ void Glove5SimDevice::truthValues(double* out) const {
   }
 }
 
+// A force sensor under the index fingertip pad (the finger a grasp test presses with).
+std::string Glove5SimDevice::instrumentSignal() const { return "pad_force_index_N"; }
+
 // Per SEA (MCP, PIP): the torque it applies to its exoskeleton joint and what the rig's load cell reads; on the
 // finger the finger joint torques (J_n^-T tau_j, 001 eq 9) and the finger's joint angles.
 std::vector<std::string> SeaFingerSimDevice::truthColumns() const {
@@ -142,6 +145,12 @@ void SeaFingerSimDevice::truthValues(double* out) const {
   for (double r : plant_.finger().reflex_Nm) *out++ = r;
 }
 
+// The rig (§7.1): the MCP load cell, the reference instrument its benches score against (SEA 0). On the finger
+// there is no load cell: a joint torque transducer on the MCP SEA's output.
+std::string SeaFingerSimDevice::instrumentSignal() const {
+  return plant_.config().variant == sim::SeaVariant::kRig ? "load_cell_mcp_Nm" : "sea_torque_mcp_Nm";
+}
+
 // The six motor torques after the amplifier (what the joints receive), the pen pose x = (c, theta_x, theta_z) and the
 // hand's grip force on the pen centre.
 std::vector<std::string> PantographSimDevice::truthColumns() const {
@@ -158,5 +167,8 @@ void PantographSimDevice::truthValues(double* out) const {
   for (double v : t.x) *out++ = v;
   for (double v : t.hand_force_N) *out++ = v;
 }
+
+// A force sensor in the pen's handle: the grip force along x, the axis of the box's first wall (pen-wall bench).
+std::string PantographSimDevice::instrumentSignal() const { return "hand_force_x_N"; }
 
 }  // namespace phalanx::fw_sim

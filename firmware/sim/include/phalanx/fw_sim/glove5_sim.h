@@ -17,6 +17,7 @@ class Glove5SimDevice : public SimDevice {
   fw::DeviceApp& app() override { return app_; }
   std::vector<std::string> truthColumns() const override;
   void truthValues(double* out) const override;
+  std::string instrumentSignal() const override;
   /// The index finger's MCP Hall sensor; open: 0 counts, below kHallPlausibleMinCounts.
   InjectableSensor injectableSensor() const override { return {false, static_cast<uint8_t>(glove::board::hallAdcChannel(1, 0)), 0, 0}; }
   sim::Plant& plant() override { return plant_; }

@@ -16,6 +16,7 @@ class PantographSimDevice : public SimDevice {
   fw::DeviceApp& app() override { return app_; }
   std::vector<std::string> truthColumns() const override;
   void truthValues(double* out) const override;
+  std::string instrumentSignal() const override;
   /// The first joint encoder; garbage: 4 × the firmware's largest plausible step per tick, every tick.
   InjectableSensor injectableSensor() const override { return {true, 0, 0, 4 * app_.config().max_counts_per_tick}; }
   sim::Plant& plant() override { return plant_; }

@@ -19,6 +19,7 @@ class SeaFingerSimDevice : public SimDevice {
   fw::DeviceApp& app() override { return app_; }
   std::vector<std::string> truthColumns() const override;
   void truthValues(double* out) const override;
+  std::string instrumentSignal() const override;
   /// The exoskeleton MCP joint sensor (θ_1r); open: 0 counts, below kJointPlausibleMinCounts.
   InjectableSensor injectableSensor() const override { return {false, sea::board::kAdcFirstJoint, 0, 0}; }
   sim::Plant& plant() override { return plant_; }

@@ -33,6 +33,9 @@ class SimDevice {
   /// units, then after each plant step the values in the same order (truthValues writes truthColumns().size()).
   virtual std::vector<std::string> truthColumns() const = 0;
   virtual void truthValues(double* out) const = 0;
+  /// The truth column a reference instrument on this device measures (firmware-sim --instrument's default signal;
+  /// docs/modbus.md "firmware-sim's instrument"): one of truthColumns().
+  virtual std::string instrumentSignal() const = 0;
   /// The sensor input firmware-sim --inject fails (fault_injection.h): the device's first joint sensor.
   virtual InjectableSensor injectableSensor() const = 0;
 };
