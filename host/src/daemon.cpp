@@ -641,7 +641,7 @@ class SessionRunner {
     if (link_->inOutage()) last_new_telemetry_ns_ = wake_ns;
     if (wake_ns - last_new_telemetry_ns_ <= telemetry_timeout_ns_) return {};
     char why[96];
-    std::snprintf(why, sizeof why, "no telemetry from the device for %.0f ms (telemetry_timeout_ms %u)",
+    std::snprintf(why, sizeof why, "no telemetry from the device for %.1f ms (telemetry_timeout_ms %u)",
                   static_cast<double>(wake_ns - last_new_telemetry_ns_) / 1e6, opt_.telemetry_timeout_ms);
     return why;
   }

@@ -203,9 +203,9 @@ def check_silence_claim(res, where, link_error, silence_ms):
     """A daemon behind the soak's proxy that ended on a lost link: true only if the proxy sent it nothing for
     longer than the telemetry timeout, and the silence it reports is no longer than the one the proxy measured
     (5 ms allowed for the two processes' clock reads)."""
-    m = re.match(r"no telemetry from the device for (\d+) ms", link_error)
+    m = re.match(r"no telemetry from the device for (\d+(?:\.\d+)?) ms", link_error)
     res.count("link.silent_past_timeout", 1)
-    res.check("exit-report", bool(m) and int(m[1]) > TELEMETRY_TIMEOUT_MS and int(m[1]) <= silence_ms + 5, where,
+    res.check("exit-report", bool(m) and float(m[1]) > TELEMETRY_TIMEOUT_MS and float(m[1]) <= silence_ms + 5, where,
               f"exit 6 ({link_error!r}) only after a silence past the {TELEMETRY_TIMEOUT_MS} ms telemetry timeout, "
               f"no longer than the proxy's longest: {silence_ms} ms")
 
