@@ -68,6 +68,9 @@ steps:
   EXPECT_TRUE(r.pass);
   EXPECT_GT(progress_calls, 20u);
   const br::StepResult& sine = r.steps[0];
+  // The healthy instrument stayed inside the safety bounds with room to spare (silence 200, disagreement 100 ms).
+  EXPECT_LT(sine.longest_silence_ticks, 100);
+  EXPECT_LT(sine.longest_disagreement_ticks, 10);
   EXPECT_LT(sine.samples_stale, 150u) << "a shared machine may starve the polling thread briefly, no more";
   EXPECT_GT(sine.instrument.size(), 2900u);
   // The instrument really measures the torque: its amplitude matches the commanded 0.3 N·m within 5 %.
@@ -196,6 +199,7 @@ TEST(BenchRun, AHungInstrumentStopsTheStepAndThePlanWithTheDeviceSafeWithinTwoTi
   // Hang at 1.4 s: the 0.3 N·m sine is near its peak (−0.29 N·m) when the 200 ms silence bound passes.
   const br::PlanResult r = br::runPlan(plan(faultPlan("    instrument_hang_at_s: 1.4")), noProgress);
   expectSafetyStop(r, "instrument silent", 1400, 200);
+  EXPECT_GT(r.steps[0].longest_silence_ticks, 200);
   EXPECT_NE(r.steps[0].safety_stop.find("safety.instrument_silence_ms 200"), std::string::npos) << r.steps[0].safety_stop;
 }
 
@@ -204,6 +208,7 @@ TEST(BenchRun, AnInstrumentReadingZeroStopsTheStepWithTheDeviceSafeWithinTwoTick
   const std::string text = faultPlan("    instrument_lie_at_s: 1.25\n    instrument_lie_gain: 0");
   const br::PlanResult r = br::runPlan(plan(text), noProgress);
   expectSafetyStop(r, "instrument disagrees with the device's estimate", 1250, 100);
+  EXPECT_GT(r.steps[0].longest_disagreement_ticks, 100);
   EXPECT_NE(r.steps[0].safety_stop.find("safety.disagreement_max 0.05"), std::string::npos) << r.steps[0].safety_stop;
   // The command says so: exit 1, as any failed step.
   const std::string path = writeTemp("lying.yaml", text);

@@ -346,12 +346,17 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
       size_t j = k;
       while (j > 0 && set_ns[j] > rd.sample_ns) --j;
       if (std::isfinite(est[j]) && std::isfinite(rd.value)) {
+        r.largest_disagreement = std::max(r.largest_disagreement, std::fabs(rd.value - est[j]));
         if (std::fabs(rd.value - est[j]) > plan.safety.disagreement_max) {
           if (disagree_since < 0) disagree_since = static_cast<long>(k);
         } else {
           disagree_since = -1;
         }
       }
+    }
+    r.longest_silence_ticks = std::max(r.longest_silence_ticks, static_cast<long>(k - last_sample_step));
+    if (disagree_since >= 0) {
+      r.longest_disagreement_ticks = std::max(r.longest_disagreement_ticks, static_cast<long>(k) - disagree_since);
     }
     char cause[240] = "";
     if (k - last_sample_step > silence_ticks) {
@@ -560,6 +565,10 @@ nlohmann::json toJson(const PlanResult& r) {
       sj["active_at_stop"] = s.active_at_stop;
     }
     if (s.skipped) sj["skipped"] = true;
+    if (s.samples_total > 0 || s.stop_tick >= 0) {  // the step ran
+      sj["safety"] = {{"longest_silence_ms", s.longest_silence_ticks}, {"longest_disagreement_ms", s.longest_disagreement_ticks},
+                       {"largest_disagreement", s.largest_disagreement}};
+    }
     if (!s.instrument.empty()) {
       sj["estimate_vs_instrument"] = pairJson(s.est);
       sj["setpoint_vs_instrument"] = pairJson(s.sp);

@@ -116,6 +116,10 @@ struct StepResult {
   /// Rig ticks from the decision until the device's telemetry reported mode safe with outputs off; −1 never.
   long ticks_to_safe = -1;
   bool active_at_stop = false;       ///< the device's telemetry at the decision: outputs driven (it was pushing)
+  /// The safety margins the step used (rig ticks, 1 ms each): its longest instrument silence and its longest
+  /// run of fresh samples disagreeing with the estimate by more than safety.disagreement_max.
+  long longest_silence_ticks = 0, longest_disagreement_ticks = 0;
+  double largest_disagreement = 0.0;  ///< largest |instrument − estimate| over the fresh samples (instrument unit)
   bool skipped = false;              ///< not run: an earlier step's safety stop ended the plan
   std::vector<double> t, setpoint, estimate, instrument;  ///< fresh-instrument samples after settle
   uint64_t samples_total = 0, samples_stale = 0;
