@@ -2,6 +2,8 @@
 
 #include <atomic>
 
+#include "phalanx/host/command_limits.h"
+
 namespace phalanx::host {
 namespace {
 std::atomic<uint64_t> g_rigs{0}, g_simulated_us{0}, g_wall_ns{0};
@@ -62,7 +64,11 @@ void LockstepRig::step() {
   const uint64_t now_ns = board_.clock().nowUs() * 1000u;
   session_.poll(now_ns);
   if (!started_ || !host_connected_ || !session_.hasTelemetry()) return;
-  controller_.update(session_.latest(), timeS(), static_cast<double>(period_us * host_every_) * 1e-6, cmd_);
+  if (stopped_) {
+    makeSafe(cmd_);
+  } else {
+    controller_.update(session_.latest(), timeS(), static_cast<double>(period_us * host_every_) * 1e-6, cmd_);
+  }
   cmd_.channel_count = device_.app().layout().setpoint_count;
   session_.sendCommand(cmd_, now_ns);
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -26,9 +27,16 @@ device: sim:sea_rig
 seed: 3
 instrument: {type: int32, scale: 1.0e-5, poll_hz: 500, timeout_ms: 30, stale_ms: 50}
 max_stale_percent: 5
+safety: {effort_max: 0.4, instrument_silence_ms: 200, disagreement_max: 0.05, disagreement_ms: 100}
 )";
 
 void noProgress(size_t, size_t, const std::string&, double) {}
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
 
 }  // namespace
 
@@ -60,6 +68,9 @@ steps:
   EXPECT_TRUE(r.pass);
   EXPECT_GT(progress_calls, 20u);
   const br::StepResult& sine = r.steps[0];
+  // The healthy instrument stayed inside the safety bounds with room to spare (silence 200, disagreement 100 ms).
+  EXPECT_LT(sine.longest_silence_ticks, 100);
+  EXPECT_LT(sine.longest_disagreement_ticks, 10);
   EXPECT_LT(sine.samples_stale, 150u) << "a shared machine may starve the polling thread briefly, no more";
   EXPECT_GT(sine.instrument.size(), 2900u);
   // The instrument really measures the torque: its amplitude matches the commanded 0.3 N·m within 5 %.
@@ -106,8 +117,15 @@ steps:
   EXPECT_FALSE(r.steps[0].checks[1].pass);
 }
 
+std::string withSilenceMs(std::string header, const char* ms) {
+  const std::string key = "instrument_silence_ms: 200";
+  header.replace(header.find(key), key.size(), std::string("instrument_silence_ms: ") + ms);
+  return header;
+}
+
 TEST(BenchRun, InstrumentThatStopsAnsweringFailsTheStepWithATimeoutNotAScore) {
-  const br::Plan p = plan(std::string(kHeader) + R"(
+  // A silence bound beyond the step: the stale-sample accounting alone fails it (the safety stop is tested below).
+  const br::Plan p = plan(withSilenceMs(kHeader, "10000") + R"(
 steps:
   - name: hung amplifier
     kind: sea-rig-sine
@@ -127,6 +145,128 @@ steps:
   EXPECT_GT(s.samples_stale, 1000u);
   EXPECT_GT(s.instrument_stats["timeouts"].get<int>(), 0);
   EXPECT_LT(s.instrument.size(), 1100u) << "stale samples are never scored";
+  EXPECT_TRUE(s.safety_stop.empty()) << s.safety_stop;
+}
+
+namespace {
+
+// Two sine steps; a fault in the first one. Only the first may run.
+std::string faultPlan(const std::string& fault) {
+  return std::string(kHeader) + R"(
+steps:
+  - name: faulty instrument
+    kind: sea-rig-sine
+    peak_Nm: 0.3
+    hz: 0.5
+    seconds: 3
+    settle_s: 0.5
+)" + fault + R"(
+  - name: must not run
+    kind: sea-rig-sine
+    peak_Nm: 0.3
+    seconds: 2
+)";
+}
+
+// The stop decision, the device's telemetry at it and after it, the plan's end: what every safety stop must show.
+void expectSafetyStop(const br::PlanResult& r, const char* cause, long fault_tick, long bound_ticks) {
+  ASSERT_EQ(r.steps.size(), 2u);
+  const br::StepResult& s = r.steps[0];
+  EXPECT_FALSE(r.pass);
+  EXPECT_FALSE(s.pass);
+  EXPECT_NE(s.safety_stop.find(cause), std::string::npos) << s.safety_stop;
+  EXPECT_EQ(s.error.find(s.safety_stop), 0u) << s.error;
+  // Counted in rig ticks: not before the fault, not before the bound has passed after it, and no later than the
+  // bound plus a few polls (the last fresh sample may come a few ticks before the fault).
+  EXPECT_GE(s.stop_tick, fault_tick + bound_ticks - 10) << br::toJson(r).dump(1);
+  EXPECT_LE(s.stop_tick, fault_tick + bound_ticks + 20) << br::toJson(r).dump(1);
+  EXPECT_TRUE(s.active_at_stop) << "the device was pushing when the decision fell";
+  EXPECT_GE(s.ticks_to_safe, 1);
+  EXPECT_LE(s.ticks_to_safe, 2) << "device telemetry: mode safe, outputs off, within two ticks of the decision";
+  EXPECT_TRUE(s.t.empty()) << "a stopped step is not scored";
+  EXPECT_TRUE(r.steps[1].skipped);
+  EXPECT_FALSE(r.steps[1].pass);
+  EXPECT_NE(r.steps[1].error.find("not run: safety stop in step 1"), std::string::npos) << r.steps[1].error;
+  EXPECT_EQ(r.steps[1].samples_total, 0u);
+  const nlohmann::json j = br::toJson(r);
+  EXPECT_EQ(j["steps"][0]["ticks_to_safe"].get<long>(), s.ticks_to_safe);
+  EXPECT_TRUE(j["steps"][1]["skipped"].get<bool>());
+}
+
+}  // namespace
+
+TEST(BenchRun, AHungInstrumentStopsTheStepAndThePlanWithTheDeviceSafeWithinTwoTicks) {
+  // Hang at 1.4 s: the 0.3 N·m sine is near its peak (−0.29 N·m) when the 200 ms silence bound passes.
+  const br::PlanResult r = br::runPlan(plan(faultPlan("    instrument_hang_at_s: 1.4")), noProgress);
+  expectSafetyStop(r, "instrument silent", 1400, 200);
+  EXPECT_GT(r.steps[0].longest_silence_ticks, 200);
+  EXPECT_NE(r.steps[0].safety_stop.find("safety.instrument_silence_ms 200"), std::string::npos) << r.steps[0].safety_stop;
+}
+
+TEST(BenchRun, AnInstrumentReadingZeroStopsTheStepWithTheDeviceSafeWithinTwoTicks) {
+  // A broken load cell reads 0 while the device pushes ±0.3 N·m (at 1.25 s the sine is at −0.21 N·m).
+  const std::string text = faultPlan("    instrument_lie_at_s: 1.25\n    instrument_lie_gain: 0");
+  const br::PlanResult r = br::runPlan(plan(text), noProgress);
+  expectSafetyStop(r, "instrument disagrees with the device's estimate", 1250, 100);
+  EXPECT_GT(r.steps[0].longest_disagreement_ticks, 100);
+  EXPECT_NE(r.steps[0].safety_stop.find("safety.disagreement_max 0.05"), std::string::npos) << r.steps[0].safety_stop;
+  // The command says so: exit 1, as any failed step.
+  const std::string path = writeTemp("lying.yaml", text);
+  EXPECT_EQ(br::benchRunMain(path, ::testing::TempDir() + "lying.html"), 1);
+}
+
+TEST(BenchRun, AnInstrumentWithAnOffsetStopsTheStepWithTheDeviceSafeWithinTwoTicks) {
+  const br::PlanResult r =
+      br::runPlan(plan(faultPlan("    instrument_lie_at_s: 1.0\n    instrument_lie_offset: 0.1")), noProgress);
+  expectSafetyStop(r, "instrument disagrees with the device's estimate", 1000, 100);
+}
+
+TEST(BenchRun, APlanBeyondTheDeviceLimitOrAStepBeyondThePlanLimitIsRefusedAtLoad) {
+  const std::string steps = "steps: [{kind: sea-rig-sine, peak_Nm: 0.3}]\n";
+  br::Plan p;
+  p.source = "untouched";
+  std::string err = br::loadPlanText(
+      "safety: {effort_max: 1.5, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n" + steps, "p", p);
+  EXPECT_NE(err.find("p: safety.effort_max: 1.5 exceeds the device's own limit 1 (sim:sea_rig"), std::string::npos) << err;
+  EXPECT_EQ(p.source, "untouched") << "a refused plan changes nothing";
+  err = br::loadPlanText(
+      "safety: {effort_max: 0.2, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n" + steps, "p", p);
+  EXPECT_NE(err.find("p: steps[0].peak_Nm: commands up to 0.3, beyond safety.effort_max 0.2"), std::string::npos) << err;
+  err = br::loadPlanText(
+      "safety: {effort_max: 0.1, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n"
+      "steps: [{kind: sea-rig-chirp, amplitude_Nm: 0.15}]\n", "p", p);
+  EXPECT_NE(err.find("steps[0].amplitude_Nm: commands up to 0.15, beyond safety.effort_max 0.1"), std::string::npos) << err;
+  err = br::loadPlanText(
+      "device: sim:pantograph\nsafety: {effort_max: 1, instrument_silence_ms: 100, disagreement_max: 3, disagreement_ms: 100}\n"
+      "steps: [{kind: pen-wall}]\n", "p", p);
+  EXPECT_NE(err.find("steps[0].kind: commands up to 2.1 (pen-wall: the force split's joint torque limit), beyond "
+                     "safety.effort_max 1"), std::string::npos) << err;
+  err = br::loadPlanText(
+      "device: sim:glove5\nsafety: {effort_max: 10.5, instrument_silence_ms: 100, disagreement_max: 1, disagreement_ms: 100}\n"
+      "steps: [{kind: glove-free-motion}]\n", "p", p);
+  EXPECT_NE(err.find("safety.effort_max: 10.5 exceeds the device's own limit 10 (sim:glove5"), std::string::npos) << err;
+  // Required, every key.
+  err = br::loadPlanText(steps, "p", p);
+  EXPECT_NE(err.find("p: safety: required (effort_max, instrument_silence_ms, disagreement_max, disagreement_ms; the "
+                     "device's own effort limit is 1"), std::string::npos) << err;
+  err = br::loadPlanText("safety: {effort_max: 0.4, instrument_silence_ms: 100, disagreement_max: 0.05}\n" + steps, "p", p);
+  EXPECT_NE(err.find("safety.disagreement_ms: required"), std::string::npos) << err;
+  err = br::loadPlanText("safety: {effort_max: 0.4, instrument_silence_ms: 0, disagreement_max: 0.05, disagreement_ms: 100}\n" +
+                             steps, "p", p);
+  EXPECT_NE(err.find("safety.instrument_silence_ms: 0 is outside"), std::string::npos) << err;
+  EXPECT_EQ(p.source, "untouched");
+  // Exactly at the limits: accepted.
+  EXPECT_EQ(br::loadPlanText(
+                "safety: {effort_max: 1, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n"
+                "steps: [{kind: sea-rig-sine, peak_Nm: 0.4}, {kind: sea-rig-sine, peak_Nm: 0.3}]\n", "p", p),
+            "");
+  // The command: exit 2, nothing runs (no report written).
+  const std::string path = writeTemp("over-limit.yaml",
+      "safety: {effort_max: 1.5, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n" + steps);
+  const std::string report = ::testing::TempDir() + "over-limit.html";
+  std::remove(report.c_str());
+  EXPECT_EQ(br::benchRunMain(path, report), 2);
+  EXPECT_FALSE(std::ifstream(report).good()) << "nothing ran";
 }
 
 namespace {
@@ -138,18 +278,13 @@ device: sim:pantograph
 seed: 2
 instrument: {type: int32, scale: 1.0e-5, unit: N, poll_hz: 1000, timeout_ms: 30, stale_ms: 50}
 max_stale_percent: 20
+safety: {effort_max: 2.1, instrument_silence_ms: 200, disagreement_max: 3.0, disagreement_ms: 100}
 )";
 
 double meanOf(const std::vector<double>& v, size_t from) {
   double s = 0.0;
   for (size_t i = from; i < v.size(); ++i) s += v[i];
   return s / static_cast<double>(v.size() - from);
-}
-
-std::string writeTemp(const std::string& name, const std::string& text) {
-  const std::string path = ::testing::TempDir() + name;
-  std::ofstream(path) << text;
-  return path;
 }
 
 }  // namespace

@@ -1,14 +1,18 @@
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <set>
 #include <sstream>
 
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/pen/pen_bench.h"
+#include "phalanx/host/pen/pen_controller.h"
 #include "phalanx/host/pen/pen_scene.h"
 #include "phalanx/host/yaml_keys.h"
+#include "phalanx/protocol/devices.h"
 
 namespace phalanx::host::benchrun {
 namespace {
@@ -59,9 +63,38 @@ PairLimits limitsOf(const YAML::Node& n, const std::string& where) {
   return l;
 }
 
+std::string fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+constexpr const char* kSafetyKeys = "effort_max, instrument_silence_ms, disagreement_max, disagreement_ms";
+
+/// The plan's `safety:` block: every key required (no silent default stands between a plan and the motors).
+Safety safetyOf(const YAML::Node& n, const std::string& device) {
+  onlyKeys(n, "safety", {"effort_max", "instrument_silence_ms", "disagreement_max", "disagreement_ms"});
+  for (const char* k : {"effort_max", "instrument_silence_ms", "disagreement_max", "disagreement_ms"}) {
+    if (!n[k]) throw Bad{std::string("safety.") + k + ": required (safety needs " + kSafetyKeys + ")"};
+  }
+  Safety s;
+  s.effort_max = number(n["effort_max"], "safety.effort_max", 0.0, 1e3);
+  const double device_max = deviceEffortLimit(device);
+  // Compared in the limit's own precision (float): 2.1 is the pantograph's limit, not 2.0999999.
+  if (static_cast<float>(s.effort_max) > static_cast<float>(device_max)) {
+    throw Bad{"safety.effort_max: " + fmt(s.effort_max) + " exceeds the device's own limit " + fmt(device_max) + " (" +
+              device + ", the limits stage's setpoint limit)"};
+  }
+  // 1 ms: one rig tick, the finest the runner can tell; 60 s: longer than any useful silence on a bench.
+  s.instrument_silence_ms = number(n["instrument_silence_ms"], "safety.instrument_silence_ms", 1.0, 60000.0);
+  s.disagreement_max = number(n["disagreement_max"], "safety.disagreement_max", 0.0, 1e6);
+  s.disagreement_ms = number(n["disagreement_ms"], "safety.disagreement_ms", 1.0, 60000.0);
+  return s;
+}
+
 void apply(const YAML::Node& root, Plan& p) {
   onlyKeys(root, "", {"version", "device", "controller", "seed", "noise", "report", "instrument", "max_stale_percent",
-                      "steps"});
+                      "safety", "steps"});
   if (root["version"] && get<int>(root["version"], "version", "integer") != 1) {
     throw Bad{"version: only version 1 is understood"};
   }
@@ -80,13 +113,16 @@ void apply(const YAML::Node& root, Plan& p) {
       throw Bad{err};
     }
   }
+  const bool have_safety = static_cast<bool>(root["safety"]);
+  if (have_safety) p.safety = safetyOf(root["safety"], p.device);
   const YAML::Node steps = root["steps"];
   if (!steps || !steps.IsSequence() || steps.size() == 0) throw Bad{"steps: expected a non-empty list"};
   for (size_t i = 0; i < steps.size(); ++i) {
     const std::string w = "steps[" + std::to_string(i) + "]";
     const YAML::Node s = steps[i];
     onlyKeys(s, w, {"name", "kind", "seconds", "settle_s", "peak_Nm", "hz", "amplitude_Nm", "f0_hz", "fmax_hz", "finger",
-                    "stiffness_N_per_cm", "braking", "instrument_hang_at_s", "limits"});
+                    "stiffness_N_per_cm", "braking", "instrument_hang_at_s", "instrument_lie_at_s", "instrument_lie_gain",
+                    "instrument_lie_offset", "limits"});
     Step st;
     if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, pen-wall)"};
     st.kind = get<std::string>(s["kind"], w + ".kind", "string");
@@ -130,6 +166,14 @@ void apply(const YAML::Node& root, Plan& p) {
     if (s["instrument_hang_at_s"]) {
       st.instrument_hang_at_s = number(s["instrument_hang_at_s"], w + ".instrument_hang_at_s", 0.0, 600.0);
     }
+    if (s["instrument_lie_at_s"]) st.instrument_lie_at_s = number(s["instrument_lie_at_s"], w + ".instrument_lie_at_s", 0.0, 600.0);
+    if (s["instrument_lie_gain"]) st.instrument_lie_gain = number(s["instrument_lie_gain"], w + ".instrument_lie_gain", -1e3, 1e3);
+    if (s["instrument_lie_offset"]) {
+      st.instrument_lie_offset = number(s["instrument_lie_offset"], w + ".instrument_lie_offset", -1e6, 1e6);
+    }
+    if ((s["instrument_lie_gain"] || s["instrument_lie_offset"]) && !s["instrument_lie_at_s"]) {
+      throw Bad{w + ".instrument_lie_at_s: required with instrument_lie_gain / instrument_lie_offset"};
+    }
     if (const YAML::Node l = s["limits"]) {
       if (pen) {
         onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument", "penetration_mm_max",
@@ -153,11 +197,41 @@ void apply(const YAML::Node& root, Plan& p) {
         (st.estimate_vs_instrument.bandwidth_hz_min || st.setpoint_vs_instrument.bandwidth_hz_min)) {
       throw Bad{w + ".limits: bandwidth_hz_min needs a sea-rig-chirp step"};
     }
+    if (have_safety) {
+      const double e = stepEffortMax(st);
+      if (e > p.safety.effort_max) {
+        const std::string key = st.kind == "sea-rig-sine" ? ".peak_Nm" : (st.kind == "sea-rig-chirp" ? ".amplitude_Nm" : ".kind");
+        throw Bad{w + key + ": commands up to " + fmt(e) + (pen ? " (pen-wall: the force split's joint torque limit)" : "") +
+                  ", beyond safety.effort_max " + fmt(p.safety.effort_max)};
+      }
+    }
     p.steps.push_back(st);
+  }
+  if (!have_safety) {
+    throw Bad{std::string("safety: required (") + kSafetyKeys + "; the device's own effort limit is " +
+              fmt(deviceEffortLimit(p.device)) + "; docs/bench-runner.md \"Safety\")"};
   }
 }
 
 }  // namespace
+
+double deviceEffortLimit(const std::string& device) {
+  if (device == "sim:sea_rig") return protocol::kSeaFingerLayout.setpoint_limit;
+  if (device == "sim:glove5") return protocol::kGlove5Layout.setpoint_limit;
+  if (device == "sim:pantograph") return protocol::kPantographLayout.setpoint_limit;
+  return 0.0;
+}
+
+double stepEffortMax(const Step& step) {
+  if (step.kind == "sea-rig-sine") return step.peak_Nm;
+  if (step.kind == "sea-rig-chirp") return step.amplitude_Nm;
+  if (step.kind == "pen-wall") {
+    double m = 0.0;
+    for (double t : pen::PenControllerConfig{}.split.torque_limit_Nm) m = std::max(m, t);
+    return m;
+  }
+  return 0.0;  // glove-free-motion: transparent mode commands 0 N
+}
 
 std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan) {
   Plan p;

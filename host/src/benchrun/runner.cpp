@@ -26,6 +26,7 @@ constexpr double kSmoothHz = 0.5;       // moving average of |G| over frequency 
 constexpr size_t kSeaTorque0 = 7;       // sea_finger sample: SEA 0 joint torque estimate (devices.h)
 constexpr size_t kGloveForce0 = 15;     // glove5 sample: pad force of finger 0 (devices.h)
 constexpr size_t kPenTorque0 = 6;       // pantograph sample: measured motor torque q1 (devices.h)
+constexpr long kSafeWaitTicks = 100;   // a safety stop waits at most this long for the device's safe telemetry
 constexpr size_t kExcludeAfter = 4;     // rig steps after an unscorable one also not scored (docs/bench-runner.md)
 
 void sleepUntil(uint64_t t_ns) {
@@ -243,6 +244,21 @@ void judge(const PairLimits& l, const PairMetrics& m, const std::string& pair, s
   }
 }
 
+/// The stop path: the rig commands the safe state from its next step on (LockstepRig::setStopped, makeSafe as in
+/// the daemon) and runs until the device's telemetry reports mode safe with outputs off (at most kSafeWaitTicks).
+void safeStop(LockstepRig& rig, StepResult& r) {
+  r.active_at_stop = (rig.session().latest().state_flags & protocol::state::kOutputsActive) != 0;
+  rig.setStopped(true);
+  for (long i = 1; i <= kSafeWaitTicks; ++i) {
+    rig.step();
+    const TelemetryFrame& tel = rig.session().latest();
+    if (tel.mode == protocol::Mode::kSafe && (tel.state_flags & protocol::state::kOutputsActive) == 0) {
+      r.ticks_to_safe = i;
+      return;
+    }
+  }
+}
+
 StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
                    size_t index, const Progress& progress) {
   StepResult r;
@@ -278,6 +294,12 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   // A sample is "young" for two poll periods of rig time (see the alignment below).
   const auto max_age_steps = static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)));
   bool hung = false;
+  bool lying = false;
+  // Safety (plan `safety:`), counted in rig ticks (1 ms each): a silent instrument, or one that disagrees with
+  // the device's estimate for too long, stops the step.
+  const auto silence_ticks = static_cast<size_t>(std::lround(plan.safety.instrument_silence_ms * kFs / 1000.0));
+  const auto disagree_ticks = static_cast<size_t>(std::lround(plan.safety.disagreement_ms * kFs / 1000.0));
+  long disagree_since = -1;  // tick of the first fresh sample of the current run of disagreeing ones
   const uint64_t t0 = linux_hal::monotonicNs();
   size_t next_progress = 0;
   for (size_t k = 0; k < steps; ++k) {
@@ -291,7 +313,8 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
     sp[k] = target.setpoint();
     est[k] = target.estimate();
     truth_set[k] = target.truth();
-    amp.set(truth_set[k]);
+    if (!lying && st.instrument_lie_at_s >= 0.0 && static_cast<double>(k) / kFs >= st.instrument_lie_at_s) lying = true;
+    amp.set(lying ? truth_set[k] * st.instrument_lie_gain + st.instrument_lie_offset : truth_set[k]);
     set_ns[k] = linux_hal::monotonicNs();
     if (!hung && st.instrument_hang_at_s >= 0.0 && static_cast<double>(k) / kFs >= st.instrument_hang_at_s) {
       amp.setResponsive(false);
@@ -319,6 +342,39 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
       last_sample_ns = rd.sample_ns;
       last_sample_step = k;
       instrument_answering = true;
+      // Compare with the device's estimate at the rig step whose truth the sample carried (as the scoring does).
+      size_t j = k;
+      while (j > 0 && set_ns[j] > rd.sample_ns) --j;
+      if (std::isfinite(est[j]) && std::isfinite(rd.value)) {
+        r.largest_disagreement = std::max(r.largest_disagreement, std::fabs(rd.value - est[j]));
+        if (std::fabs(rd.value - est[j]) > plan.safety.disagreement_max) {
+          if (disagree_since < 0) disagree_since = static_cast<long>(k);
+        } else {
+          disagree_since = -1;
+        }
+      }
+    }
+    r.longest_silence_ticks = std::max(r.longest_silence_ticks, static_cast<long>(k - last_sample_step));
+    if (disagree_since >= 0) {
+      r.longest_disagreement_ticks = std::max(r.longest_disagreement_ticks, static_cast<long>(k) - disagree_since);
+    }
+    char cause[240] = "";
+    if (k - last_sample_step > silence_ticks) {
+      std::snprintf(cause, sizeof cause,
+                    "safety stop: instrument silent, no fresh sample for %zu ms (safety.instrument_silence_ms %g); last error: %s",
+                    k - last_sample_step, plan.safety.instrument_silence_ms, rd.last_error);
+    } else if (disagree_since >= 0 && k - static_cast<size_t>(disagree_since) > disagree_ticks) {
+      std::snprintf(cause, sizeof cause,
+                    "safety stop: instrument disagrees with the device's estimate by more than %g %s for %zu ms "
+                    "(safety.disagreement_max %g, disagreement_ms %g; last: instrument %.4g, estimate %.4g)",
+                    plan.safety.disagreement_max, plan.instrument.unit.c_str(), k - static_cast<size_t>(disagree_since),
+                    plan.safety.disagreement_max, plan.safety.disagreement_ms, samples.back().second, est[k]);
+    }
+    if (cause[0] != '\0') {
+      r.safety_stop = cause;
+      r.stop_tick = static_cast<long>(k);
+      safeStop(*target.rig, r);
+      break;
     }
     if (k >= next_progress) {
       progress(index, plan.steps.size(), st.name, static_cast<double>(k) / static_cast<double>(steps));
@@ -327,6 +383,12 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   }
   progress(index, plan.steps.size(), st.name, 1.0);
   amp.setResponsive(true);
+  if (!r.safety_stop.empty()) {
+    r.error = r.safety_stop;
+    if (r.ticks_to_safe < 0) r.error += "; the device did not report its safe state";
+    r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
+    return r;  // nothing scored: the step was cut short
+  }
 
   // Align each instrument sample with the rig step whose ground truth it carried: the last step published
   // before the response arrived (the rig may have run in bursts on a loaded machine; sim time is what counts).
@@ -462,14 +524,21 @@ PlanResult runPlan(const Plan& plan, const Progress& progress) {
   }
   modbus::InstrumentClient inst(cfg);
   if (err.empty()) err = inst.start();
+  std::string stopped_by;  // a safety stop ends the plan: the remaining steps do not run
   for (size_t i = 0; i < plan.steps.size(); ++i) {
     StepResult r;
-    if (!err.empty()) {
+    if (!stopped_by.empty()) {
+      r.name = plan.steps[i].name;
+      r.kind = plan.steps[i].kind;
+      r.skipped = true;
+      r.error = "not run: " + stopped_by;
+    } else if (!err.empty()) {
       r.name = plan.steps[i].name;
       r.kind = plan.steps[i].kind;
       r.error = err;
     } else {
       r = runStep(plan, plan.steps[i], amp, inst, i, progress);
+      if (!r.safety_stop.empty()) stopped_by = "safety stop in step " + std::to_string(i + 1) + " (" + r.name + ")";
     }
     out.steps.push_back(std::move(r));
   }
@@ -489,6 +558,17 @@ nlohmann::json toJson(const PlanResult& r) {
                          {"samples_stale", s.samples_stale}, {"faults", s.faults}};
     if (s.samples_excluded > 0) sj["samples_excluded"] = s.samples_excluded;
     if (!s.error.empty()) sj["error"] = s.error;
+    if (!s.safety_stop.empty()) {
+      sj["safety_stop"] = s.safety_stop;
+      sj["stop_tick"] = s.stop_tick;
+      sj["ticks_to_safe"] = s.ticks_to_safe;
+      sj["active_at_stop"] = s.active_at_stop;
+    }
+    if (s.skipped) sj["skipped"] = true;
+    if (s.samples_total > 0 || s.stop_tick >= 0) {  // the step ran
+      sj["safety"] = {{"longest_silence_ms", s.longest_silence_ticks}, {"longest_disagreement_ms", s.longest_disagreement_ticks},
+                       {"largest_disagreement", s.largest_disagreement}};
+    }
     if (!s.instrument.empty()) {
       sj["estimate_vs_instrument"] = pairJson(s.est);
       sj["setpoint_vs_instrument"] = pairJson(s.sp);

@@ -56,6 +56,10 @@ class LockstepRig {
   fw::FirmwareCore& core() { return core_; }
   HostSession& session() { return session_; }
   const protocol::Command& lastCommand() const { return cmd_; }
+  /// Stop: from the next step on, the host commands the safe state (makeSafe, command_limits.h) instead of
+  /// running the controller, as the daemon does while stopped (no controller update: no integrator wind-up).
+  void setStopped(bool stopped) { stopped_ = stopped; }
+  bool stopped() const { return stopped_; }
   /// Drop the host: stop sending commands (link loss seen from the device).
   void setHostConnected(bool connected) { host_connected_ = connected; }
   /// Called after the plant wrote the sensors and before the firmware tick: fault injection (a stuck or
@@ -72,6 +76,7 @@ class LockstepRig {
   HostSession session_;
   protocol::Command cmd_{};
   bool host_connected_ = true;
+  bool stopped_ = false;
   unsigned host_every_ = 1;  ///< options.host_every_ticks, at least 1
   uint64_t ticks_ = 0;
   bool started_ = false;  ///< commands flow only once handshake() finished the start-up sequence

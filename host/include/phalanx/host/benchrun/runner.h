@@ -46,8 +46,24 @@ struct Step {
   std::optional<double> penetration_mm_max;        ///< pen-wall: deepest true tip/eraser penetration
   std::optional<double> wall_energy_generated_mJ_max;  ///< pen-wall: passivity, energy the walls generated
   double instrument_hang_at_s = -1.0;  ///< simulation fault: the amplifier stops answering at this time
+  /// Simulation fault: from this time on the amplifier serves truth · instrument_lie_gain + instrument_lie_offset
+  /// (a broken load cell: gain 0; a shifted one: an offset). −1: never.
+  double instrument_lie_at_s = -1.0;
+  double instrument_lie_gain = 1.0;
+  double instrument_lie_offset = 0.0;
   PairLimits estimate_vs_instrument;
   PairLimits setpoint_vs_instrument;
+};
+
+/// The plan's safety limits (top-level `safety:`, required; docs/bench-runner.md "Safety"). The loader refuses a
+/// plan whose effort_max exceeds the device's own limit (protocol::DeviceLayout::setpoint_limit, the limits stage's)
+/// or whose steps command beyond effort_max; at run time a silent or disagreeing instrument stops the step and the
+/// plan, the device commanded safe.
+struct Safety {
+  double effort_max = 0.0;          ///< largest |setpoint| a step may command, device setpoint unit (N·m, N)
+  double instrument_silence_ms = 0; ///< no fresh instrument sample for longer than this (rig ticks, 1 ms each): stop
+  double disagreement_max = 0.0;    ///< |instrument − device estimate| beyond this (instrument unit) …
+  double disagreement_ms = 0.0;     ///< … for longer than this (rig ticks, 1 ms each): stop
 };
 
 struct Plan {
@@ -59,8 +75,15 @@ struct Plan {
   std::string report;                 ///< HTML path ("" → <plan>.html)
   modbus::InstrumentConfig instrument;
   double max_stale_percent = 1.0;     ///< a step fails if more of its samples had no fresh instrument reading
+  Safety safety;
   std::vector<Step> steps;
 };
+
+/// The device's own |setpoint| limit for a plan device ("sim:sea_rig" …), in its setpoint unit; 0 if unknown.
+double deviceEffortLimit(const std::string& device);
+/// The largest |setpoint| a step commands: sine peak_Nm, chirp amplitude_Nm, glove free motion 0 (transparent),
+/// pen-wall the force split's per-joint torque limit (the PD+B scene is closed-loop; the split caps it).
+double stepEffortMax(const Step& step);
 
 /// Parse and validate a plan; "" or "<source>: <key>: <problem>".
 std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan);
@@ -86,6 +109,18 @@ struct Check {
 struct StepResult {
   std::string name, kind, unit;
   std::string error;                 ///< device/instrument problem; the step fails
+  /// Safety stop (instrument silent / disagreeing): "" if none. The step was cut short and the device
+  /// commanded safe through the rig's stop path; the plan's remaining steps did not run.
+  std::string safety_stop;
+  long stop_tick = -1;               ///< rig tick (since the step's start) of the stop decision; −1 none
+  /// Rig ticks from the decision until the device's telemetry reported mode safe with outputs off; −1 never.
+  long ticks_to_safe = -1;
+  bool active_at_stop = false;       ///< the device's telemetry at the decision: outputs driven (it was pushing)
+  /// The safety margins the step used (rig ticks, 1 ms each): its longest instrument silence and its longest
+  /// run of fresh samples disagreeing with the estimate by more than safety.disagreement_max.
+  long longest_silence_ticks = 0, longest_disagreement_ticks = 0;
+  double largest_disagreement = 0.0;  ///< largest |instrument − estimate| over the fresh samples (instrument unit)
+  bool skipped = false;              ///< not run: an earlier step's safety stop ended the plan
   std::vector<double> t, setpoint, estimate, instrument;  ///< fresh-instrument samples after settle
   uint64_t samples_total = 0, samples_stale = 0;
   uint64_t samples_excluded = 0;     ///< not scored by design (pen-wall: the braking pulses and 4 ms after them)
