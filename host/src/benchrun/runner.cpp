@@ -259,6 +259,57 @@ void safeStop(LockstepRig& rig, StepResult& r) {
   }
 }
 
+/// The plan's run-time safety stage (`safety:`), counted in rig ticks (1 ms each): an instrument silent, or
+/// disagreeing with the device's estimate on every fresh sample, for longer than the plan allows stops the step.
+/// The margins (longest silence, longest disagreeing run, largest disagreement) go into the step's result.
+class SafetyWatch {
+ public:
+  explicit SafetyWatch(const Plan& plan)
+      : plan_(plan),
+        silence_ticks_(static_cast<size_t>(std::lround(plan.safety.instrument_silence_ms * kFs / 1000.0))),
+        disagree_ticks_(static_cast<size_t>(std::lround(plan.safety.disagreement_ms * kFs / 1000.0))) {}
+
+  /// A fresh sample at tick k against the device's estimate at the rig step whose truth it carried.
+  void sample(size_t k, double value, double estimate, StepResult& r) {
+    last_value_ = value;
+    if (!std::isfinite(estimate) || !std::isfinite(value)) return;
+    const double d = std::fabs(value - estimate);
+    r.largest_disagreement = std::max(r.largest_disagreement, d);
+    if (d <= plan_.safety.disagreement_max) {
+      disagree_since_ = -1;
+    } else if (disagree_since_ < 0) {
+      disagree_since_ = static_cast<long>(k);
+    }
+  }
+
+  /// After tick k, silent for `silent` ticks: "" or the cause of a stop.
+  std::string check(size_t k, size_t silent, const char* last_error, double estimate, StepResult& r) const {
+    r.longest_silence_ticks = std::max(r.longest_silence_ticks, static_cast<long>(silent));
+    const long disagreeing = disagree_since_ < 0 ? -1 : static_cast<long>(k) - disagree_since_;
+    r.longest_disagreement_ticks = std::max(r.longest_disagreement_ticks, disagreeing);
+    char cause[240] = "";
+    if (silent > silence_ticks_) {
+      std::snprintf(cause, sizeof cause,
+                    "safety stop: instrument silent, no fresh sample for %zu ms (safety.instrument_silence_ms %g); last error: %s",
+                    silent, plan_.safety.instrument_silence_ms, last_error);
+    } else if (disagreeing > static_cast<long>(disagree_ticks_)) {
+      std::snprintf(cause, sizeof cause,
+                    "safety stop: instrument disagrees with the device's estimate by more than %g %s for %ld ms "
+                    "(safety.disagreement_max %g, disagreement_ms %g; last: instrument %.4g, estimate %.4g)",
+                    plan_.safety.disagreement_max, plan_.instrument.unit.c_str(), disagreeing,
+                    plan_.safety.disagreement_max, plan_.safety.disagreement_ms, last_value_, estimate);
+    }
+    return cause;
+  }
+
+ private:
+  const Plan& plan_;
+  const size_t silence_ticks_;
+  const size_t disagree_ticks_;
+  long disagree_since_ = -1;  ///< tick of the first fresh sample of the current run of disagreeing ones
+  double last_value_ = 0.0;
+};
+
 StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
                    size_t index, const Progress& progress) {
   StepResult r;
@@ -295,11 +346,7 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   const auto max_age_steps = static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)));
   bool hung = false;
   bool lying = false;
-  // Safety (plan `safety:`), counted in rig ticks (1 ms each): a silent instrument, or one that disagrees with
-  // the device's estimate for too long, stops the step.
-  const auto silence_ticks = static_cast<size_t>(std::lround(plan.safety.instrument_silence_ms * kFs / 1000.0));
-  const auto disagree_ticks = static_cast<size_t>(std::lround(plan.safety.disagreement_ms * kFs / 1000.0));
-  long disagree_since = -1;  // tick of the first fresh sample of the current run of disagreeing ones
+  SafetyWatch safety(plan);
   const uint64_t t0 = linux_hal::monotonicNs();
   size_t next_progress = 0;
   for (size_t k = 0; k < steps; ++k) {
@@ -345,32 +392,10 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
       // Compare with the device's estimate at the rig step whose truth the sample carried (as the scoring does).
       size_t j = k;
       while (j > 0 && set_ns[j] > rd.sample_ns) --j;
-      if (std::isfinite(est[j]) && std::isfinite(rd.value)) {
-        r.largest_disagreement = std::max(r.largest_disagreement, std::fabs(rd.value - est[j]));
-        if (std::fabs(rd.value - est[j]) > plan.safety.disagreement_max) {
-          if (disagree_since < 0) disagree_since = static_cast<long>(k);
-        } else {
-          disagree_since = -1;
-        }
-      }
+      safety.sample(k, rd.value, est[j], r);
     }
-    r.longest_silence_ticks = std::max(r.longest_silence_ticks, static_cast<long>(k - last_sample_step));
-    if (disagree_since >= 0) {
-      r.longest_disagreement_ticks = std::max(r.longest_disagreement_ticks, static_cast<long>(k) - disagree_since);
-    }
-    char cause[240] = "";
-    if (k - last_sample_step > silence_ticks) {
-      std::snprintf(cause, sizeof cause,
-                    "safety stop: instrument silent, no fresh sample for %zu ms (safety.instrument_silence_ms %g); last error: %s",
-                    k - last_sample_step, plan.safety.instrument_silence_ms, rd.last_error);
-    } else if (disagree_since >= 0 && k - static_cast<size_t>(disagree_since) > disagree_ticks) {
-      std::snprintf(cause, sizeof cause,
-                    "safety stop: instrument disagrees with the device's estimate by more than %g %s for %zu ms "
-                    "(safety.disagreement_max %g, disagreement_ms %g; last: instrument %.4g, estimate %.4g)",
-                    plan.safety.disagreement_max, plan.instrument.unit.c_str(), k - static_cast<size_t>(disagree_since),
-                    plan.safety.disagreement_max, plan.safety.disagreement_ms, samples.back().second, est[k]);
-    }
-    if (cause[0] != '\0') {
+    const std::string cause = safety.check(k, k - last_sample_step, rd.last_error, est[k], r);
+    if (!cause.empty()) {
       r.safety_stop = cause;
       r.stop_tick = static_cast<long>(k);
       safeStop(*target.rig, r);
