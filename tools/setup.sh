@@ -42,6 +42,7 @@ PIP_PACKAGES=(
   cyclonedds==11.0.1
   fhir.resources==8.1.0 fhir-core==1.1.12   # the FHIR export's validator (docs/fhir.md)
   mcap==1.6.0 zstandard==0.25.0 lz4==4.4.5 numpy==2.4.6   # the MCAP files' reader; phalanx.records' arrays
+  pymodbus==3.6.9    # an independent load-cell amplifier for the real-time bench (tests/integration/bench_realtime_test.cpp)
 )
 
 if [ "$set_name" = test ] && [ $# -eq 0 ]; then PACKAGES+=("${MAIN_PACKAGES[@]}"); fi

@@ -129,16 +129,20 @@ class TruthInstrument {
                    "sea_torque_mcp_Nm, pantograph hand_force_x_N)");
     cli.add_option("--instrument-noise", o_.noise_sd,
                    "Gaussian noise on the served value: its standard deviation in the signal's SI unit (seeded from --seed)");
+    cli.add_option("--instrument-delay-ms", o_.delay_ms,
+                   "serve each tick's value this much later (a slow amplifier or filter; whole ticks; the bench runner's "
+                   "alignment test)")
+        ->check(CLI::Range(0.0, 1000.0));
     cli.add_option("--instrument-map", o_.map,
                    "register map, key=value,... of unit_id, table (input|holding), address, type "
                    "(int16|uint16|int32|uint32|float32), word_order (big|little), scale, offset (default int32, scale 1e-5)");
   }
   /// Check the options against the device; "" or the problem (a bad argument: exit 2).
-  std::string configure(const phalanx::fw_sim::SimDevice& dev, const std::string& device, uint32_t seed) {
+  std::string configure(const phalanx::fw_sim::SimDevice& dev, const std::string& device, uint32_t seed, unsigned tick_hz) {
     const Options& o = o_;
     if (o.where.empty()) {
-      if (!o.signal.empty() || o.noise_sd != 0.0 || !o.map.empty()) {
-        return "--instrument-signal, --instrument-noise and --instrument-map need --instrument";
+      if (!o.signal.empty() || o.noise_sd != 0.0 || !o.map.empty() || o.delay_ms != 0.0) {
+        return "--instrument-signal, --instrument-noise, --instrument-delay-ms and --instrument-map need --instrument";
       }
       return {};
     }
@@ -177,6 +181,8 @@ class TruthInstrument {
       }
     }
     noise_sd_ = o.noise_sd;
+    delay_ms_ = o.delay_ms;
+    delay_line_.assign(static_cast<size_t>(std::lround(o.delay_ms * tick_hz / 1000.0)) + 1, 0.0);
     std::seed_seq seq{seed, 0x696e7374u};  // "inst": a stream of its own, apart from the plant's sensor noise
     rng_.seed(seq);
     enabled_ = true;
@@ -199,6 +205,11 @@ class TruthInstrument {
     std::snprintf(noise, sizeof noise, "%.9g", noise_sd_);
     line = "instrument: modbus " + where + " " + phalanx::linux_hal::describeRegisterMap(map_) + " signal " + signal_ +
            " noise " + noise;
+    if (delay_ms_ > 0.0) {
+      char delay[32];
+      std::snprintf(delay, sizeof delay, " delay_ms %.9g", delay_ms_);
+      line += delay;
+    }
     return {};
   }
   /// truth: this tick's truthValues().
@@ -206,7 +217,11 @@ class TruthInstrument {
     if (!server_) return;
     double v = truth[index_];
     if (noise_sd_ > 0.0) v += noise_sd_ * gauss_(rng_);
-    server_->set(v);
+    // The delay line: the value served is the one of delay_line_.size() - 1 ticks ago (the first tick's until then).
+    delay_line_[delay_at_] = v;
+    delay_at_ = (delay_at_ + 1) % delay_line_.size();
+    if (delay_filled_ < delay_line_.size()) ++delay_filled_;
+    server_->set(delay_filled_ < delay_line_.size() ? delay_line_[0] : delay_line_[delay_at_]);
   }
   void stop() {
     if (server_) server_->stop();
@@ -230,14 +245,19 @@ class TruthInstrument {
     std::string where;   ///< tcp:PORT | rtu ("": no instrument)
     std::string signal;  ///< a truth column ("": the device's instrumentSignal())
     double noise_sd = 0.0;
+    double delay_ms = 0.0;
     std::string map;     ///< --instrument-map key=value,...
   };
+
   Options o_;
   bool enabled_ = false;
   phalanx::linux_hal::InstrumentConfig map_{};
   unsigned port_ = 0;
   std::string signal_;
   size_t index_ = 0;
+  double delay_ms_ = 0.0;
+  std::vector<double> delay_line_;  ///< the last ticks' values, a ring (one slot: no delay)
+  size_t delay_at_ = 0, delay_filled_ = 0;
   double noise_sd_ = 0.0;
   std::mt19937_64 rng_;
   std::normal_distribution<double> gauss_{0.0, 1.0};
@@ -358,7 +378,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (const std::string err = instrument.configure(*dev, device, dev_opt.seed); !err.empty()) {
+  if (const std::string err = instrument.configure(*dev, device, dev_opt.seed, tick_hz); !err.empty()) {
     std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
     return 2;
   }

@@ -60,7 +60,8 @@ struct BenchCommands::Impl {
   double progress_s = 5.0;
   // plan
   CLI::App* plan_run = nullptr;
-  std::string plan_path, plan_report;
+  std::string plan_path, plan_report, plan_device;
+  bool plan_lockstep = false;
 
   void addGlove();
   void addSea();
@@ -167,6 +168,12 @@ void BenchCommands::Impl::addPlan() {
   plan_run = bench->add_subcommand("run", "run a bench plan (YAML) against a reference instrument; HTML report");
   plan_run->add_option("plan", plan_path, "plan file (docs/bench-runner.md)")->required()->check(CLI::ExistingFile);
   plan_run->add_option("--report", plan_report, "HTML report path (default: the plan's report key, or PLAN.html)");
+  plan_run->add_option("--device", plan_device,
+                       "run on this device instead of the plan's (sim:sea_rig|sim:glove5, serial:PATH[@baud], "
+                       "can:IF[:node][@fd|@fd-compact|@classic], usb:VID:PID[:serial]; the plan's device_type must fit)");
+  plan_run->add_flag("--lockstep", plan_lockstep,
+                     "sim: devices: step firmware, plant and host in one process (fast, deterministic) instead of a real-time "
+                     "session of the daemon's runner over the device's link (the default)");
 }
 
 nlohmann::json BenchCommands::Impl::runGlove() {
@@ -206,7 +213,7 @@ int BenchCommands::Impl::report(const std::string& name, const nlohmann::json& r
 
 int BenchCommands::run() {
   Impl& m = *impl_;
-  if (m.plan_run->parsed()) return benchrun::benchRunMain(m.plan_path, m.plan_report);
+  if (m.plan_run->parsed()) return benchrun::benchRunMain(m.plan_path, m.plan_report, m.plan_device, m.plan_lockstep);
   if (m.free_motion->parsed() || m.grasp->parsed()) {
     return m.report(m.free_motion->parsed() ? "glove-free-motion" : "glove-grasp", withLockstepSpeed([&m] { return m.runGlove(); }));
   }

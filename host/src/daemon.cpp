@@ -223,6 +223,9 @@ std::string validate(const RunOptions& opt) {
   if (!opt.sim_truth.empty() && opt.device.rfind("sim:", 0) != 0) {
     return "--sim-truth: the plant's truth exists for sim: devices only, not '" + opt.device + "'";
   }
+  if (!opt.sim_args.empty() && opt.device.rfind("sim:", 0) != 0) {
+    return "sim_args: firmware-sim arguments are for sim: devices only, not '" + opt.device + "'";
+  }
   // Geometry files are read and validated here, so a bad file is refused before any device is opened.
   for (const auto& [finger, path] : opt.glove_geometry) {
     if (finger != "thumb" && finger != "index" && finger != "middle" && finger != "ring" && finger != "little") {

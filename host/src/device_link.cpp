@@ -64,6 +64,8 @@ class SimChild {
     std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
                                      "--scenario", opt.scenario, "--exit-with-parent"};
     if (!opt.sim_truth.empty()) args.insert(args.end(), {"--truth", opt.sim_truth});
+    args.insert(args.end(), opt.sim_args.begin(), opt.sim_args.end());
+    const bool instrument = std::find(opt.sim_args.begin(), opt.sim_args.end(), "--instrument") != opt.sim_args.end();
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -75,10 +77,12 @@ class SimChild {
       pid_ = -1;
       return "cannot start " + exe + ": " + std::strerror(rc);
     }
-    // Read its first line (bounded wait).
+    // Read its first line, and with --instrument the second (bounded wait). The pipe stays open until then: a
+    // line written to a closed pipe would kill it.
     std::string line;
     pollfd pfd{out[0], POLLIN, 0};
-    while (line.find('\n') == std::string::npos) {
+    const size_t lines = instrument ? 2 : 1;
+    while (static_cast<size_t>(std::count(line.begin(), line.end(), '\n')) < lines) {
       if (::poll(&pfd, 1, 5000) <= 0) break;
       char c[256];
       const ssize_t n = ::read(out[0], c, sizeof c);
@@ -87,7 +91,13 @@ class SimChild {
     }
     ::close(out[0]);
     if (line.rfind("PTY ", 0) != 0) return "the simulated firmware did not report its link (got '" + line + "')";
-    pty_path = line.substr(4, line.find('\n') - 4);
+    const size_t eol = line.find('\n');
+    pty_path = line.substr(4, eol - 4);
+    if (instrument) {
+      const std::string second = eol == std::string::npos ? std::string() : line.substr(eol + 1);
+      if (second.rfind("instrument: modbus ", 0) != 0) return "the simulated firmware did not report its instrument (got '" + second + "')";
+      instrument_line_ = second.substr(0, second.find('\n'));
+    }
     return {};
   }
   /// "" while the child runs; how it ended once it has (reaped here).
@@ -99,6 +109,8 @@ class SimChild {
     if (WIFSIGNALED(status)) return "the simulated firmware was killed by signal " + std::to_string(WTERMSIG(status));
     return "the simulated firmware exited with code " + std::to_string(WEXITSTATUS(status));
   }
+  /// firmware-sim's "instrument: modbus ..." line ("" without --instrument).
+  const std::string& instrumentLine() const { return instrument_line_; }
   void stop() {
     if (pid_ <= 0) return;
     kill(pid_, SIGTERM);
@@ -113,6 +125,7 @@ class SimChild {
 
  private:
   pid_t pid_ = -1;
+  std::string instrument_line_;
 };
 
 /// serial:PATH[@baud] — a board's USB CDC-ACM port or a UART adapter. Survives an unplug (reconnects).
@@ -187,7 +200,11 @@ class SimDeviceLink : public DeviceLink {
     return {};
   }
   std::string where() const override { return path_; }
-  nlohmann::json info() const override { return path_; }
+  /// The pty's path; with firmware-sim's instrument (RunOptions::sim_args) {"pty", "instrument": its line}.
+  nlohmann::json info() const override {
+    if (child_.instrumentLine().empty()) return path_;
+    return {{"pty", path_}, {"instrument", child_.instrumentLine()}};
+  }
   void close() override { child_.stop(); }
   size_t waitFds(pollfd* fds, size_t max) override { return fdToWaitOn(link_, fds, max); }
 

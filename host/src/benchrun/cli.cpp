@@ -10,9 +10,32 @@
 
 namespace phalanx::host::benchrun {
 
-int benchRunMain(const std::string& plan_path, const std::string& report_path) {
+namespace {
+
+/// --device and --lockstep against the plan: "" or the problem (exit 2, nothing runs).
+std::string chooseDevice(Plan& plan, const std::string& device, bool lockstep) {
+  if (!device.empty()) {
+    if (std::string err = setPlanDevice(plan, device); !err.empty()) return err;
+  }
+  if (lockstep) {
+    if (plan.device.rfind("sim:", 0) != 0) return "--lockstep: only sim: devices run in lockstep, not " + plan.device;
+    if (!plan.sim_instrument || plan.sim_instrument_delay_ms > 0) {
+      return "--lockstep: the lockstep runner serves its own instrument (sim_instrument: false and sim_instrument_delay_ms "
+             "are for the real-time run)";
+    }
+    return {};
+  }
+  if (std::string why = realtimeUnsupported(plan); !why.empty()) return plan.source + ": " + why;
+  return {};
+}
+
+}  // namespace
+
+int benchRunMain(const std::string& plan_path, const std::string& report_path, const std::string& device, bool lockstep) {
   Plan plan;
-  if (std::string err = loadPlanFile(plan_path, plan); !err.empty()) {
+  std::string err = loadPlanFile(plan_path, plan);
+  if (err.empty()) err = chooseDevice(plan, device, lockstep);
+  if (!err.empty()) {
     std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
     return 2;
   }
@@ -29,7 +52,7 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path) {
   for (const Step& st : plan.steps) plan_s += st.seconds;
   double before_s = 0.0;  // length of the steps already run
   const auto t0 = std::chrono::steady_clock::now();
-  const PlanResult result = runPlan(plan, [&](size_t i, size_t n, const std::string& name, double frac) {
+  const Progress show = [&](size_t i, size_t n, const std::string& name, double frac) {
     const int pct = static_cast<int>(frac * 100.0);
     if (i != last_step) {
       if (last_step != static_cast<size_t>(-1)) before_s += plan.steps[last_step].seconds;
@@ -47,7 +70,8 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path) {
       std::fflush(stderr);
     }
     last_pct = pct;
-  });
+  };
+  const PlanResult result = lockstep ? runPlan(plan, show) : runPlanOnDevice(plan, show, DeviceRunOptions{});
   if (tty) std::fputc('\n', stderr);
   for (const StepResult& s : result.steps) {
     std::fprintf(stderr, "%s  %s%s%s\n", s.pass ? "PASS" : "FAIL", s.name.c_str(), s.error.empty() ? "" : ": ",
@@ -63,8 +87,8 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path) {
   j["plan"] = plan_path;
   j["report"] = report;
   std::cout << j.dump(2) << std::endl;
-  if (std::string err = writeHtml(report, plan, result); !err.empty()) {
-    std::fprintf(stderr, "phalanx: error: %s\n", err.c_str());
+  if (std::string werr = writeHtml(report, plan, result); !werr.empty()) {
+    std::fprintf(stderr, "phalanx: error: %s\n", werr.c_str());
     return 3;
   }
   std::fprintf(stderr, "report: %s  (%s)\n", report.c_str(), result.pass ? "PASS" : "FAIL");

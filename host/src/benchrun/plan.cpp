@@ -71,15 +71,46 @@ std::string fmt(double v) {
 
 constexpr const char* kSafetyKeys = "effort_max, instrument_silence_ms, disagreement_max, disagreement_ms";
 
+/// A device string the daemon accepts and, for sim:, the bench device it is ("" for a real device); "" or the problem.
+std::string benchDevice(const std::string& device, std::string& sim_type) {
+  sim_type.clear();
+  if (device.rfind("sim:", 0) == 0) {
+    sim_type = device.substr(4);
+    if (sim_type == "sea_rig" || sim_type == "glove5" || sim_type == "pantograph") return {};
+    return "'" + device + "' is not a bench device (sim:sea_rig, sim:glove5, sim:pantograph, or a real one: serial:PATH, "
+           "can:IF[:node][@mapping], usb:VID:PID with device_type)";
+  }
+  if (device.rfind("serial:", 0) == 0 || device.rfind("can:", 0) == 0 || device.rfind("usb:", 0) == 0) return {};
+  return "'" + device + "' is not a device (sim:sea_rig, sim:glove5, sim:pantograph, serial:PATH, can:IF[:node][@mapping] or usb:VID:PID)";
+}
+
+/// `device:` (any device string the daemon accepts) and what the steps run on (`device_type:`, implied by sim:).
+void deviceOf(const YAML::Node& root, Plan& p) {
+  std::string sim_type;
+  if (std::string err = benchDevice(p.device, sim_type); !err.empty()) throw Bad{"device: " + err};
+  const bool sim = !sim_type.empty();
+  if (sim) p.device_type = sim_type;
+  if (root["device_type"]) {
+    const std::string t = get<std::string>(root["device_type"], "device_type", "string");
+    if (t != "sea_rig" && t != "glove5" && t != "pantograph") {
+      throw Bad{"device_type: '" + t + "' is not sea_rig, glove5 or pantograph"};
+    }
+    if (sim && t != p.device_type) throw Bad{"device_type: " + t + " contradicts device " + p.device};
+    p.device_type = t;
+  } else if (!sim) {
+    throw Bad{"device_type: required for " + p.device + " (sea_rig, glove5 or pantograph: what the steps run on)"};
+  }
+}
+
 /// The plan's `safety:` block: every key required (no silent default stands between a plan and the motors).
-Safety safetyOf(const YAML::Node& n, const std::string& device) {
+Safety safetyOf(const YAML::Node& n, const std::string& device, const std::string& device_type) {
   onlyKeys(n, "safety", {"effort_max", "instrument_silence_ms", "disagreement_max", "disagreement_ms"});
   for (const char* k : {"effort_max", "instrument_silence_ms", "disagreement_max", "disagreement_ms"}) {
     if (!n[k]) throw Bad{std::string("safety.") + k + ": required (safety needs " + kSafetyKeys + ")"};
   }
   Safety s;
   s.effort_max = number(n["effort_max"], "safety.effort_max", 0.0, 1e3);
-  const double device_max = deviceEffortLimit(device);
+  const double device_max = deviceEffortLimit(device_type);
   // Compared in the limit's own precision (float): 2.1 is the pantograph's limit, not 2.0999999.
   if (static_cast<float>(s.effort_max) > static_cast<float>(device_max)) {
     throw Bad{"safety.effort_max: " + fmt(s.effort_max) + " exceeds the device's own limit " + fmt(device_max) + " (" +
@@ -93,14 +124,22 @@ Safety safetyOf(const YAML::Node& n, const std::string& device) {
 }
 
 void apply(const YAML::Node& root, Plan& p) {
-  onlyKeys(root, "", {"version", "device", "controller", "seed", "noise", "report", "instrument", "max_stale_percent",
-                      "safety", "steps"});
+  onlyKeys(root, "", {"version", "device", "device_type", "sim_instrument", "sim_instrument_delay_ms", "controller", "seed", "noise", "report",
+                      "instrument", "max_stale_percent", "safety", "steps"});
   if (root["version"] && get<int>(root["version"], "version", "integer") != 1) {
     throw Bad{"version: only version 1 is understood"};
   }
   if (root["device"]) p.device = get<std::string>(root["device"], "device", "string");
-  if (p.device != "sim:sea_rig" && p.device != "sim:glove5" && p.device != "sim:pantograph") {
-    throw Bad{"device: '" + p.device + "' is not supported (sim:sea_rig, sim:glove5, sim:pantograph; real devices: not yet)"};
+  deviceOf(root, p);
+  if (root["sim_instrument"]) {
+    p.sim_instrument = get<bool>(root["sim_instrument"], "sim_instrument", "boolean");
+    if (p.device.rfind("sim:", 0) != 0) throw Bad{"sim_instrument: only for sim: devices (a real device's instrument is the instrument: block)"};
+  }
+  if (root["sim_instrument_delay_ms"]) {
+    p.sim_instrument_delay_ms = number(root["sim_instrument_delay_ms"], "sim_instrument_delay_ms", 0.0, 1000.0);
+    if (p.device.rfind("sim:", 0) != 0 || !p.sim_instrument) {
+      throw Bad{"sim_instrument_delay_ms: only for the simulated instrument of a sim: device"};
+    }
   }
   if (root["controller"]) p.controller = get<std::string>(root["controller"], "controller", "string");
   if (p.controller != "ours" && p.controller != "paper") throw Bad{"controller: must be ours or paper"};
@@ -108,13 +147,15 @@ void apply(const YAML::Node& root, Plan& p) {
   if (root["noise"]) p.noise = get<bool>(root["noise"], "noise", "boolean");
   if (root["report"]) p.report = get<std::string>(root["report"], "report", "path");
   if (root["max_stale_percent"]) p.max_stale_percent = number(root["max_stale_percent"], "max_stale_percent", 0.0, 100.0);
+  // The simulated amplifier (lockstep's, or firmware-sim's in real time) opens its own pty: no path to give.
+  if (p.device.rfind("sim:", 0) == 0 && p.sim_instrument) p.instrument.serial_device = "(the simulated amplifier's pty)";
   if (root["instrument"]) {
     if (std::string err = modbus::loadInstrumentConfig(root["instrument"], "instrument", p.instrument); !err.empty()) {
       throw Bad{err};
     }
   }
   const bool have_safety = static_cast<bool>(root["safety"]);
-  if (have_safety) p.safety = safetyOf(root["safety"], p.device);
+  if (have_safety) p.safety = safetyOf(root["safety"], p.device, p.device_type);
   const YAML::Node steps = root["steps"];
   if (!steps || !steps.IsSequence() || steps.size() == 0) throw Bad{"steps: expected a non-empty list"};
   for (size_t i = 0; i < steps.size(); ++i) {
@@ -131,8 +172,8 @@ void apply(const YAML::Node& root, Plan& p) {
     if (!sea && !pen && st.kind != "glove-free-motion") {
       throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion or pen-wall"};
     }
-    const std::string runs_on = sea ? "sim:sea_rig" : (pen ? "sim:pantograph" : "sim:glove5");
-    if (runs_on != p.device) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device};
+    const std::string runs_on = sea ? "sea_rig" : (pen ? "pantograph" : "glove5");
+    if (runs_on != p.device_type) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device + " (" + p.device_type + ")"};
     st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
     if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
     if (pen) {
@@ -209,16 +250,17 @@ void apply(const YAML::Node& root, Plan& p) {
   }
   if (!have_safety) {
     throw Bad{std::string("safety: required (") + kSafetyKeys + "; the device's own effort limit is " +
-              fmt(deviceEffortLimit(p.device)) + "; docs/bench-runner.md \"Safety\")"};
+              fmt(deviceEffortLimit(p.device_type)) + "; docs/bench-runner.md \"Safety\")"};
   }
 }
 
 }  // namespace
 
-double deviceEffortLimit(const std::string& device) {
-  if (device == "sim:sea_rig") return protocol::kSeaFingerLayout.setpoint_limit;
-  if (device == "sim:glove5") return protocol::kGlove5Layout.setpoint_limit;
-  if (device == "sim:pantograph") return protocol::kPantographLayout.setpoint_limit;
+double deviceEffortLimit(const std::string& device_type) {
+  const std::string t = device_type.rfind("sim:", 0) == 0 ? device_type.substr(4) : device_type;
+  if (t == "sea_rig") return protocol::kSeaFingerLayout.setpoint_limit;
+  if (t == "glove5") return protocol::kGlove5Layout.setpoint_limit;
+  if (t == "pantograph") return protocol::kPantographLayout.setpoint_limit;
   return 0.0;
 }
 
@@ -231,6 +273,16 @@ double stepEffortMax(const Step& step) {
     return m;
   }
   return 0.0;  // glove-free-motion: transparent mode commands 0 N
+}
+
+std::string setPlanDevice(Plan& plan, const std::string& device) {
+  std::string sim_type;
+  if (std::string err = benchDevice(device, sim_type); !err.empty()) return "--device: " + err;
+  if (!sim_type.empty() && sim_type != plan.device_type) {
+    return "--device: " + device + " is not a " + plan.device_type + " (the plan's steps run on " + plan.device_type + ")";
+  }
+  plan.device = device;
+  return {};
 }
 
 std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan) {

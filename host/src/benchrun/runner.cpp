@@ -1,5 +1,7 @@
 #include "phalanx/host/benchrun/runner.h"
 
+#include "scoring.h"
+
 #include <time.h>
 
 #include <algorithm>
@@ -21,10 +23,7 @@
 namespace phalanx::host::benchrun {
 namespace {
 
-constexpr double kFs = 1000.0;          // lockstep rig period: 1 kHz
 constexpr double kSmoothHz = 0.5;       // moving average of |G| over frequency (the paper's "filtered", §8.1.3)
-constexpr size_t kSeaTorque0 = 7;       // sea_finger sample: SEA 0 joint torque estimate (devices.h)
-constexpr size_t kGloveForce0 = 15;     // glove5 sample: pad force of finger 0 (devices.h)
 constexpr size_t kPenTorque0 = 6;       // pantograph sample: measured motor torque q1 (devices.h)
 constexpr long kSafeWaitTicks = 100;   // a safety stop waits at most this long for the device's safe telemetry
 constexpr size_t kExcludeAfter = 4;     // rig steps after an unscorable one also not scored (docs/bench-runner.md)
@@ -229,21 +228,6 @@ SimTarget makeTarget(const Plan& plan, const Step& st) {
   return t;
 }
 
-void judge(const PairLimits& l, const PairMetrics& m, const std::string& pair, std::vector<Check>& out) {
-  auto add = [&](const char* name, const std::optional<double>& limit, double value, bool is_min) {
-    if (!limit) return;
-    const bool pass = std::isfinite(value) && (is_min ? value >= *limit : value <= *limit);
-    out.push_back({pair + "." + name, value, *limit, is_min, pass});
-  };
-  add("rmse", l.rmse_max, m.rmse, false);
-  add("nrmse_percent", l.nrmse_percent_max, m.nrmse_percent, false);
-  add("fidelity_percent", l.fidelity_percent_min, m.fidelity_percent, true);
-  add("bandwidth_hz", l.bandwidth_hz_min, m.bandwidth_hz, true);
-  if (l.bandwidth_hz_min && m.bandwidth_beyond_band) {
-    out.back().note = "-3 dB not reached within the sweep: the bandwidth is at least this";
-  }
-}
-
 /// The stop path: the rig commands the safe state from its next step on (LockstepRig::setStopped, makeSafe as in
 /// the daemon) and runs until the device's telemetry reports mode safe with outputs off (at most kSafeWaitTicks).
 void safeStop(LockstepRig& rig, StepResult& r) {
@@ -258,57 +242,6 @@ void safeStop(LockstepRig& rig, StepResult& r) {
     }
   }
 }
-
-/// The plan's run-time safety stage (`safety:`), counted in rig ticks (1 ms each): an instrument silent, or
-/// disagreeing with the device's estimate on every fresh sample, for longer than the plan allows stops the step.
-/// The margins (longest silence, longest disagreeing run, largest disagreement) go into the step's result.
-class SafetyWatch {
- public:
-  explicit SafetyWatch(const Plan& plan)
-      : plan_(plan),
-        silence_ticks_(static_cast<size_t>(std::lround(plan.safety.instrument_silence_ms * kFs / 1000.0))),
-        disagree_ticks_(static_cast<size_t>(std::lround(plan.safety.disagreement_ms * kFs / 1000.0))) {}
-
-  /// A fresh sample at tick k against the device's estimate at the rig step whose truth it carried.
-  void sample(size_t k, double value, double estimate, StepResult& r) {
-    last_value_ = value;
-    if (!std::isfinite(estimate) || !std::isfinite(value)) return;
-    const double d = std::fabs(value - estimate);
-    r.largest_disagreement = std::max(r.largest_disagreement, d);
-    if (d <= plan_.safety.disagreement_max) {
-      disagree_since_ = -1;
-    } else if (disagree_since_ < 0) {
-      disagree_since_ = static_cast<long>(k);
-    }
-  }
-
-  /// After tick k, silent for `silent` ticks: "" or the cause of a stop.
-  std::string check(size_t k, size_t silent, const char* last_error, double estimate, StepResult& r) const {
-    r.longest_silence_ticks = std::max(r.longest_silence_ticks, static_cast<long>(silent));
-    const long disagreeing = disagree_since_ < 0 ? -1 : static_cast<long>(k) - disagree_since_;
-    r.longest_disagreement_ticks = std::max(r.longest_disagreement_ticks, disagreeing);
-    char cause[240] = "";
-    if (silent > silence_ticks_) {
-      std::snprintf(cause, sizeof cause,
-                    "safety stop: instrument silent, no fresh sample for %zu ms (safety.instrument_silence_ms %g); last error: %s",
-                    silent, plan_.safety.instrument_silence_ms, last_error);
-    } else if (disagreeing > static_cast<long>(disagree_ticks_)) {
-      std::snprintf(cause, sizeof cause,
-                    "safety stop: instrument disagrees with the device's estimate by more than %g %s for %ld ms "
-                    "(safety.disagreement_max %g, disagreement_ms %g; last: instrument %.4g, estimate %.4g)",
-                    plan_.safety.disagreement_max, plan_.instrument.unit.c_str(), disagreeing,
-                    plan_.safety.disagreement_max, plan_.safety.disagreement_ms, last_value_, estimate);
-    }
-    return cause;
-  }
-
- private:
-  const Plan& plan_;
-  const size_t silence_ticks_;
-  const size_t disagree_ticks_;
-  long disagree_since_ = -1;  ///< tick of the first fresh sample of the current run of disagreeing ones
-  double last_value_ = 0.0;
-};
 
 StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
                    size_t index, const Progress& progress) {
@@ -431,41 +364,53 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
     inst_zoh[k] = held;
     if (k - held_at > max_age_steps) stale[k] = 1;
   }
-  for (size_t k = settle; k < steps; ++k) {
-    if (excluded[k]) {
+  StepSeries series{std::move(sp), std::move(est), std::move(inst_zoh), std::move(stale), std::move(excluded), settle};
+  r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
+  const modbus::InstrumentReading last = inst.latest(linux_hal::monotonicNs());
+  if (!scoreSeries(plan, st, series, last.last_error, r)) return r;
+  if (target.finish) target.finish(st, r);
+  if (r.faults != 0 && r.error.empty()) r.error = "device latched faults during the step (bits " + std::to_string(r.faults) + ")";
+  r.pass = r.error.empty() && std::all_of(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.pass; });
+  return r;
+}
+
+}  // namespace
+
+bool scoreSeries(const Plan& plan, const Step& st, StepSeries& s, const char* last_error, StepResult& r) {
+  for (size_t k = s.settle; k < s.sp.size(); ++k) {
+    if (s.excluded[k]) {
       ++r.samples_excluded;
       continue;
     }
     ++r.samples_total;
-    if (stale[k] || !std::isfinite(inst_zoh[k])) {
+    if (s.stale[k] || !std::isfinite(s.inst[k])) {
       ++r.samples_stale;
       continue;
     }
     r.t.push_back(static_cast<double>(k) / kFs);
-    r.setpoint.push_back(sp[k]);
-    r.estimate.push_back(est[k]);
-    r.instrument.push_back(inst_zoh[k]);
+    r.setpoint.push_back(s.sp[k]);
+    r.estimate.push_back(s.est[k]);
+    r.instrument.push_back(s.inst[k]);
   }
-  r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
   const double stale_pct = r.samples_total > 0 ? 100.0 * static_cast<double>(r.samples_stale) / static_cast<double>(r.samples_total) : 100.0;
   if (stale_pct > plan.max_stale_percent) {
     char buf[200];
     std::snprintf(buf, sizeof buf, "instrument: no fresh reading for %.1f %% of the samples (limit %.1f %%); last error: %s",
-                  stale_pct, plan.max_stale_percent, inst.latest(linux_hal::monotonicNs()).last_error);
+                  stale_pct, plan.max_stale_percent, last_error);
     r.error = buf;
   }
   if (r.instrument.size() < 100) {
     if (r.error.empty()) r.error = "instrument: too few fresh samples to score";
-    return r;
+    return false;
   }
   const bool chirp = st.kind == "sea-rig-chirp";
   // For a chirp the analysis needs an unbroken 1 kHz record: stale samples (if any, within the allowance) are
   // held at the last fresh value.
   std::vector<double> y_inst = r.instrument, y_est = r.estimate, y_sp = r.setpoint;
   if (chirp) {
-    y_inst.assign(inst_zoh.begin() + static_cast<long>(settle), inst_zoh.end());
-    y_est.assign(est.begin() + static_cast<long>(settle), est.end());
-    y_sp.assign(sp.begin() + static_cast<long>(settle), sp.end());
+    y_inst.assign(s.inst.begin() + static_cast<long>(s.settle), s.inst.end());
+    y_est.assign(s.est.begin() + static_cast<long>(s.settle), s.est.end());
+    y_sp.assign(s.sp.begin() + static_cast<long>(s.settle), s.sp.end());
     double last = 0.0;
     for (double& v : y_inst) {
       if (std::isfinite(v)) last = v;
@@ -477,11 +422,10 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
   r.sp = comparePair(y_inst, y_sp, kFs, chirp, f_lo, f_hi);
   judge(st.estimate_vs_instrument, r.est, "estimate_vs_instrument", r.checks);
   judge(st.setpoint_vs_instrument, r.sp, "setpoint_vs_instrument", r.checks);
-  if (target.finish) target.finish(st, r);
-  if (r.faults != 0 && r.error.empty()) r.error = "device latched faults during the step (bits " + std::to_string(r.faults) + ")";
-  r.pass = r.error.empty() && std::all_of(r.checks.begin(), r.checks.end(), [](const Check& c) { return c.pass; });
-  return r;
+  return true;
 }
+
+namespace {
 
 nlohmann::json pairJson(const PairMetrics& m) {
   nlohmann::json j = {{"rmse", m.rmse}, {"nrmse_percent", m.nrmse_percent}, {"fidelity_percent", m.fidelity_percent}};
@@ -604,8 +548,12 @@ nlohmann::json toJson(const PlanResult& r) {
     }
     sj["instrument"] = s.instrument_stats;
     if (!s.step_metrics.is_null()) sj["metrics"] = s.step_metrics;
+    if (!s.alignment.is_null()) sj["alignment"] = s.alignment;
+    if (!s.link.is_null()) sj["link"] = s.link;
     j["steps"].push_back(sj);
   }
+  j["mode"] = r.session.is_null() ? "lockstep" : "realtime";
+  if (!r.session.is_null()) j["session"] = r.session;
   return j;
 }
 

@@ -5,6 +5,7 @@
 #include <memory>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -92,6 +93,9 @@ struct RunOptions {
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   std::string sim_truth;              ///< sim: devices: firmware-sim writes the plant's ground truth here (--truth)
+  /// sim: devices: more firmware-sim arguments (the bench runner's `--instrument ...`, docs/bench-runner.md). With
+  /// `--instrument` the link also reads firmware-sim's "instrument: modbus ..." line: summary["link"]["instrument"].
+  std::vector<std::string> sim_args;
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default

@@ -68,7 +68,16 @@ struct Safety {
 
 struct Plan {
   std::string source;                 ///< file name, for messages
-  std::string device = "sim:sea_rig"; ///< sim:sea_rig | sim:glove5 | sim:pantograph
+  /// Any device string the daemon accepts (sim:sea_rig | sim:glove5 | sim:pantograph, serial:…, can:…, usb:…).
+  std::string device = "sim:sea_rig";
+  /// What the steps run on: sea_rig | glove5 | pantograph (sim: devices: their name; else the plan's device_type).
+  std::string device_type = "sea_rig";
+  /// Real time on a sim: device: firmware-sim serves the plant's truth as the instrument (true, the default), or
+  /// the `instrument:` block's address is read (false: an amplifier outside the simulation). Real devices: always
+  /// the block's address.
+  bool sim_instrument = true;
+  /// sim: instrument: firmware-sim serves each tick's value this much later (a slow amplifier; tests the alignment).
+  double sim_instrument_delay_ms = 0.0;
   std::string controller = "ours";    ///< sea: ours | paper (001 plain PID)
   uint32_t seed = 1;
   bool noise = true;
@@ -79,8 +88,9 @@ struct Plan {
   std::vector<Step> steps;
 };
 
-/// The device's own |setpoint| limit for a plan device ("sim:sea_rig" …), in its setpoint unit; 0 if unknown.
-double deviceEffortLimit(const std::string& device);
+/// The device's own |setpoint| limit for a plan's device type ("sea_rig", "glove5", "pantograph"; "sim:" prefix
+/// allowed), in its setpoint unit; 0 if unknown.
+double deviceEffortLimit(const std::string& device_type);
 /// The largest |setpoint| a step commands: sine peak_Nm, chirp amplitude_Nm, glove free motion 0 (transparent),
 /// pen-wall the force split's per-joint torque limit (the PD+B scene is closed-loop; the split caps it).
 double stepEffortMax(const Step& step);
@@ -88,6 +98,8 @@ double stepEffortMax(const Step& step);
 /// Parse and validate a plan; "" or "<source>: <key>: <problem>".
 std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan);
 std::string loadPlanFile(const std::string& path, Plan& plan);
+/// `--device`: run the plan on another device string of its device_type; "" or "--device: <problem>".
+std::string setPlanDevice(Plan& plan, const std::string& device);
 
 /// One comparison's scores. NaN where a metric is undefined (e.g. NRMSE of a zero reference).
 struct PairMetrics {
@@ -127,6 +139,10 @@ struct StepResult {
   uint16_t faults = 0;
   PairMetrics est, sp;               ///< estimate vs instrument, setpoint vs instrument
   std::vector<Check> checks;
+  /// Real time (runPlanOnDevice): the instrument's delay against the device's telemetry clock and how the step was
+  /// carried (docs/bench-runner.md "Real time"). Empty in lockstep.
+  nlohmann::json alignment;
+  nlohmann::json link;
   nlohmann::json instrument_stats;
   nlohmann::json step_metrics;       ///< kind-specific figures (pen-wall: penetration, wall energy), SI-suffixed keys
   bool pass = false;
@@ -136,13 +152,48 @@ struct PlanResult {
   std::vector<StepResult> steps;
   bool pass = false;
   double wall_s = 0;
+  /// Real time: what the session runner reported (link, device, round trip, telemetry, commands and the limits
+  /// stage's counts, exit code). Null in lockstep.
+  nlohmann::json session;
 };
 
 /// Progress: (step index, step count, step name, fraction 0..1 of that step).
 using Progress = std::function<void(size_t, size_t, const std::string&, double)>;
 
-/// Run every step in order (real time: the instrument is polled as it would be on the bench).
+/// Run every step in order in lockstep (`--lockstep`; sim: devices): firmware, plant and host stepped in one process
+/// at 1 kHz paced to wall-clock time, the instrument a simulated amplifier in this process polled in real time.
 PlanResult runPlan(const Plan& plan, const Progress& progress);
+
+/// How runPlanOnDevice reaches the device (the rest is the plan's).
+struct DeviceRunOptions {
+  std::string firmware_sim;          ///< sim: devices: path of firmware-sim ("": next to this executable)
+  bool realtime = true;              ///< SCHED_FIFO + locked memory for the session thread, as phalanxd
+};
+
+/// What a plan needs that the real-time runner does not do ("" or the key and why): pen-wall steps, the
+/// lockstep-only instrument faults and noise: false need --lockstep; glove steps on different fingers.
+std::string realtimeUnsupported(const Plan& plan);
+
+/// Run the plan as one session of the daemon's session runner (runSession, docs/session-runner.md) on plan.device:
+/// the plan is the session's command source, every command passes the limits stage, the instrument is polled on its
+/// own thread, and each step's instrument samples are aligned to the device's telemetry clock by an estimated
+/// delay before scoring (alignInstrument).
+PlanResult runPlanOnDevice(const Plan& plan, const Progress& progress, const DeviceRunOptions& options);
+
+/// The instrument's delay behind the device, estimated without a shared clock (docs/bench-runner.md "Alignment").
+struct Alignment {
+  bool ok = false;
+  double delay_ms = 0.0;         ///< instrument sample time minus the time (host clock) of the device tick it shows
+  double uncertainty_ms = 0.0;   ///< spread of the four quarter-step estimates (at least the search step)
+  double correlation = 0.0;      ///< normalised cross-correlation at the delay
+  std::vector<double> quarter_delay_ms;
+  std::string error;             ///< why ok is false
+};
+/// dev_host_ms: each device tick's time on the host clock (ms, ascending); est: the device's estimate at it;
+/// sample_ms / value: the instrument's samples (host arrival time). Maximises the normalised cross-correlation of
+/// the instrument against the estimate held at (sample time − delay) over −max_lag_ms/4 … max_lag_ms.
+Alignment alignInstrument(const std::vector<double>& dev_host_ms, const std::vector<double>& est,
+                          const std::vector<double>& sample_ms, const std::vector<double>& value, double max_lag_ms);
 
 /// Metrics of y (the instrument) against a reference r, sampled at fs_hz. chirp: also eq 17 between f_lo and f_hi.
 PairMetrics comparePair(const std::vector<double>& y, const std::vector<double>& r, double fs_hz, bool chirp,
@@ -156,5 +207,8 @@ namespace phalanx::host::benchrun {
 /// `phalanx bench run`: load the plan, run it with progress on stderr, write the HTML report, print the JSON
 /// summary on stdout. Returns the exit code: 0 every step passed, 1 a step failed, 2 the plan is invalid,
 /// 3 the report could not be written.
-int benchRunMain(const std::string& plan_path, const std::string& report_path);
+/// device: "" or a device string that replaces the plan's (its type must be the plan's device_type); lockstep: run
+/// a sim: plan in lockstep (runPlan) instead of in real time on the device (runPlanOnDevice).
+int benchRunMain(const std::string& plan_path, const std::string& report_path, const std::string& device = "",
+                 bool lockstep = false);
 }  // namespace phalanx::host::benchrun
