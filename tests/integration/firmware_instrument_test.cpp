@@ -308,7 +308,7 @@ TEST(FirmwareInstrument, BadInstrumentArgumentsExit2NamingTheProblem) {
       {{"--instrument", "rtu", "--instrument-map", "type=int64"}, "--instrument-map.type: 'int64' is not int16"},
       {{"--instrument", "rtu", "--instrument-noise", "-0.1"}, "--instrument-noise: must be a finite standard deviation"},
       {{"--instrument-signal", "load_cell_mcp_Nm"},
-       "--instrument-signal, --instrument-noise and --instrument-map need --instrument"},
+       "--instrument-signal, --instrument-noise, --instrument-delay-ms and --instrument-map need --instrument"},
   };
   for (const auto& [extra, message] : cases) {
     std::vector<std::string> args = {binPath("firmware-sim"), "--device", "sea_rig", "--seconds", "5"};

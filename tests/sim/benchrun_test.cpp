@@ -212,7 +212,7 @@ TEST(BenchRun, AnInstrumentReadingZeroStopsTheStepWithTheDeviceSafeWithinTwoTick
   EXPECT_NE(r.steps[0].safety_stop.find("safety.disagreement_max 0.05"), std::string::npos) << r.steps[0].safety_stop;
   // The command says so: exit 1, as any failed step.
   const std::string path = writeTemp("lying.yaml", text);
-  EXPECT_EQ(br::benchRunMain(path, ::testing::TempDir() + "lying.html"), 1);
+  EXPECT_EQ(br::benchRunMain(path, ::testing::TempDir() + "lying.html", "", true), 1);
 }
 
 TEST(BenchRun, AnInstrumentWithAnOffsetStopsTheStepWithTheDeviceSafeWithinTwoTicks) {
@@ -265,7 +265,7 @@ TEST(BenchRun, APlanBeyondTheDeviceLimitOrAStepBeyondThePlanLimitIsRefusedAtLoad
       "safety: {effort_max: 1.5, instrument_silence_ms: 100, disagreement_max: 0.05, disagreement_ms: 100}\n" + steps);
   const std::string report = ::testing::TempDir() + "over-limit.html";
   std::remove(report.c_str());
-  EXPECT_EQ(br::benchRunMain(path, report), 2);
+  EXPECT_EQ(br::benchRunMain(path, report, "", true), 2);
   EXPECT_FALSE(std::ifstream(report).good()) << "nothing ran";
 }
 
@@ -325,7 +325,7 @@ steps:
   EXPECT_GT(s.step_metrics["peak_tip_penetration_mm"].get<double>(), 0.05) << "the tip did reach the wall";
   // The same plan from a file through the command: exit 0, a report with the pen figures.
   const std::string plan_path = writeTemp("pen-pass.yaml", text), report = ::testing::TempDir() + "pen-pass.html";
-  EXPECT_EQ(br::benchRunMain(plan_path, report), 0);
+  EXPECT_EQ(br::benchRunMain(plan_path, report, "", true), 0);
   std::stringstream html;
   html << std::ifstream(report).rdbuf();
   // Step figures by their names, not the JSON keys; no chirp paragraph and no empty bandwidth column on a plan
@@ -350,7 +350,7 @@ steps:
       setpoint_vs_instrument: {nrmse_percent_max: 0.01}
 )";
   const std::string plan_path = writeTemp("pen-fail.yaml", text), report = ::testing::TempDir() + "pen-fail.html";
-  EXPECT_EQ(br::benchRunMain(plan_path, report), 1);
+  EXPECT_EQ(br::benchRunMain(plan_path, report, "", true), 1);
   const br::PlanResult r = br::runPlan(plan(text), noProgress);
   ASSERT_EQ(r.steps.size(), 1u);
   const br::StepResult& s = r.steps[0];
@@ -373,7 +373,17 @@ TEST(BenchRun, PlanErrorsNameTheKey) {
   EXPECT_NE(br::loadPlanText("steps: [{kind: sea-rig-sine, limits: {setpoint_vs_instrument: {bandwidth_hz_min: 2}}}]\n", "p", p)
                 .find("needs a sea-rig-chirp"),
             std::string::npos);
-  EXPECT_NE(br::loadPlanText("device: serial:/dev/ttyACM0\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("not supported"),
+  // A real device: its type is the plan's to say (the steps' kinds are checked against it).
+  EXPECT_NE(br::loadPlanText("device: serial:/dev/ttyACM0\nsteps: [{kind: sea-rig-sine}]\n", "p", p)
+                .find("device_type: required for serial:/dev/ttyACM0"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: serial:/dev/ttyACM0\ndevice_type: glove5\nsteps: [{kind: sea-rig-sine}]\n", "p", p)
+                .find("does not run on serial:/dev/ttyACM0 (glove5)"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: tcp:robot\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("device: 'tcp:robot' is not a device"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: can:can0\nsim_instrument: false\ndevice_type: sea_rig\nsteps: [{kind: sea-rig-sine}]\n", "p", p)
+                .find("sim_instrument: only for sim: devices"),
             std::string::npos);
   EXPECT_NE(br::loadPlanText("device: sim:pantograph\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("does not run on sim:pantograph"),
             std::string::npos);

@@ -28,7 +28,10 @@ constexpr long kSafeWaitCycles = 100;  // a safety stop waits at most this long 
 constexpr double kMaxLagMs = 60.0;     // the alignment searches −15 … +60 ms
 constexpr double kLagStepMs = 0.25;
 constexpr size_t kClockWindow = 25;  // frames either side of a frame whose least transport delay maps its tick
-constexpr double kMinCorrelation = 0.9;  // below: the step's excitation does not fix a delay (not scored)
+// The delay is trusted when the instrument follows the estimate (correlation) and the four quarters of the step
+// agree on it; else the step's excitation does not fix a delay and nothing is scored.
+constexpr double kMinCorrelation = 0.5;
+constexpr double kMaxUncertaintyMs = 2.0;
 const char* const kFingers[] = {"thumb", "index", "middle", "ring", "little"};
 
 /// One session cycle as the bench saw it (the newest telemetry and the command computed from it).
@@ -500,10 +503,16 @@ Alignment alignInstrument(const std::vector<double>& T, const std::vector<double
   }
   const double var = (m2 - m * m / 4) / 3;
   a.uncertainty_ms = std::max(kLagStepMs, std::sqrt(std::max(0.0, var)));
+  char buf[200];
   if (!std::isfinite(a.correlation) || a.correlation < kMinCorrelation) {
-    char buf[160];
     std::snprintf(buf, sizeof buf, "the instrument and the device's estimate do not correlate (%.3f at the best delay, "
                   "%.2f needed): the step's excitation does not fix a delay", a.correlation, kMinCorrelation);
+    a.error = buf;
+    return a;
+  }
+  if (a.uncertainty_ms > kMaxUncertaintyMs) {
+    std::snprintf(buf, sizeof buf, "the step's quarters disagree on the delay by %.2f ms (%.1f ms allowed): the excitation "
+                  "does not fix it", a.uncertainty_ms, kMaxUncertaintyMs);
     a.error = buf;
     return a;
   }
