@@ -394,6 +394,10 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
   const double tick_us = 1e6 / (summary_.value("firmware_tick_hz", 1000.0) > 0 ? summary_.value("firmware_tick_hz", 1000.0) : 1000.0);
   const uint64_t dev_first = frames.empty() ? 0 : frames.front().dev_us;
   const size_t ticks = frames.empty() ? 0 : static_cast<size_t>(std::llround(static_cast<double>(frames.back().dev_us - dev_first) / tick_us)) + 1;
+  if (ticks > 2 * frames.size() + 1000) {  // a device clock that jumped (a reset): nothing to put on one grid
+    r.error = "device: its clock jumped during the step (" + std::to_string(ticks) + " ticks for " + std::to_string(frames.size()) + " frames)";
+    return r;
+  }
   StepSeries ser;
   ser.sp.assign(ticks, std::nan(""));
   ser.est.assign(ticks, std::nan(""));
