@@ -324,4 +324,14 @@ protocol::ParamStatus SeaFingerApp::setParam(uint16_t id, float value) {
   }
 }
 
+namespace {
+// The controller first: the gains are those of the active controller (sea_param::kKp), applied after it.
+constexpr uint16_t kSeaSettingsV1[] = {
+    sea_param::kController, sea_param::kBacklashCompensation, sea_param::kJointMovingAverage,
+    sea_param::kKp, sea_param::kKp + 1, sea_param::kKi, sea_param::kKi + 1, sea_param::kKd, sea_param::kKd + 1};
+constexpr fw::SettingsLayout kSeaSettings[] = {{1, kSeaSettingsV1, 9, nullptr, 0}};
+}  // namespace
+
+fw::SettingsHistory SeaFingerApp::settingsHistory() const { return {kSeaSettings, 1}; }
+
 }  // namespace phalanx::apps

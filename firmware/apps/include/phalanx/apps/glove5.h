@@ -132,6 +132,7 @@ class Glove5App : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const GloveFingerState& finger(int i) const { return finger_[i]; }
 

@@ -70,6 +70,7 @@ class PantographApp : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const PenJointState& joint(int i) const { return joint_[i]; }
   const PantographConfig& config() const { return cfg_; }

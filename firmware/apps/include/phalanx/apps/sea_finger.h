@@ -161,6 +161,7 @@ class SeaFingerApp : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const SeaChannelState& channel(int sea) const { return ch_[sea]; }
   float jointSensor_rad(int sensor) const { return joint_rad_[sensor]; }
