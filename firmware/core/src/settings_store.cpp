@@ -51,6 +51,18 @@ bool sameValues(const SettingsRecord& a, const SettingsRecord& b) {
 }
 }  // namespace
 
+const char* settingsLoadName(SettingsLoad r) {
+  switch (r) {
+    case SettingsLoad::kNothingStored: return "nothing-stored";
+    case SettingsLoad::kLoaded: return "loaded";
+    case SettingsLoad::kMigrated: return "migrated";
+    case SettingsLoad::kNewerLayout: return "newer-layout";
+    case SettingsLoad::kOtherDevice: return "other-device";
+    case SettingsLoad::kNoLayout: return "no-layout";
+  }
+  return "?";
+}
+
 uint32_t settingsCrc32(const uint8_t* data, size_t n) {
   uint32_t crc = 0xFFFFFFFFu;
   for (size_t i = 0; i < n; ++i) {

@@ -47,6 +47,9 @@ enum class SettingsLoad : uint8_t {
   kNoLayout = 5,       ///< the app persists nothing (or its layout history is malformed)
 };
 
+/// "nothing-stored", "loaded", "migrated", "newer-layout", "other-device", "no-layout" ("?" otherwise).
+const char* settingsLoadName(SettingsLoad r);
+
 struct SettingsReport {
   SettingsLoad result = SettingsLoad::kNothingStored;
   uint16_t record_version = 0;  ///< layout version of the record found (0: none)
