@@ -64,6 +64,9 @@ class SimChild {
     std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
                                      "--scenario", opt.scenario, "--exit-with-parent"};
     if (!opt.sim_truth.empty()) args.insert(args.end(), {"--truth", opt.sim_truth});
+    if (!opt.sim_settings.empty()) {
+      args.insert(args.end(), {"--settings", opt.sim_settings, "--settings-layout", std::to_string(opt.sim_settings_layout)});
+    }
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -111,12 +111,8 @@ protocol::ParamStatus PantographApp::setParam(uint16_t id, float value) {
 }
 
 namespace {
-constexpr uint16_t kPenSettingsV1[] = {
-    pantograph_param::kTorqueLimitBase,     pantograph_param::kTorqueLimitBase + 1,
-    pantograph_param::kTorqueLimitBase + 2, pantograph_param::kTorqueLimitBase + 3,
-    pantograph_param::kTorqueLimitBase + 4, pantograph_param::kTorqueLimitBase + 5};
 static_assert(kPenJoints == 6, "one persisted torque limit per joint");
-constexpr fw::SettingsLayout kPenSettings[] = {{1, kPenSettingsV1, 6, nullptr, 0}};
+constexpr fw::SettingsLayout kPenSettings[] = {{1, pantograph_param::kPersisted, 6, nullptr, 0}};
 }  // namespace
 
 fw::SettingsHistory PantographApp::settingsHistory() const { return {kPenSettings, 1}; }

@@ -325,11 +325,8 @@ protocol::ParamStatus SeaFingerApp::setParam(uint16_t id, float value) {
 }
 
 namespace {
-// The controller first: the gains are those of the active controller (sea_param::kKp), applied after it.
-constexpr uint16_t kSeaSettingsV1[] = {
-    sea_param::kController, sea_param::kBacklashCompensation, sea_param::kJointMovingAverage,
-    sea_param::kKp, sea_param::kKp + 1, sea_param::kKi, sea_param::kKi + 1, sea_param::kKd, sea_param::kKd + 1};
-constexpr fw::SettingsLayout kSeaSettings[] = {{1, kSeaSettingsV1, 9, nullptr, 0}};
+constexpr fw::SettingsLayout kSeaSettings[] = {{1, sea_param::kPersisted, 9, nullptr, 0}};
+static_assert(sizeof sea_param::kPersisted / sizeof(uint16_t) == 9 && kSeaCount == 2);
 }  // namespace
 
 fw::SettingsHistory SeaFingerApp::settingsHistory() const { return {kSeaSettings, 1}; }

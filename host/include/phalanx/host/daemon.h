@@ -92,6 +92,8 @@ struct RunOptions {
   bool clear_faults = true;           ///< clear faults latched before this session (logged)
   std::string firmware_sim;           ///< path of firmware-sim (default: next to this executable)
   std::string sim_truth;              ///< sim: devices: firmware-sim writes the plant's ground truth here (--truth)
+  std::string sim_settings;           ///< sim: devices: firmware-sim's settings flash file (--settings; docs/params.md)
+  unsigned sim_settings_layout = 0;   ///< sim: devices: the settings layout firmware-sim plays (--settings-layout; 0 newest)
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default

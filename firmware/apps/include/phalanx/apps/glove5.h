@@ -103,6 +103,8 @@ constexpr uint16_t kTare = 0x0110;
 /// Read-only, 0x0200 + finger (FingerId order): fingerprint (geometry_fingerprint.h) of the mechanism geometry in
 /// the calibration (tendon moment arms, joint windows). The host refuses a geometry file that does not match it.
 constexpr uint16_t kGeometryFingerprintBase = 0x0200;
+/// Kept in flash by the settings store (the current layout, version 2; docs/params.md), in the order applied.
+inline constexpr uint16_t kPersisted[] = {kForceKp, kForceKi, kForceKd, kFeedForwardScale};
 }  // namespace glove5_param
 
 Glove5Calibration glove5DefaultCalibration();
