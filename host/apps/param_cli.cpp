@@ -112,7 +112,7 @@ bool parseValue(const std::string& text, float& v) {
 }
 
 int fail(int rc, const std::string& what) {
-  std::fprintf(stderr, "phalanx param: error: %s\n", what.c_str());
+  std::fprintf(stderr, "phalanx: error: %s\n", what.c_str());
   return rc;
 }
 
@@ -150,13 +150,14 @@ int runList(Device& d, const std::string& yaml) {
   std::ofstream f(yaml);
   f << params::toYaml(backup);
   if (!f.good()) return fail(cli::kExitBadArguments, "cannot write " + yaml);
-  std::fprintf(stderr, "phalanx param: backup of %zu settings written to %s\n", backup.values.size(), yaml.c_str());
+  std::fprintf(stderr, "phalanx: backup of %zu settings written to %s\n", backup.values.size(), yaml.c_str());
   return 0;
 }
 
 }  // namespace
 
 ParamCommands::ParamCommands(CLI::App& parent) {
+  opt.device.clear();  // no default device: a parameter write must name its device
   app = parent.add_subcommand("param", "device parameters: list, get, set, save to the device's flash, YAML backup "
                                        "and restore (docs/params.md)");
   app->require_subcommand(1);
