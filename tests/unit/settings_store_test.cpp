@@ -297,6 +297,31 @@ TEST(SettingsStore, EveryAppsPersistedParametersAreSettableWithTheirOwnValues) {
   }
 }
 
+TEST(SettingsStore, TheSeaFingerKeepsItsControllerAndThatControllersGains) {
+  // The gains are those of the active controller: the controller must be applied before them at load.
+  apps::SeaFingerApp before(apps::seaFingerDefaultCalibration(), apps::seaFingerDefaultConfig());
+  ASSERT_EQ(before.setParam(apps::sea_param::kController, 1.0f), protocol::ParamStatus::kOk);  // paper baseline
+  ASSERT_EQ(before.setParam(apps::sea_param::kKp + 1, 0.625f), protocol::ParamStatus::kOk);
+  sim::RamFlash flash = twoSlots();
+  fw::SettingsStore store(flash);
+  ASSERT_EQ(store.save(before), SettingsSave::kSaved);
+
+  apps::SeaFingerApp after(apps::seaFingerDefaultCalibration(), apps::seaFingerDefaultConfig());
+  float ours_kp = 0.0f;
+  ASSERT_EQ(after.getParam(apps::sea_param::kKp + 1, ours_kp), protocol::ParamStatus::kOk);
+  ASSERT_NE(ours_kp, 0.625f);
+  fw::SettingsStore reload(flash);
+  EXPECT_EQ(reload.load(after).applied, 9);
+  float v = 0.0f;
+  after.getParam(apps::sea_param::kController, v);
+  EXPECT_EQ(v, 1.0f);
+  after.getParam(apps::sea_param::kKp + 1, v);
+  EXPECT_EQ(v, 0.625f) << "the paper controller's K_p";
+  ASSERT_EQ(after.setParam(apps::sea_param::kController, 0.0f), protocol::ParamStatus::kOk);
+  after.getParam(apps::sea_param::kKp + 1, v);
+  EXPECT_EQ(v, ours_kp) << "the other controller's gains untouched";
+}
+
 // --- Through the firmware core (core_param::kSettingsSave) ------------------------------------------------------
 
 struct CoreRig {
