@@ -84,6 +84,25 @@ int slotOf(sim::RamFlash& flash, uint32_t seq) {
   return -1;
 }
 
+TEST(SimFlash, ProgramsAlignedDoubleWordsOnceBetweenErasesAndOnlyClearsBits) {
+  sim::RamFlash flash(2, 64);
+  const uint8_t a[8] = {0x0F, 0xF0, 0, 1, 2, 3, 4, 5};
+  EXPECT_FALSE(flash.program(0, 4, a, 8)) << "misaligned offset";
+  EXPECT_FALSE(flash.program(0, 0, a, 4)) << "part of a double word";
+  EXPECT_FALSE(flash.program(0, 64, a, 8)) << "beyond the page";
+  ASSERT_TRUE(flash.program(0, 8, a, 8));
+  EXPECT_FALSE(flash.program(0, 8, a, 8)) << "a double word programmed twice without an erase";
+  uint8_t back[8];
+  ASSERT_TRUE(flash.read(0, 8, back, 8));
+  EXPECT_EQ(std::memcmp(back, a, 8), 0);
+  ASSERT_TRUE(flash.erase(0));
+  ASSERT_TRUE(flash.read(0, 8, back, 8));
+  EXPECT_EQ(back[2], 0xFF);
+  ASSERT_TRUE(flash.program(0, 8, a, 8)) << "programmable again after the erase";
+  EXPECT_EQ(flash.erases(0), 1u);
+  EXPECT_EQ(flash.erases(1), 0u);
+}
+
 TEST(SettingsRecord, TheCrcIsZlibsCrc32) {
   const char* check = "123456789";
   EXPECT_EQ(fw::settingsCrc32(reinterpret_cast<const uint8_t*>(check), 9), 0xCBF43926u);
@@ -181,6 +200,7 @@ TEST(SettingsStore, ACorruptedRecordIsNeverAppliedAndTheOlderOneIs) {
 }
 
 TEST(SettingsStore, APowerLossAtAnyPointOfASaveKeepsTheOlderRecord) {
+  // Every cut before the record's last byte (a cut in the 0xFF padding after it leaves the new record whole).
   const size_t record_len = fw::kSettingsHeaderBytes + 8 * 3 + 4;
   for (size_t cut = 0; cut < record_len; ++cut) {
     sim::RamFlash flash = twoSlots();

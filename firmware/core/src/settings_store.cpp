@@ -127,7 +127,7 @@ uint16_t SettingsStore::layoutVersion(const DeviceApp& app) const {
 
 bool SettingsStore::readSlot(size_t slot, SettingsRecord& rec) {
   const size_t page = first_page_ + slot;
-  if (page >= flash_.pageCount() || flash_.pageSize() < kSettingsRecordMaxBytes) return false;
+  if (page >= flash_.pageCount() || flash_.pageSize() < kSettingsSlotBytes) return false;
   if (!flash_.read(page, 0, buf_, kSettingsHeaderBytes)) return false;
   const uint16_t count = get16(buf_ + 12);
   if (get32(buf_) != kSettingsMagic || count > kMaxSettings) return false;
@@ -152,11 +152,11 @@ int SettingsStore::readNewest(SettingsRecord& rec) {
 
 bool SettingsStore::writeSlot(size_t slot, const SettingsRecord& rec) {
   const size_t page = first_page_ + slot;
-  const size_t n = encodeSettingsRecord(rec, buf_);
-  // The magic goes in last: a write cut before it leaves a slot that reads as empty (the CRC catches the rest).
-  if (!flash_.erase(page) || !flash_.program(page, 4, buf_ + 4, n - 4) || !flash_.program(page, 0, buf_, 4)) {
-    return false;
-  }
+  const size_t len = encodeSettingsRecord(rec, buf_);
+  const size_t n = (len + hal::kFlashProgramUnit - 1) / hal::kFlashProgramUnit * hal::kFlashProgramUnit;
+  for (size_t i = len; i < n; ++i) buf_[i] = 0xFF;
+  // One pass, each unit once (ECC flash); a write cut anywhere leaves a record whose CRC fails.
+  if (!flash_.erase(page) || !flash_.program(page, 0, buf_, n)) return false;
   if (!flash_.read(page, 0, check_, n)) return false;
   return std::memcmp(buf_, check_, n) == 0;
 }

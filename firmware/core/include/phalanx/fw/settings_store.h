@@ -3,8 +3,9 @@
 /// cycles and firmware updates. A record is
 ///   magic u32 "PXST" | format u8 | device_type u8 | layout_version u16 | sequence u32 | count u16 | reserved u16 |
 ///   count × (id u16 | reserved u16 | value f32) | CRC-32 (IEEE, zlib's) of everything before it
-/// little-endian, written alternately into two flash pages (slots): a save goes to the slot that does not hold the
-/// newest valid record, so a power loss mid-write leaves that one intact; the newest valid record (highest
+/// little-endian, padded with 0xFF to whole flash program units and programmed in one pass after the page's erase
+/// (each double word once, as ECC flash requires), written alternately into two flash pages (slots): a save goes
+/// to the slot that does not hold the newest valid record, so a power loss mid-write leaves that one intact; the newest valid record (highest
 /// sequence, CRC good) wins at load. A save that would write what the newest record already holds writes nothing.
 /// No heap, no exceptions, loops bounded by kMaxSettings and the two slots.
 #include <cstddef>
@@ -20,6 +21,9 @@ constexpr uint32_t kSettingsMagic = 0x54535850u;  ///< "PXST" read as little-end
 constexpr uint8_t kSettingsFormat = 1;            ///< the record's own byte layout (above)
 constexpr size_t kSettingsHeaderBytes = 16;
 constexpr size_t kSettingsRecordMaxBytes = kSettingsHeaderBytes + 8 * kMaxSettings + 4;
+/// A record as programmed: padded with 0xFF to whole flash program units (hal::kFlashProgramUnit).
+constexpr size_t kSettingsSlotBytes =
+    (kSettingsRecordMaxBytes + hal::kFlashProgramUnit - 1) / hal::kFlashProgramUnit * hal::kFlashProgramUnit;
 
 /// One record, decoded.
 struct SettingsRecord {
@@ -69,7 +73,7 @@ enum class SettingsSave : uint8_t {
 
 class SettingsStore {
  public:
-  /// Slots are pages first_page and first_page + 1 (each at least kSettingsRecordMaxBytes). built_version: the
+  /// Slots are pages first_page and first_page + 1 (each at least kSettingsSlotBytes). built_version: the
   /// layout version this firmware writes, one of the app's history; 0 = its newest. (firmware-sim lets a test pick
   /// an older one to play the firmware before an update.)
   explicit SettingsStore(hal::FlashPages& flash, size_t first_page = 0, uint16_t built_version = 0)
@@ -99,8 +103,8 @@ class SettingsStore {
   uint16_t built_version_;
   uint32_t newest_seq_ = 0;
   SettingsReport last_load_;
-  uint8_t buf_[kSettingsRecordMaxBytes] = {};
-  uint8_t check_[kSettingsRecordMaxBytes] = {};
+  uint8_t buf_[kSettingsSlotBytes] = {};
+  uint8_t check_[kSettingsSlotBytes] = {};
 };
 
 }  // namespace phalanx::fw

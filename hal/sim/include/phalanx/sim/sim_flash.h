@@ -1,6 +1,7 @@
 #pragma once
 /// Simulated flash (hal::FlashPages): RamFlash for unit tests, with a power cut after a given number of programmed
-/// bytes (a torn write) and erase/program counters; FileFlash for firmware-sim (--settings PATH), the pages kept in
+/// bytes (a torn write), erase counters, and the real parts' rules enforced (aligned double words, each programmed
+/// once between erases); FileFlash for firmware-sim (--settings PATH), the pages kept in
 /// one file so that a restart of the process is a power cycle of the board.
 #include <cstdint>
 #include <cstdio>
@@ -28,6 +29,8 @@ class RamFlash : public hal::FlashPages {
   }
   void restorePower() { cut_armed_ = false; }
   uint32_t erases(size_t page) const { return erase_count_[page]; }
+  /// Contents as a file holds them: units with any byte programmed (≠ 0xFF) count as programmed.
+  void loadImage(const uint8_t* data, size_t n);
   std::vector<uint8_t>& bytes() { return mem_; }
 
  private:
@@ -35,6 +38,7 @@ class RamFlash : public hal::FlashPages {
   size_t page_count_, page_size_;
   std::vector<uint8_t> mem_;
   std::vector<uint32_t> erase_count_;
+  std::vector<bool> unit_written_;  ///< per kFlashProgramUnit: programmed since its page's erase
   bool cut_armed_ = false;
   size_t bytes_left_ = 0;
 };
