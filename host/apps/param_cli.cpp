@@ -116,14 +116,22 @@ int fail(int rc, const std::string& what) {
   return rc;
 }
 
+constexpr const char* kNoStore = "this firmware keeps no settings (no settings store on this board; docs/params.md)";
+
+/// Whether the device has a settings store (it answers the save parameter): asked before a write that must be saved.
+std::string checkStore(Device& d, bool& has) {
+  protocol::ParamValue a;
+  if (std::string err = d.request(false, protocol::core_param::kSettingsSave, 0.0f, a); !err.empty()) return err;
+  has = a.status == protocol::ParamStatus::kOk;
+  return {};
+}
+
 int saveOnDevice(Device& d) {
   protocol::ParamValue a;
   if (std::string err = d.request(true, protocol::core_param::kSettingsSave, 1.0f, a); !err.empty()) {
     return fail(kExitNoDevice, err);
   }
-  if (a.status == protocol::ParamStatus::kUnknownParam) {
-    return fail(kExitRefused, "this firmware keeps no settings (no settings store on this board; docs/params.md)");
-  }
+  if (a.status == protocol::ParamStatus::kUnknownParam) return fail(kExitRefused, kNoStore);
   if (a.status != protocol::ParamStatus::kOk) return fail(kExitRefused, std::string("save: ") + statusName(a.status));
   std::printf("saved: settings record %.0f\n", static_cast<double>(a.value));
   return 0;
@@ -199,6 +207,11 @@ int ParamCommands::run() {
   Device d;
   if (const std::string err = openDevice(opt, timeout_s, d); !err.empty()) return fail(kExitNoDevice, err);
   const int rc = [&]() -> int {
+    if (load->parsed() || (set->parsed() && save_after_set)) {  // nothing set that could not be saved
+      bool has = false;
+      if (std::string err = checkStore(d, has); !err.empty()) return fail(kExitNoDevice, err);
+      if (!has) return fail(kExitRefused, kNoStore);
+    }
     if (list->parsed()) return runList(d, yaml);
     if (save->parsed()) return saveOnDevice(d);
     if (get->parsed() || set->parsed()) {

@@ -39,8 +39,8 @@ class ParamSettings : public ::testing::Test {
   Outcome param(std::vector<std::string> args, unsigned layout = 0) {
     std::vector<std::string> argv{binPath("phalanx"), "param"};
     argv.insert(argv.end(), args.begin(), args.end());
-    argv.insert(argv.end(), {"--device", "sim:glove5", "--sim-settings", flash_, "--sim-settings-layout",
-                             std::to_string(layout), "--firmware-sim", binPath("firmware-sim")});
+    argv.insert(argv.end(), {"--device", "sim:glove5", "--firmware-sim", binPath("firmware-sim")});
+    if (with_store_) argv.insert(argv.end(), {"--sim-settings", flash_, "--sim-settings-layout", std::to_string(layout)});
     Process p(argv);
     Outcome o;
     o.rc = p.wait(30000);
@@ -73,6 +73,7 @@ class ParamSettings : public ::testing::Test {
   }
 
   std::string dir_, flash_;
+  bool with_store_ = true;  ///< false: firmware-sim without --settings (a board that keeps none)
 };
 
 TEST_F(ParamSettings, SavedPowerCycledAndUpdatedToAFirmwareWithANewLayoutKept) {
@@ -152,6 +153,18 @@ TEST_F(ParamSettings, BadBackupsAndValuesAreRefusedNamingTheProblemAndNothingIsW
   EXPECT_EQ(param({"set", "geometry_fingerprint_index", "1", "--save"}).rc, 2);
   EXPECT_EQ(flashBytes(), before) << "no refused input wrote the flash";
   EXPECT_EQ(get("force_kp"), 0.75);
+}
+
+TEST_F(ParamSettings, ABoardWithoutASettingsStoreRefusesASaveBeforeSettingAnything) {
+  with_store_ = false;
+  Outcome o = param({"set", "force_kp", "0.5", "--save"});
+  EXPECT_EQ(o.rc, 4);
+  EXPECT_NE(o.err.find("this firmware keeps no settings"), std::string::npos) << o.err;
+  EXPECT_EQ(o.out.find("force_kp ="), std::string::npos) << "refused before the set: " << o.out;
+  o = param({"list"});
+  EXPECT_EQ(o.rc, 0);
+  EXPECT_NE(o.out.find("settings_sequence            0x0010  ro        - (unknown to this firmware)"), std::string::npos)
+      << o.out;
 }
 
 }  // namespace
