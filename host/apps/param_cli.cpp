@@ -42,6 +42,7 @@ struct Device {
   std::unique_ptr<HostSession> session;
   uint64_t timeout_ns = 0;
   protocol::DeviceType type = protocol::DeviceType::kAny;
+  uint16_t layout_version = 0;  ///< the settings layout the firmware writes (0: it keeps no settings)
   std::vector<params::ParamInfo> table;
 
   /// One ParamGet (set = false) or ParamSet; "" and the answer, or why there is none.
@@ -98,7 +99,13 @@ std::string openDevice(const RunOptions& opt, double timeout_s, Device& d) {
   }
   if (d.session->handshake() != HandshakeResult::kOk) return d.session->handshakeError();
   d.type = d.session->deviceInfo().device_type;
-  d.table = params::known(d.type);
+  // Which parameters this firmware keeps: its settings layout (an older firmware keeps fewer).
+  protocol::ParamValue a;
+  if (std::string err = d.request(false, protocol::core_param::kSettingsLayout, 0.0f, a); !err.empty()) return err;
+  if (a.status == protocol::ParamStatus::kOk && a.value >= 1.0f && a.value <= 65535.0f) {
+    d.layout_version = static_cast<uint16_t>(a.value);
+  }
+  d.table = params::known(d.type, d.layout_version);
   return {};
 }
 
@@ -117,14 +124,6 @@ int fail(int rc, const std::string& what) {
 }
 
 constexpr const char* kNoStore = "this firmware keeps no settings (no settings store on this board; docs/params.md)";
-
-/// Whether the device has a settings store (it answers the save parameter): asked before a write that must be saved.
-std::string checkStore(Device& d, bool& has) {
-  protocol::ParamValue a;
-  if (std::string err = d.request(false, protocol::core_param::kSettingsSave, 0.0f, a); !err.empty()) return err;
-  has = a.status == protocol::ParamStatus::kOk;
-  return {};
-}
 
 int saveOnDevice(Device& d) {
   protocol::ParamValue a;
@@ -207,10 +206,8 @@ int ParamCommands::run() {
   Device d;
   if (const std::string err = openDevice(opt, timeout_s, d); !err.empty()) return fail(kExitNoDevice, err);
   const int rc = [&]() -> int {
-    if (load->parsed() || (set->parsed() && save_after_set)) {  // nothing set that could not be saved
-      bool has = false;
-      if (std::string err = checkStore(d, has); !err.empty()) return fail(kExitNoDevice, err);
-      if (!has) return fail(kExitRefused, kNoStore);
+    if ((load->parsed() || (set->parsed() && save_after_set)) && d.layout_version == 0) {
+      return fail(kExitRefused, kNoStore);  // refused before anything is set that could not be saved
     }
     if (list->parsed()) return runList(d, yaml);
     if (save->parsed()) return saveOnDevice(d);
@@ -222,6 +219,10 @@ int ParamCommands::run() {
         return fail(cli::kExitBadArguments, p->name + " is read-only" +
                                                 (p->id == protocol::core_param::kSettingsSave ? " (phalanx param save saves)" : ""));
       }
+      if (set->parsed() && save_after_set && !p->persisted) {
+        return fail(cli::kExitBadArguments, p->name + " is not a setting this firmware keeps (settings layout " +
+                                                std::to_string(d.layout_version) + "): --save would not keep it");
+      }
       protocol::ParamValue a;
       if (std::string e = d.request(set->parsed(), p->id, v, a); !e.empty()) return fail(kExitNoDevice, e);
       if (a.status != protocol::ParamStatus::kOk) return fail(kExitRefused, p->name + ": " + statusName(a.status));
@@ -229,7 +230,9 @@ int ParamCommands::run() {
       return set->parsed() && save_after_set ? saveOnDevice(d) : 0;
     }
     params::Backup backup;
-    if (std::string err = params::readBackup(file, d.type, backup); !err.empty()) return fail(cli::kExitBadArguments, err);
+    if (std::string err = params::readBackup(file, d.type, backup, d.layout_version); !err.empty()) {
+      return fail(cli::kExitBadArguments, err);
+    }
     std::map<std::string, float> now;
     if (std::string err = d.readPersisted(now); !err.empty()) return fail(kExitNoDevice, err);
     if (diff->parsed()) {

@@ -16,15 +16,21 @@ namespace phalanx::host::params {
 
 namespace {
 
-template <size_t N>
-bool contains(const uint16_t (&ids)[N], uint16_t id) {
-  return std::find(std::begin(ids), std::end(ids), id) != std::end(ids);
-}
+/// The ids one settings layout of the firmware persists (phalanx/apps/*.h kSettingsLayouts).
+struct Persisted {
+  const uint16_t* ids = nullptr;
+  uint8_t count = 0;
+  bool has(uint16_t id) const { return std::find(ids, ids + count, id) != ids + count; }
+};
 
 template <size_t N>
-void addDevice(std::vector<ParamInfo>& t, const uint16_t (&persisted)[N], uint16_t id, const std::string& name,
-               Access access) {
-  t.push_back({id, name, access, contains(persisted, id)});
+Persisted layoutOf(const fw::SettingsLayout (&history)[N], uint16_t version) {
+  const fw::SettingsLayout& l = version >= 1 && version <= N ? history[version - 1] : history[N - 1];
+  return {l.ids, l.id_count};
+}
+
+void addDevice(std::vector<ParamInfo>& t, const Persisted& p, uint16_t id, const std::string& name, Access access) {
+  t.push_back({id, name, access, p.has(id)});
 }
 
 void addCore(std::vector<ParamInfo>& t) {
@@ -40,9 +46,9 @@ void addCore(std::vector<ParamInfo>& t) {
   t.push_back({c::kSettingsRefused, "settings_refused", Access::kReadOnly, false});
 }
 
-void addGlove(std::vector<ParamInfo>& t) {
+void addGlove(std::vector<ParamInfo>& t, uint16_t version) {
   namespace g = apps::glove5_param;
-  const auto& p = g::kPersisted;
+  const Persisted p = layoutOf(g::kSettingsLayouts, version);
   addDevice(t, p, g::kForceKp, "force_kp", Access::kSettable);
   addDevice(t, p, g::kForceKi, "force_ki", Access::kSettable);
   addDevice(t, p, g::kForceKd, "force_kd", Access::kSettable);
@@ -55,9 +61,9 @@ void addGlove(std::vector<ParamInfo>& t) {
   }
 }
 
-void addSea(std::vector<ParamInfo>& t) {
+void addSea(std::vector<ParamInfo>& t, uint16_t version) {
   namespace s = apps::sea_param;
-  const auto& p = s::kPersisted;
+  const Persisted p = layoutOf(s::kSettingsLayouts, version);
   addDevice(t, p, s::kController, "controller", Access::kSettable);
   addDevice(t, p, s::kBacklashCompensation, "backlash_compensation", Access::kSettable);
   addDevice(t, p, s::kJointMovingAverage, "joint_moving_average", Access::kSettable);
@@ -70,9 +76,9 @@ void addSea(std::vector<ParamInfo>& t) {
   }
 }
 
-void addPen(std::vector<ParamInfo>& t) {
+void addPen(std::vector<ParamInfo>& t, uint16_t version) {
   namespace pp = apps::pantograph_param;
-  const auto& p = pp::kPersisted;
+  const Persisted p = layoutOf(pp::kSettingsLayouts, version);
   for (uint16_t j = 0; j < 6; ++j) {
     addDevice(t, p, static_cast<uint16_t>(pp::kTorqueLimitBase + j), "torque_limit_j" + std::to_string(j) + "_Nm",
               Access::kSettable);
@@ -82,13 +88,13 @@ void addPen(std::vector<ParamInfo>& t) {
 
 }  // namespace
 
-std::vector<ParamInfo> known(protocol::DeviceType type) {
+std::vector<ParamInfo> known(protocol::DeviceType type, uint16_t layout_version) {
   std::vector<ParamInfo> t;
   addCore(t);
   switch (type) {
-    case protocol::DeviceType::kGlove5: addGlove(t); break;
-    case protocol::DeviceType::kSeaFinger: addSea(t); break;
-    case protocol::DeviceType::kPantograph: addPen(t); break;
+    case protocol::DeviceType::kGlove5: addGlove(t, layout_version); break;
+    case protocol::DeviceType::kSeaFinger: addSea(t, layout_version); break;
+    case protocol::DeviceType::kPantograph: addPen(t, layout_version); break;
     default: break;
   }
   return t;
@@ -127,7 +133,7 @@ std::string toYaml(const Backup& b) {
   return std::string(out.c_str()) + "\n";
 }
 
-std::string readBackup(const std::string& path, protocol::DeviceType type, Backup& out) {
+std::string readBackup(const std::string& path, protocol::DeviceType type, Backup& out, uint16_t layout_version) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
@@ -148,13 +154,16 @@ std::string readBackup(const std::string& path, protocol::DeviceType type, Backu
   if (root["firmware_build_id"]) b.build_id = root["firmware_build_id"].as<std::string>();
   const YAML::Node ps = root["params"];
   if (!ps || !ps.IsMap()) return path + ": params missing (a map of name: value)";
-  const std::vector<ParamInfo> table = known(type);
+  const std::vector<ParamInfo> table = known(type, layout_version);
   for (const auto& kv : ps) {
     const std::string name = kv.first.as<std::string>();
     std::string err;
     const ParamInfo* p = lookup(table, name, err);
     if (p == nullptr || p->name != name) return path + ": params: unknown parameter '" + name + "' for a " + want;
-    if (!p->persisted) return path + ": params: " + name + " is not a setting the device keeps (not restorable)";
+    if (!p->persisted) {
+      return path + ": params: " + name + " is not a setting the device keeps" +
+             (layout_version != 0 ? " (settings layout " + std::to_string(layout_version) + ")" : std::string());
+    }
     double v = 0.0;
     try {
       v = kv.second.as<double>();

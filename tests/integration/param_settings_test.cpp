@@ -83,6 +83,10 @@ TEST_F(ParamSettings, SavedPowerCycledAndUpdatedToAFirmwareWithANewLayoutKept) {
   EXPECT_NE(o.out.find("saved: settings record 1"), std::string::npos) << o.out;
   EXPECT_EQ(param({"set", "force_ki", "12.5", "--save"}, 1).rc, 0);
   EXPECT_EQ(get("force_kp", 1), 0.75) << "kept across a power cycle";
+  o = param({"set", "feed_forward_scale", "1.5", "--save"}, 1);
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_NE(o.err.find("feed_forward_scale is not a setting this firmware keeps (settings layout 1)"), std::string::npos)
+      << o.err;
 
   // Updated: layout 2 adds the feed-forward scale. The gains are kept, the new setting has its default.
   EXPECT_EQ(get("force_kp"), 0.75);

@@ -20,17 +20,17 @@ namespace {
 const protocol::DeviceType kTypes[] = {protocol::DeviceType::kGlove5, protocol::DeviceType::kSeaFinger,
                                        protocol::DeviceType::kPantograph};
 
-template <size_t N>
-std::set<uint16_t> idsOf(const uint16_t (&a)[N]) {
-  return std::set<uint16_t>(std::begin(a), std::end(a));
+fw::SettingsHistory historyOf(protocol::DeviceType t) {
+  switch (t) {
+    case protocol::DeviceType::kGlove5: return fw::settingsHistoryOf(apps::glove5_param::kSettingsLayouts);
+    case protocol::DeviceType::kSeaFinger: return fw::settingsHistoryOf(apps::sea_param::kSettingsLayouts);
+    default: return fw::settingsHistoryOf(apps::pantograph_param::kSettingsLayouts);
+  }
 }
 
-std::set<uint16_t> firmwarePersisted(protocol::DeviceType t) {
-  switch (t) {
-    case protocol::DeviceType::kGlove5: return idsOf(apps::glove5_param::kPersisted);
-    case protocol::DeviceType::kSeaFinger: return idsOf(apps::sea_param::kPersisted);
-    default: return idsOf(apps::pantograph_param::kPersisted);
-  }
+std::set<uint16_t> firmwarePersisted(protocol::DeviceType t, uint16_t version) {
+  const fw::SettingsLayout& l = historyOf(t).layouts[version - 1];
+  return std::set<uint16_t>(l.ids, l.ids + l.id_count);
 }
 
 std::string writeTemp(const std::string& text) {
@@ -42,19 +42,36 @@ std::string writeTemp(const std::string& text) {
 
 TEST(ParamNames, EveryParameterTheFirmwarePersistsHasOneSettableNameAndNoOtherIsSaved) {
   for (const protocol::DeviceType t : kTypes) {
-    const auto table = host::params::known(t);
-    std::set<std::string> names;
-    std::set<uint16_t> ids, saved;
-    for (const auto& p : table) {
-      EXPECT_TRUE(names.insert(p.name).second) << "duplicate name " << p.name;
-      EXPECT_TRUE(ids.insert(p.id).second) << "duplicate id " << p.id;
-      if (p.persisted) {
+    const char* device = protocol::layoutFor(t)->name;
+    for (uint16_t version = 1; version <= historyOf(t).count; ++version) {
+      std::set<std::string> names;
+      std::set<uint16_t> ids, saved;
+      for (const auto& p : host::params::known(t, version)) {
+        EXPECT_TRUE(names.insert(p.name).second) << "duplicate name " << p.name;
+        EXPECT_TRUE(ids.insert(p.id).second) << "duplicate id " << p.id;
+        if (!p.persisted) continue;
         saved.insert(p.id);
         EXPECT_EQ(p.access, Access::kSettable) << p.name << ": a saved parameter is settable";
       }
+      EXPECT_EQ(saved, firmwarePersisted(t, version)) << device << " layout " << version;
     }
-    EXPECT_EQ(saved, firmwarePersisted(t)) << protocol::layoutFor(t)->name;
   }
+}
+
+TEST(ParamNames, TheSettingsAFirmwareKeepsFollowItsLayoutVersion) {
+  std::string err;
+  const auto v1 = host::params::known(protocol::DeviceType::kGlove5, 1);
+  const auto newest = host::params::known(protocol::DeviceType::kGlove5);
+  EXPECT_FALSE(host::params::lookup(v1, "feed_forward_scale", err)->persisted);
+  EXPECT_TRUE(host::params::lookup(newest, "feed_forward_scale", err)->persisted);
+  EXPECT_TRUE(host::params::lookup(v1, "force_kp", err)->persisted);
+  // A backup taken on the newer firmware is refused by the older one, naming what it would not keep.
+  const std::string path = writeTemp("device_type: glove5\nparams:\n  force_kp: 1\n  feed_forward_scale: 1\n");
+  host::params::Backup b;
+  err = host::params::readBackup(path, protocol::DeviceType::kGlove5, b, 1);
+  EXPECT_NE(err.find("feed_forward_scale is not a setting the device keeps (settings layout 1)"), std::string::npos) << err;
+  EXPECT_EQ(host::params::readBackup(path, protocol::DeviceType::kGlove5, b, 2), "");
+  std::remove(path.c_str());
 }
 
 TEST(ParamNames, AParameterIsFoundByNameDecimalOrHexIdAndAnUnknownOneIsNamed) {

@@ -214,18 +214,8 @@ protocol::ParamStatus Glove5App::setParam(uint16_t id, float value) {
   }
 }
 
-namespace {
-// Version 1 kept the force PID gains; version 2 adds the feed-forward scale (a firmware updated from 1 to 2 keeps
-// the gains, the scale starts at its default). Version 1 never shipped: it is the older firmware the update test
-// plays (firmware-sim --settings-layout 1, docs/params.md).
-constexpr uint16_t kGloveSettingsV1[] = {glove5_param::kForceKp, glove5_param::kForceKi, glove5_param::kForceKd};
-constexpr fw::SettingsLayout kGloveSettings[] = {
-    {1, kGloveSettingsV1, 3, nullptr, 0},
-    {2, glove5_param::kPersisted, 4, nullptr, 0},
-};
 static_assert(sizeof glove5_param::kPersisted / sizeof(uint16_t) == 4);
-}  // namespace
 
-fw::SettingsHistory Glove5App::settingsHistory() const { return {kGloveSettings, 2}; }
+fw::SettingsHistory Glove5App::settingsHistory() const { return fw::settingsHistoryOf(glove5_param::kSettingsLayouts); }
 
 }  // namespace phalanx::apps

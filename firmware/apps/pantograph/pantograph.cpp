@@ -110,11 +110,8 @@ protocol::ParamStatus PantographApp::setParam(uint16_t id, float value) {
   return protocol::ParamStatus::kUnknownParam;
 }
 
-namespace {
 static_assert(kPenJoints == 6, "one persisted torque limit per joint");
-constexpr fw::SettingsLayout kPenSettings[] = {{1, pantograph_param::kPersisted, 6, nullptr, 0}};
-}  // namespace
 
-fw::SettingsHistory PantographApp::settingsHistory() const { return {kPenSettings, 1}; }
+fw::SettingsHistory PantographApp::settingsHistory() const { return fw::settingsHistoryOf(pantograph_param::kSettingsLayouts); }
 
 }  // namespace phalanx::apps

@@ -324,11 +324,8 @@ protocol::ParamStatus SeaFingerApp::setParam(uint16_t id, float value) {
   }
 }
 
-namespace {
-constexpr fw::SettingsLayout kSeaSettings[] = {{1, sea_param::kPersisted, 9, nullptr, 0}};
 static_assert(sizeof sea_param::kPersisted / sizeof(uint16_t) == 9 && kSeaCount == 2);
-}  // namespace
 
-fw::SettingsHistory SeaFingerApp::settingsHistory() const { return {kSeaSettings, 1}; }
+fw::SettingsHistory SeaFingerApp::settingsHistory() const { return fw::settingsHistoryOf(sea_param::kSettingsLayouts); }
 
 }  // namespace phalanx::apps

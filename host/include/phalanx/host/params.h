@@ -24,8 +24,10 @@ struct ParamInfo {
   bool persisted = false;  ///< kept in the device's flash by `param save` (and in a backup)
 };
 
-/// Every parameter a device type answers: the core's, then the device's.
-std::vector<ParamInfo> known(protocol::DeviceType type);
+/// Every parameter a device type answers: the core's, then the device's. `persisted` follows the settings layout
+/// version the firmware writes (core parameter settings_layout); 0 or a version this build does not know: the
+/// newest.
+std::vector<ParamInfo> known(protocol::DeviceType type, uint16_t layout_version = 0);
 /// A parameter by name or by id (0x0100 or 256). nullptr and `error` naming what was wrong when it is unknown.
 const ParamInfo* lookup(const std::vector<ParamInfo>& table, const std::string& key, std::string& error);
 
@@ -37,9 +39,10 @@ struct Backup {
 };
 
 std::string toYaml(const Backup& b);
-/// Read and check a backup for this device type: every key known, every name a persisted parameter, every value
-/// finite. "" or the problem (naming the file and what is wrong); nothing partial is returned on a problem.
-std::string readBackup(const std::string& path, protocol::DeviceType type, Backup& out);
+/// Read and check a backup for this device type and settings layout: every key known, every name a parameter
+/// that layout persists, every value finite. "" or the problem (naming the file and what is wrong); nothing
+/// partial is returned on a problem.
+std::string readBackup(const std::string& path, protocol::DeviceType type, Backup& out, uint16_t layout_version = 0);
 
 /// One difference between the device and a backup.
 struct Difference {

@@ -51,6 +51,7 @@ constexpr uint16_t kGeometryFingerprint = 0x0200;
 /// Kept in flash by the settings store (layout version 1; docs/params.md): the six torque limits.
 inline constexpr uint16_t kPersisted[] = {kTorqueLimitBase,     kTorqueLimitBase + 1, kTorqueLimitBase + 2,
                                           kTorqueLimitBase + 3, kTorqueLimitBase + 4, kTorqueLimitBase + 5};
+inline constexpr fw::SettingsLayout kSettingsLayouts[] = {{1, kPersisted, 6, nullptr, 0}};
 }  // namespace pantograph_param
 
 struct PenJointState {

@@ -123,6 +123,7 @@ constexpr uint16_t kKd = 0x0130;                    ///< + SEA index
 /// first, since the gains are those of the active controller.
 inline constexpr uint16_t kPersisted[] = {kController, kBacklashCompensation, kJointMovingAverage,
                                           kKp, kKp + 1, kKi, kKi + 1, kKd, kKd + 1};
+inline constexpr fw::SettingsLayout kSettingsLayouts[] = {{1, kPersisted, 9, nullptr, 0}};
 }  // namespace sea_param
 
 SeaFingerCalibration seaFingerDefaultCalibration();

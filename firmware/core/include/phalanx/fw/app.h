@@ -1,6 +1,7 @@
 #pragma once
 /// The interface between the device-independent firmware core and one device's app (glove5, sea_finger, …).
 /// The core owns the protocol, the watchdog and the fault latch; the app owns sensing and control.
+#include <cstddef>
 #include <cstdint>
 
 #include "phalanx/hal/hal.h"
@@ -30,6 +31,11 @@ struct SettingsHistory {
   const SettingsLayout* layouts = nullptr;
   uint8_t count = 0;
 };
+
+template <size_t N>
+constexpr SettingsHistory settingsHistoryOf(const SettingsLayout (&layouts)[N]) {
+  return {layouts, static_cast<uint8_t>(N)};
+}
 
 class DeviceApp {
  public:
