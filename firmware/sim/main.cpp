@@ -32,6 +32,7 @@
 #include "phalanx/linux/modbus_instrument.h"
 #include "phalanx/linux/realtime.h"
 #include "phalanx/sim/board.h"
+#include "phalanx/sim/sim_flash.h"
 
 namespace {
 
@@ -340,6 +341,15 @@ int main(int argc, char** argv) {
   TruthInstrument instrument;
   instrument.addOptions(cli);
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
+  std::string settings_path;
+  unsigned settings_layout = 0;
+  cli.add_option("--settings", settings_path,
+                 "the board's settings flash, kept in this file (created when absent): a restart is a power cycle "
+                 "(docs/params.md)");
+  cli.add_option("--settings-layout", settings_layout,
+                 "be the firmware that writes this settings layout version (0: the newest; tests play an older "
+                 "firmware before an update with it)")
+      ->check(CLI::Range(0u, 255u));
   std::vector<std::string> inject_args;
   cli.add_option("--inject", inject_args,
                  "fail an input on the board's clock (repeatable): sensor-range@T, sensor-stuck@T, estop@T+D (seconds; "
@@ -425,13 +435,35 @@ int main(int argc, char** argv) {
                      use_tty ? static_cast<linux_hal::FdLink&>(tty) : static_cast<linux_hal::FdLink&>(link));
   if (use_can) board.board().packets = &can;
   if (use_ffs) board.board().packets = &ffs;
+  // Two 512-byte pages (two slots of one record each), as the boards reserve for settings.
+  sim::FileFlash settings_flash(2, 512);
+  std::unique_ptr<fw::SettingsStore> settings;
+  if (!settings_path.empty()) {
+    if (const std::string err = settings_flash.open(settings_path); !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: --settings %s\n", err.c_str());
+      return 2;
+    }
+    settings = std::make_unique<fw::SettingsStore>(settings_flash, 0, static_cast<uint16_t>(settings_layout));
+    if (settings->layoutVersion(dev->app()) == 0) {
+      std::fprintf(stderr, "firmware-sim: error: --settings-layout %u: %s has no such settings layout\n", settings_layout,
+                   device.c_str());
+      return 2;
+    }
+  }
   fw::CoreConfig cfg;
+  cfg.settings = settings.get();
   cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
   cfg.firmware_build_id = PHALANX_BUILD_ID;
   cfg.device_variant = dev->variant();  // sea_rig: the sea_finger firmware on the test rig
   fw::FirmwareCore core(board.board(), dev->app(), cfg);
   LogObserver observer;
   core.setObserver(&observer);
+  if (settings) {
+    const fw::SettingsReport& r = settings->lastLoad();
+    std::fprintf(stderr, "firmware-sim: settings layout v%u: %s (record v%u seq %u) applied=%u refused=%u dropped=%u\n",
+                 settings->layoutVersion(dev->app()), fw::settingsLoadName(r.result), r.record_version,
+                 static_cast<unsigned>(r.sequence), r.applied, r.refused, r.dropped);
+  }
 
   if (use_can) {
     std::printf("CAN %s node %u %s\n", can_if.c_str(), can_node, can_mode.c_str());

@@ -3,6 +3,7 @@
 //   phalanx run            start a session (the simulated firmware too, for sim:* devices) and print a summary
 //   phalanx version        protocol and build information
 //   phalanx mcu-diag       an MCU board's control-tick statistics through the protocol
+//   phalanx param          device parameters, persistent settings, YAML backup and restore (param_cli.cpp)
 //   phalanx flash          check a firmware image and write it into a board (flash_cli.cpp)
 //   phalanx can            CAN bus-load budget and measurement
 //   phalanx devices        the devices the daemons on the network announce over DDS
@@ -18,6 +19,7 @@
 #include "common_options.h"
 #include "design_cli.h"
 #include "flash_cli.h"
+#include "param_cli.h"
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/config.h"
 #include "phalanx/host/dds/dds_options.h"
@@ -219,6 +221,7 @@ int main(int argc, char** argv) {
   RunCommand run(app);
   CLI::App* version = app.add_subcommand("version", "print version information");
   McuDiagCommand mcu_diag(app);
+  ParamCommands param(app);
   FlashCommand flash_cmd(app);
   CanCommands can(app);
   DevicesCommand devices(app);
@@ -238,6 +241,7 @@ int main(int argc, char** argv) {
   if (devices.app->parsed()) return devices.run();
   if (const int rc = cli::runTherapyCommands(therapy); rc >= 0) return rc;
   if (mcu_diag.app->parsed()) return mcu_diag.run();
+  if (param.parsed()) return param.run();
   if (flash_cmd.app->parsed()) return flash_cmd.run();
   if (version->parsed()) return runVersion();
   return run.run(app, argc, argv);

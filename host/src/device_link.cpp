@@ -66,6 +66,9 @@ class SimChild {
     if (!opt.sim_truth.empty()) args.insert(args.end(), {"--truth", opt.sim_truth});
     args.insert(args.end(), opt.sim_args.begin(), opt.sim_args.end());
     const bool instrument = std::find(opt.sim_args.begin(), opt.sim_args.end(), "--instrument") != opt.sim_args.end();
+    if (!opt.sim_settings.empty()) {
+      args.insert(args.end(), {"--settings", opt.sim_settings, "--settings-layout", std::to_string(opt.sim_settings_layout)});
+    }
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

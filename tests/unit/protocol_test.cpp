@@ -178,6 +178,18 @@ TEST(Messages, EventClearParamMessagesRoundTrip) {
   EXPECT_EQ(roundTrip(v).status, ParamStatus::kReadOnly);
 }
 
+TEST(Messages, AParamValueCarriesTheFailedStatusAndRefusesAnUnknownOne) {
+  ParamValue v;
+  v.param_id = 0x0010;
+  v.status = ParamStatus::kFailed;  // a settings save whose flash write failed (docs/params.md)
+  EXPECT_EQ(roundTrip(v).status, ParamStatus::kFailed);
+  uint8_t p[ParamValue::kWireSize];
+  encodePayload(v, p);
+  p[2] = static_cast<uint8_t>(ParamStatus::kFailed) + 1;
+  ParamValue out;
+  EXPECT_FALSE(decodePayload(p, sizeof p, out));
+}
+
 TEST(Messages, WireLayoutIsLittleEndianAtTheDocumentedOffsets) {
   Command c;
   c.seq = 0x0102;

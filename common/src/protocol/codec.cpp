@@ -355,7 +355,7 @@ bool decodePayload(const uint8_t* in, size_t len, ParamValue& m) {
   Reader r(in);
   m.param_id = r.u16();
   const uint8_t status = r.u8();
-  if (status > static_cast<uint8_t>(ParamStatus::kBusy)) return false;
+  if (status > static_cast<uint8_t>(ParamStatus::kFailed)) return false;
   m.status = static_cast<ParamStatus>(status);
   m.reserved = r.u8();
   m.value = r.f32();

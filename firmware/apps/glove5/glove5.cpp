@@ -214,4 +214,8 @@ protocol::ParamStatus Glove5App::setParam(uint16_t id, float value) {
   }
 }
 
+static_assert(sizeof glove5_param::kPersisted / sizeof(uint16_t) == 4);
+
+fw::SettingsHistory Glove5App::settingsHistory() const { return fw::settingsHistoryOf(glove5_param::kSettingsLayouts); }
+
 }  // namespace phalanx::apps

@@ -110,4 +110,8 @@ protocol::ParamStatus PantographApp::setParam(uint16_t id, float value) {
   return protocol::ParamStatus::kUnknownParam;
 }
 
+static_assert(kPenJoints == 6, "one persisted torque limit per joint");
+
+fw::SettingsHistory PantographApp::settingsHistory() const { return fw::settingsHistoryOf(pantograph_param::kSettingsLayouts); }
+
 }  // namespace phalanx::apps

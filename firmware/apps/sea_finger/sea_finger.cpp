@@ -324,4 +324,8 @@ protocol::ParamStatus SeaFingerApp::setParam(uint16_t id, float value) {
   }
 }
 
+static_assert(sizeof sea_param::kPersisted / sizeof(uint16_t) == 9 && kSeaCount == 2);
+
+fw::SettingsHistory SeaFingerApp::settingsHistory() const { return fw::settingsHistoryOf(sea_param::kSettingsLayouts); }
+
 }  // namespace phalanx::apps

@@ -39,6 +39,7 @@ FirmwareCore::FirmwareCore(hal::Board& board, DeviceApp& app, const CoreConfig& 
   board_.pwm->disableAll();
   if (board_.gpio != nullptr) board_.gpio->setDriveEnable(false);
   app_.init(board_);
+  if (config_.settings != nullptr) config_.settings->load(app_);
 }
 
 template <class Msg>
@@ -246,8 +247,30 @@ bool FirmwareCore::coreParam(uint16_t id, float& value) const {
     case protocol::core_param::kBuildIdLow: value = static_cast<float>(config_.firmware_build_id & 0xFFFFu); return true;
     case protocol::core_param::kBuildIdHigh: value = static_cast<float>(config_.firmware_build_id >> 16); return true;
     case protocol::core_param::kDeviceVariant: value = static_cast<float>(config_.device_variant); return true;
+    default: return settingsParam(id, value);
+  }
+}
+
+bool FirmwareCore::settingsParam(uint16_t id, float& value) const {
+  const SettingsStore* s = config_.settings;
+  if (s == nullptr) return false;
+  const SettingsReport& r = s->lastLoad();
+  switch (id) {
+    case protocol::core_param::kSettingsSave: value = static_cast<float>(s->newestSequence()); return true;
+    case protocol::core_param::kSettingsLoad: value = static_cast<float>(r.result); return true;
+    case protocol::core_param::kSettingsLayout: value = static_cast<float>(s->layoutVersion(app_)); return true;
+    case protocol::core_param::kSettingsRefused: value = static_cast<float>(r.refused + r.dropped); return true;
     default: return false;
   }
+}
+
+protocol::ParamStatus FirmwareCore::saveSettings(float value) {
+  // A flash erase stalls the CPU for milliseconds on the MCUs: never while the outputs are driven.
+  if (outputs_active_) return protocol::ParamStatus::kBusy;
+  if (value != 1.0f) return protocol::ParamStatus::kOutOfRange;
+  const SettingsSave r = config_.settings->save(app_);
+  return r == SettingsSave::kSaved || r == SettingsSave::kUnchanged ? protocol::ParamStatus::kOk
+                                                                    : protocol::ParamStatus::kFailed;
 }
 
 void FirmwareCore::handleParamGet(const protocol::Frame& frame) {
@@ -272,7 +295,10 @@ void FirmwareCore::handleParamSet(const protocol::Frame& frame) {
   answer.param_id = set.param_id;
   answer.value = set.value;
   float core_value = 0.0f;
-  if (coreParam(set.param_id, core_value)) {
+  if (set.param_id == protocol::core_param::kSettingsSave && config_.settings != nullptr) {
+    answer.status = saveSettings(set.value);
+    if (answer.status == protocol::ParamStatus::kOk) answer.value = static_cast<float>(config_.settings->newestSequence());
+  } else if (coreParam(set.param_id, core_value)) {
     answer.status = protocol::ParamStatus::kReadOnly;
   } else if (outputs_active_) {
     answer.status = protocol::ParamStatus::kBusy;

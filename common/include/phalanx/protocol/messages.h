@@ -147,13 +147,21 @@ enum class RejectReason : uint8_t {
   kStaleSequence = 9,    ///< seq not newer than the newest received this session; value = that seq
 };
 
-/// Core parameters (ParamGet/ParamSet IDs 0x0001..0x007F, answered by the firmware core, all read-only). MCU boards
+/// Core parameters (ParamGet/ParamSet IDs 0x0001..0x007F, answered by the firmware core, read-only except
+/// kSettingsSave). MCU boards
 /// answer 0x0080..0x00FF (board diagnostics, phalanx/fw_mcu/board_diag.h); device parameters start at 0x0100.
 namespace core_param {
 constexpr uint16_t kTickRate = 0x0001;       ///< firmware control tick rate, Hz
 constexpr uint16_t kBuildIdLow = 0x0002;     ///< firmware_build_id bits 0..15 (exact in an f32)
 constexpr uint16_t kBuildIdHigh = 0x0003;    ///< firmware_build_id bits 16..31
 constexpr uint16_t kDeviceVariant = 0x0004;  ///< protocol::variant::* (what the firmware is mounted on)
+/// Persistent settings (docs/params.md); unknown (kUnknownParam) on firmware without a settings store.
+/// Set 1: save the device parameters the app persists to flash (kBusy while outputs are active, kFailed when the
+/// write failed; the previous record is kept). Read: sequence number of the newest record stored (0: none).
+constexpr uint16_t kSettingsSave = 0x0010;
+constexpr uint16_t kSettingsLoad = 0x0011;     ///< what the load at start found: fw::SettingsLoad (settings_store.h)
+constexpr uint16_t kSettingsLayout = 0x0012;   ///< the settings layout version this firmware writes
+constexpr uint16_t kSettingsRefused = 0x0013;  ///< stored values not applied at start (refused by the app or dropped)
 }  // namespace core_param
 
 struct Event {
@@ -192,6 +200,7 @@ enum class ParamStatus : uint8_t {
   kOutOfRange = 2,
   kReadOnly = 3,
   kBusy = 4,  ///< not settable while outputs are active
+  kFailed = 5,  ///< the device could not do it (core_param::kSettingsSave: the flash write failed)
 };
 
 struct ParamValue {

@@ -96,6 +96,8 @@ struct RunOptions {
   /// sim: devices: more firmware-sim arguments (the bench runner's `--instrument ...`, docs/bench-runner.md). With
   /// `--instrument` the link also reads firmware-sim's "instrument: modbus ..." line: summary["link"]["instrument"].
   std::vector<std::string> sim_args;
+  std::string sim_settings;           ///< sim: devices: firmware-sim's settings flash file (--settings; docs/params.md)
+  unsigned sim_settings_layout = 0;   ///< sim: devices: the settings layout firmware-sim plays (--settings-layout; 0 newest)
   double handshake_timeout_s = 2.0;
   SessionHooks* hooks = nullptr;      ///< therapy layer (not owned); nullptr: none
   modbus::ServerOptions modbus;       ///< optional Modbus TCP server (docs/modbus.md); off by default

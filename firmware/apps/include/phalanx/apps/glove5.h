@@ -103,6 +103,12 @@ constexpr uint16_t kTare = 0x0110;
 /// Read-only, 0x0200 + finger (FingerId order): fingerprint (geometry_fingerprint.h) of the mechanism geometry in
 /// the calibration (tendon moment arms, joint windows). The host refuses a geometry file that does not match it.
 constexpr uint16_t kGeometryFingerprintBase = 0x0200;
+/// Kept in flash by the settings store (docs/params.md), in the order applied. Layout 1 kept the force PID gains;
+/// layout 2 adds the feed-forward scale (an update from 1 to 2 keeps the gains, the scale starts at its default).
+/// Layout 1 never shipped: it is the firmware before an update that the test plays (firmware-sim --settings-layout 1).
+inline constexpr uint16_t kPersistedV1[] = {kForceKp, kForceKi, kForceKd};
+inline constexpr uint16_t kPersisted[] = {kForceKp, kForceKi, kForceKd, kFeedForwardScale};
+inline constexpr fw::SettingsLayout kSettingsLayouts[] = {{1, kPersistedV1, 3, nullptr, 0}, {2, kPersisted, 4, nullptr, 0}};
 }  // namespace glove5_param
 
 Glove5Calibration glove5DefaultCalibration();
@@ -132,6 +138,7 @@ class Glove5App : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const GloveFingerState& finger(int i) const { return finger_[i]; }
 

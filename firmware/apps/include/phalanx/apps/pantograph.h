@@ -48,6 +48,10 @@ constexpr uint16_t kTorqueLimitBase = 0x0100;  ///< 0x0100 + joint: torque limit
 /// Read-only: fingerprint (geometry_fingerprint.h) of the compile-time geometry pen::defaultGeometry that the
 /// joint windows were made for. The host refuses a geometry file that does not match it.
 constexpr uint16_t kGeometryFingerprint = 0x0200;
+/// Kept in flash by the settings store (layout version 1; docs/params.md): the six torque limits.
+inline constexpr uint16_t kPersisted[] = {kTorqueLimitBase,     kTorqueLimitBase + 1, kTorqueLimitBase + 2,
+                                          kTorqueLimitBase + 3, kTorqueLimitBase + 4, kTorqueLimitBase + 5};
+inline constexpr fw::SettingsLayout kSettingsLayouts[] = {{1, kPersisted, 6, nullptr, 0}};
 }  // namespace pantograph_param
 
 struct PenJointState {
@@ -70,6 +74,7 @@ class PantographApp : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const PenJointState& joint(int i) const { return joint_[i]; }
   const PantographConfig& config() const { return cfg_; }

@@ -119,6 +119,11 @@ constexpr uint16_t kZero = 0x0103;                  ///< write 1: re-zero θ_j0,
 constexpr uint16_t kKp = 0x0110;                    ///< + SEA index: K_p of the active controller
 constexpr uint16_t kKi = 0x0120;                    ///< + SEA index
 constexpr uint16_t kKd = 0x0130;                    ///< + SEA index
+/// Kept in flash by the settings store (layout version 1; docs/params.md), in the order applied: the controller
+/// first, since the gains are those of the active controller.
+inline constexpr uint16_t kPersisted[] = {kController, kBacklashCompensation, kJointMovingAverage,
+                                          kKp, kKp + 1, kKi, kKi + 1, kKd, kKd + 1};
+inline constexpr fw::SettingsLayout kSettingsLayouts[] = {{1, kPersisted, 9, nullptr, 0}};
 }  // namespace sea_param
 
 SeaFingerCalibration seaFingerDefaultCalibration();
@@ -161,6 +166,7 @@ class SeaFingerApp : public fw::DeviceApp {
   void fillSamples(int16_t* samples) const override;
   protocol::ParamStatus getParam(uint16_t id, float& value) const override;
   protocol::ParamStatus setParam(uint16_t id, float value) override;
+  fw::SettingsHistory settingsHistory() const override;
 
   const SeaChannelState& channel(int sea) const { return ch_[sea]; }
   float jointSensor_rad(int sensor) const { return joint_rad_[sensor]; }

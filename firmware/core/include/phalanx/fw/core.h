@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "phalanx/fw/app.h"
+#include "phalanx/fw/settings_store.h"
 #include "phalanx/hal/hal.h"
 #include "phalanx/protocol/codec.h"
 
@@ -20,6 +21,9 @@ struct CoreConfig {
   uint16_t max_rx_messages_per_tick = 32;
   /// protocol::variant::* reported by core parameter core_param::kDeviceVariant (the sea_finger on its test rig).
   uint8_t device_variant = protocol::variant::kStandard;
+  /// Persistent settings (docs/params.md): loaded into the app at construction, saved on core_param::kSettingsSave.
+  /// nullptr: the board keeps none (the settings core parameters then answer kUnknownParam).
+  SettingsStore* settings = nullptr;
 };
 
 /// Observer for what the core does (logging in firmware-sim, assertions in tests). Optional.
@@ -78,6 +82,8 @@ class FirmwareCore {
   void handleParamGet(const protocol::Frame& frame);
   void handleParamSet(const protocol::Frame& frame);
   bool coreParam(uint16_t id, float& value) const;
+  bool settingsParam(uint16_t id, float& value) const;
+  protocol::ParamStatus saveSettings(float value);
   /// Fault conditions present now: the e-stop input, and the sensor faults the last sense() reported.
   uint16_t presentConditions() const;
   /// Whether mode drives the outputs on this device (kLock only where the mechanism locks passively).
