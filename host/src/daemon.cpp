@@ -333,9 +333,19 @@ class SessionRunner {
 
   // ---- stage 3: Hello / HelloAck, then the first telemetry.
   int handshake() {
-    session_->sendHello(rd_(), link_->expectedDevice());
-    link_->push();
-    if (!pollUntil([&] { return session_->handshake() != HandshakeResult::kPending; })) {
+    // Hello again every 500 ms while unanswered, with the same session id: a device still starting (a board
+    // booting, a USB gadget not yet serviced) may have missed the first; the firmware answers a repeat of the open
+    // session's Hello without restarting it.
+    const auto id = static_cast<uint32_t>(rd_());
+    uint64_t next_hello_ns = 0;
+    if (!pollUntil([&] {
+          if (const uint64_t now = linux_hal::monotonicNs(); now >= next_hello_ns) {
+            session_->sendHello(id, link_->expectedDevice());
+            link_->push();
+            next_hello_ns = now + 500000000ull;
+          }
+          return session_->handshake() != HandshakeResult::kPending;
+        })) {
       return fail("device did not answer the handshake within " + std::to_string(waitBoundS()) + " s on " +
                       link_->where() + " (wrong port, or not Phalanx firmware?)",
                   4);

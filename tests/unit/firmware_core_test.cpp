@@ -135,6 +135,26 @@ TEST_F(CoreTest, AHelloAfterAFrameAPreviousHostLeftUnfinishedIsAnswered) {
   EXPECT_EQ(core.rxErrors(), 1u) << "the fragment is one damaged frame, the delimiter before the Hello none";
 }
 
+TEST_F(CoreTest, ARepeatedHelloOfTheOpenSessionIsAnsweredWithoutRestartingIt) {
+  // The daemon says Hello again every 500 ms while it has no answer; one may arrive after the session has started.
+  openSession();
+  send(command(0.5f));
+  tick();
+  ASSERT_TRUE(board.io().pwm_enabled);
+  host.sendHello(11, protocol::DeviceType::kAny);  // the same session id
+  tick();
+  EXPECT_EQ(host.handshake(), host::HandshakeResult::kOk);
+  EXPECT_TRUE(board.io().pwm_enabled) << "the open session's repeated Hello must not drive the outputs safe";
+  EXPECT_EQ(app.safe_calls, 0);
+  send(command(0.5f));  // the command sequence goes on (not restarted: a stale sequence would be rejected)
+  tick();
+  EXPECT_TRUE(board.io().pwm_enabled);
+  // Another session id is a new session: safe until its first command.
+  host.sendHello(12, protocol::DeviceType::kAny);
+  tick();
+  EXPECT_FALSE(board.io().pwm_enabled);
+}
+
 TEST_F(CoreTest, HandshakeRefusesTheWrongDeviceType) {
   host.sendHello(1, protocol::DeviceType::kGlove5);
   tick();

@@ -205,6 +205,12 @@ void FirmwareCore::handleHello(const protocol::Frame& frame, uint64_t now_us) {
     ack.status = protocol::HandshakeStatus::kDeviceMismatch;
   }
   const bool ok = ack.status == protocol::HandshakeStatus::kOk;
+  // The Hello of the session already open, repeated by a host that had not yet seen the answer (docs/protocol.md
+  // "Session"): answered again, the session goes on.
+  if (ok && session_open_ && hello.session_id == session_id_) {
+    send(ack);
+    return;
+  }
   // A new session never inherits the previous one's command: outputs stay safe until its first command, whose
   // sequence number starts the session's sequence.
   if (ok) {
