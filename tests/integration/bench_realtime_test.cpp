@@ -199,6 +199,27 @@ TEST(BenchRealtimeTest, AnIndependentAmplifierThatHangsStopsThePlanSafely) {
   expectSafetyStop(r, "instrument silent");
 }
 
+TEST(BenchRealtimeTest, TheSamePlanOnASerialDeviceWithItsOwnAmplifier) {
+  // A board as a lab has it: firmware-sim started apart from the bench on its own pseudo-terminal (the board's
+  // serial port) with its load cell on Modbus TCP; the plan names `serial:` and the amplifier's address.
+  Process board({binPath("firmware-sim"), "--device", "sea_rig", "--seed", "5", "--instrument", "tcp:0"});
+  const std::string pty_line = board.readStdoutLine(10000), inst_line = board.readStdoutLine(10000);
+  ASSERT_EQ(pty_line.rfind("PTY ", 0), 0u) << pty_line << board.stderrText();
+  const auto colon = inst_line.find("127.0.0.1:");
+  ASSERT_NE(colon, std::string::npos) << inst_line;
+  const std::string port = inst_line.substr(colon + 10, inst_line.find(' ', colon) - colon - 10);
+  std::string plan = replace(seaPlan("tcp", "device_type: sea_rig\n", kSine), "device: sim:sea_rig", "device: serial:" + pty_line.substr(4));
+  plan = replace(plan, "  transport: tcp\n", "  transport: tcp\n  host: 127.0.0.1\n  port: " + port + "\n");
+  const BenchRun r = benchRun("serial", plan);
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.result.dump(2);
+  const nlohmann::json& step = r.result["steps"][0];
+  EXPECT_TRUE(step["alignment"]["ok"]) << step.dump(2);
+  EXPECT_EQ(step["link"]["device"], "serial:" + pty_line.substr(4));
+  EXPECT_EQ(r.result["session"]["device_type"], "sea_finger");
+  board.signal(SIGTERM);
+  EXPECT_EQ(board.wait(10000), 0) << board.stderrText();
+}
+
 TEST(BenchRealtimeTest, PlansTheRealTimeRunCannotDoAreRefusedBeforeAnythingRuns) {
   const BenchRun pen = benchRun("pen", std::string("version: 1\ndevice: sim:pantograph\n") +
                                       replace(replace(kInstrument, "TRANSPORT", "tcp"), "effort_max: 0.4", "effort_max: 2.1") +
