@@ -61,7 +61,7 @@ struct BenchCommands::Impl {
   // plan
   CLI::App* plan_run = nullptr;
   std::string plan_path, plan_report, plan_device;
-  bool plan_lockstep = false;
+  bool plan_lockstep = false, plan_no_realtime = false;
 
   void addGlove();
   void addSea();
@@ -174,6 +174,8 @@ void BenchCommands::Impl::addPlan() {
   plan_run->add_flag("--lockstep", plan_lockstep,
                      "sim: devices: step firmware, plant and host in one process (fast, deterministic) instead of a real-time "
                      "session of the daemon's runner over the device's link (the default)");
+  plan_run->add_flag("--no-realtime", plan_no_realtime,
+                     "real time: do not ask for SCHED_FIFO and locked memory (as phalanxd --no-realtime)");
 }
 
 nlohmann::json BenchCommands::Impl::runGlove() {
@@ -213,7 +215,7 @@ int BenchCommands::Impl::report(const std::string& name, const nlohmann::json& r
 
 int BenchCommands::run() {
   Impl& m = *impl_;
-  if (m.plan_run->parsed()) return benchrun::benchRunMain(m.plan_path, m.plan_report, m.plan_device, m.plan_lockstep);
+  if (m.plan_run->parsed()) return benchrun::benchRunMain(m.plan_path, m.plan_report, m.plan_device, m.plan_lockstep, !m.plan_no_realtime);
   if (m.free_motion->parsed() || m.grasp->parsed()) {
     return m.report(m.free_motion->parsed() ? "glove-free-motion" : "glove-grasp", withLockstepSpeed([&m] { return m.runGlove(); }));
   }

@@ -339,12 +339,13 @@ class SessionRunner {
     const auto id = static_cast<uint32_t>(rd_());
     uint64_t next_hello_ns = 0;
     if (!pollUntil([&] {
+          if (session_->handshake() != HandshakeResult::kPending) return true;
           if (const uint64_t now = linux_hal::monotonicNs(); now >= next_hello_ns) {
             session_->sendHello(id, link_->expectedDevice());
             link_->push();
             next_hello_ns = now + 500000000ull;
           }
-          return session_->handshake() != HandshakeResult::kPending;
+          return false;
         })) {
       return fail("device did not answer the handshake within " + std::to_string(waitBoundS()) + " s on " +
                       link_->where() + " (wrong port, or not Phalanx firmware?)",
@@ -906,6 +907,7 @@ class SessionRunner {
                          {"read_to_command", histogramJson(reaction_us_)}};
     summary_["telemetry"] = {{"received", s.telemetry_received},
                              {"lost", s.telemetry_lost},
+                             {"late", s.telemetry_late},
                              {"cycles_without_new_telemetry", cycles_without_telemetry_}};
     summary_["commands"] = {{"sent", s.commands_sent},
                             {"unsent_link_full", s.commands_unsent - commands_unsent_link_lost_},

@@ -133,7 +133,15 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
       if (handshake_ != HandshakeResult::kOk || !decodePayload(f.payload, f.len, t)) return;
       if (have_tel_seq_) {
         const uint16_t gap = static_cast<uint16_t>(t.seq - last_tel_seq_ - 1u);
-        if (gap < 0x8000u) stats_.telemetry_lost += gap;
+        if (gap >= 0x8000u) {
+          // Not newer than the newest: a frame that arrived late (a device's transmit queue or a bus reordered it;
+          // seen over CAN-FD in the VM lane). It is not the device's state now and its older clock is no wrap;
+          // it was counted lost when the newer one jumped over it.
+          ++stats_.telemetry_late;
+          if (stats_.telemetry_lost > 0) --stats_.telemetry_lost;
+          return;
+        }
+        stats_.telemetry_lost += gap;
         if (t.time_us < last_time_us_) ++time_wraps_;
         stats_.device_cmd_lost += static_cast<uint8_t>(t.cmd_lost - last_dev_cmd_lost_);
         stats_.device_rx_errors += static_cast<uint8_t>(t.rx_errors - last_dev_rx_errors_);

@@ -290,6 +290,27 @@ TEST_F(CoreTest, LostCommandsAreCountedFromSequenceGaps) {
   EXPECT_EQ(core.counters().cmd_lost, 5u);
 }
 
+TEST_F(CoreTest, TelemetryThatArrivesLateIsDroppedNeitherLostNorAClockWrap) {
+  // Seen over CAN-FD in the VM lane: a frame older than the newest received. Before, its older device time was
+  // taken for a 32-bit wrap (the device clock jumped 71 minutes) and it replaced the newest state.
+  openSession();
+  tick();
+  const host::TelemetryFrame first = host.latest();
+  auto deviceSends = [&](uint16_t dseq) {
+    protocol::Telemetry t;
+    t.seq = static_cast<uint16_t>(first.seq + dseq);
+    t.time_us = static_cast<uint32_t>(first.device_time_us + 1000u * dseq);
+    uint8_t f[protocol::kMaxEncodedFrame];
+    pipe.end(0).write(f, protocol::encodeFrame(t, f));
+  };
+  for (int d : {1, 3, 2, 4}) deviceSends(static_cast<uint16_t>(d));
+  host.poll(board.clock().nowUs() * 1000);
+  EXPECT_EQ(host.stats().telemetry_lost, 0u);
+  EXPECT_EQ(host.stats().telemetry_late, 1u);
+  EXPECT_EQ(host.latest().seq, static_cast<uint16_t>(first.seq + 4));
+  EXPECT_EQ(host.latest().device_time_us, first.device_time_us + 4000u) << "no wrap";
+}
+
 TEST_F(CoreTest, TelemetryEchoesTheCommandAndCountsNoLossOnAQuietLink) {
   openSession();
   for (int i = 0; i < 500; ++i) {

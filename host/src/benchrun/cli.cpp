@@ -31,7 +31,8 @@ std::string chooseDevice(Plan& plan, const std::string& device, bool lockstep) {
 
 }  // namespace
 
-int benchRunMain(const std::string& plan_path, const std::string& report_path, const std::string& device, bool lockstep) {
+int benchRunMain(const std::string& plan_path, const std::string& report_path, const std::string& device, bool lockstep,
+                 bool realtime) {
   Plan plan;
   std::string err = loadPlanFile(plan_path, plan);
   if (err.empty()) err = chooseDevice(plan, device, lockstep);
@@ -71,7 +72,9 @@ int benchRunMain(const std::string& plan_path, const std::string& report_path, c
     }
     last_pct = pct;
   };
-  const PlanResult result = lockstep ? runPlan(plan, show) : runPlanOnDevice(plan, show, DeviceRunOptions{});
+  DeviceRunOptions on_device;
+  on_device.realtime = realtime;
+  const PlanResult result = lockstep ? runPlan(plan, show) : runPlanOnDevice(plan, show, on_device);
   if (tty) std::fputc('\n', stderr);
   for (const StepResult& s : result.steps) {
     std::fprintf(stderr, "%s  %s%s%s\n", s.pass ? "PASS" : "FAIL", s.name.c_str(), s.error.empty() ? "" : ": ",

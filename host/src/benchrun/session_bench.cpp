@@ -395,7 +395,16 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
   const uint64_t dev_first = frames.empty() ? 0 : frames.front().dev_us;
   const size_t ticks = frames.empty() ? 0 : static_cast<size_t>(std::llround(static_cast<double>(frames.back().dev_us - dev_first) / tick_us)) + 1;
   if (ticks > 2 * frames.size() + 1000) {  // a device clock that jumped (a reset): nothing to put on one grid
-    r.error = "device: its clock jumped during the step (" + std::to_string(ticks) + " ticks for " + std::to_string(frames.size()) + " frames)";
+    size_t j = 1;
+    while (j < frames.size() && frames[j].dev_us - frames[j - 1].dev_us < 1000000u) ++j;
+    char at[200] = "";
+    if (j < frames.size()) {
+      std::snprintf(at, sizeof at, "; at frame %zu: %llu us (seq %u) after %llu us (seq %u)", j,
+                    static_cast<unsigned long long>(frames[j].dev_us), frames[j].seq,
+                    static_cast<unsigned long long>(frames[j - 1].dev_us), frames[j - 1].seq);
+    }
+    r.error = "device: its clock jumped during the step (" + std::to_string(ticks) + " ticks for " +
+              std::to_string(frames.size()) + " frames" + at + ")";
     return r;
   }
   StepSeries ser;

@@ -27,7 +27,8 @@ struct TelemetryFrame {
 
 struct LinkStats {
   uint64_t telemetry_received = 0;
-  uint64_t telemetry_lost = 0;       ///< gaps in the telemetry sequence
+  uint64_t telemetry_lost = 0;       ///< gaps in the telemetry sequence (not counting frames that came late)
+  uint64_t telemetry_late = 0;       ///< frames older than the newest received (reordered): dropped, not lost
   uint64_t commands_sent = 0;
   uint64_t commands_unsent = 0;      ///< link buffer full
   uint64_t device_cmd_lost = 0;      ///< commands the device reported missing from the sequence (unwrapped)

@@ -210,5 +210,5 @@ namespace phalanx::host::benchrun {
 /// device: "" or a device string that replaces the plan's (its type must be the plan's device_type); lockstep: run
 /// a sim: plan in lockstep (runPlan) instead of in real time on the device (runPlanOnDevice).
 int benchRunMain(const std::string& plan_path, const std::string& report_path, const std::string& device = "",
-                 bool lockstep = false);
+                 bool lockstep = false, bool realtime = true);
 }  // namespace phalanx::host::benchrun
