@@ -160,7 +160,7 @@ class BenchHooks : public SessionHooks {
       return std::string("instrument: no fresh reading before the plan (") + rd.last_error + ")";
     }
     watch_.emplace(plan_);
-    started_ = true;
+    started_.store(true);
     return {};
   }
 
@@ -193,7 +193,7 @@ class BenchHooks : public SessionHooks {
   size_t progressStep() const { return progress_step_.load(std::memory_order_relaxed); }
   double progressFraction() const { return progress_frac_.load(std::memory_order_relaxed); }
 
-  bool started() const { return started_; }
+  bool started() const { return started_.load(); }  ///< from any thread
   /// After the session: each step's result, aligned and scored.
   std::vector<StepResult> finish();
 
@@ -262,7 +262,8 @@ class BenchHooks : public SessionHooks {
   std::unique_ptr<modbus::InstrumentClient> inst_;
   modbus::InstrumentConfig instrument_cfg_;
   nlohmann::json link_, summary_;
-  bool started_ = false, done_ = false;
+  std::atomic<bool> started_{false};  ///< read by the progress thread
+  bool done_ = false;
   size_t in_step_ = 0, last_sample_cycle_ = 0, stop_cycle_ = 0;
   uint64_t last_sample_ns_ = 0;
   uint16_t stop_seq_ = 0;
