@@ -341,6 +341,11 @@ int main(int argc, char** argv) {
   TruthInstrument instrument;
   instrument.addOptions(cli);
   cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
+  int fifo = 0;
+  cli.add_option("--fifo", fifo,
+                 "run under SCHED_FIFO at this priority with memory locked (0: off): a simulated board has a CPU of its "
+                 "own, which the host machine's load must not starve (the bench runner asks for 70)")
+      ->check(CLI::Range(0, 99));
   std::string settings_path;
   unsigned settings_layout = 0;
   cli.add_option("--settings", settings_path,
@@ -360,6 +365,10 @@ int main(int argc, char** argv) {
     return cli.exit(e);
   }
   if (exit_with_parent) prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (fifo > 0) {  // before any thread starts: the instrument's server thread inherits it
+    const linux_hal::RealtimeStatus rt = linux_hal::setupRealtime(fifo);
+    if (!rt.warning.empty()) std::fprintf(stderr, "firmware-sim: warning: %s\n", rt.warning.c_str());
+  }
   struct sigaction sa {};
   sa.sa_handler = onSignal;
   sigaction(SIGTERM, &sa, nullptr);

@@ -120,6 +120,7 @@ class BenchHooks : public SessionHooks {
       cycles += slots_.back().cycles;
     }
     rows_.reserve(cycles + kSafeWaitCycles + 16);
+    at_step_end_.resize(plan.steps.size());
     step_end_.reserve(plan.steps.size());
     samples_.reserve(static_cast<size_t>(static_cast<double>(cycles) / kFs * plan.instrument.poll_hz * 1.5) + 1024);
     const bool glove = plan.device_type == "glove5";
@@ -201,6 +202,7 @@ class BenchHooks : public SessionHooks {
   void watchInstrument(size_t k, const TelemetryFrame& tel) {
     StepResult& r = results_[state_.step];
     const modbus::InstrumentReading rd = inst_->latest(linux_hal::monotonicNs());
+    at_step_end_[state_.step] = rd;  // the step's instrument counters and error, as they were when it ran
     if (rd.valid && rd.sample_ns != last_sample_ns_) {
       if (samples_.size() < samples_.capacity()) samples_.push_back({rd.sample_ns, rd.value});
       last_sample_ns_ = rd.sample_ns;
@@ -256,6 +258,7 @@ class BenchHooks : public SessionHooks {
   std::vector<CycleRow> rows_;
   std::vector<SampleRow> samples_;
   std::vector<size_t> step_end_;  ///< rows_ index one past each finished step
+  std::vector<modbus::InstrumentReading> at_step_end_;  ///< the instrument's reading in each step's last cycle
   size_t est_index_ = 0, sp_index_ = 0;
   PlanState state_;
   std::optional<SafetyWatch> watch_;
@@ -442,7 +445,7 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
   r.link = {{"device", plan_.device}, {"where", link_}, {"device_ticks", ticks}, {"frames", frames.size()},
             {"ticks_unseen", ticks - std::min(ticks, frames.size())},
             {"telemetry_hz", ticks > 1 ? static_cast<double>(frames.size()) * 1e6 / (static_cast<double>(ticks) * tick_us) : 0.0}};
-  r.instrument_stats = inst_ ? inst_->statsJson(linux_hal::monotonicNs()) : nlohmann::json();
+  r.instrument_stats = modbus::readingStatsJson(instrument_cfg_, at_step_end_[i]);
   if (!r.safety_stop.empty()) {
     r.error = r.safety_stop;
     if (r.ticks_to_safe < 0) r.error += "; the device did not report its safe state";
@@ -585,6 +588,10 @@ PlanResult runPlanOnDevice(const Plan& plan, const Progress& progress, const Dev
       opt.sim_args.insert(opt.sim_args.end(), {"--instrument-delay-ms", d});
     }
   }
+  // The simulated board stands in for a board with a CPU of its own: under SCHED_FIFO 70 (below the session's 80,
+  // as the VM lane runs it), so the host machine's load does not starve its ticks and its amplifier. Measured without
+  // it beside stress-ng --cpu 1: 4 800 overruns in 16 s and an instrument delay wandering 14-46 ms within a step.
+  if (sim && o.realtime) opt.sim_args.insert(opt.sim_args.end(), {"--fifo", "70"});
   BenchHooks hooks(plan, sim_instrument);
   opt.hooks = &hooks;
   // Progress from a thread of its own: the session thread only stores two counters.

@@ -116,9 +116,10 @@ InstrumentReading InstrumentClient::latest(uint64_t now_ns) {
   return r;
 }
 
-nlohmann::json InstrumentClient::statsJson(uint64_t now_ns) {
-  const InstrumentReading r = latest(now_ns);
-  return {{"transport", cfg_.transport},
+nlohmann::json InstrumentClient::statsJson(uint64_t now_ns) { return readingStatsJson(cfg_, latest(now_ns)); }
+
+nlohmann::json readingStatsJson(const InstrumentConfig& cfg, const InstrumentReading& r) {
+  return {{"transport", cfg.transport},
           {"polls_ok", r.polls_ok},
           {"errors", r.errors},
           {"timeouts", r.timeouts},

@@ -67,4 +67,7 @@ class InstrumentClient {
   InstrumentReading last_{};
 };
 
+/// A reading's counters and last error as JSON (what statsJson reports, for a reading kept from earlier).
+nlohmann::json readingStatsJson(const InstrumentConfig& cfg, const InstrumentReading& r);
+
 }  // namespace phalanx::host::modbus
