@@ -434,14 +434,23 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
     if (std::isfinite(ser.est[t])) held = ser.est[t];
     est_held[t] = held;
   }
+  // The instrument's samples on the device's clock (ms since the step's first tick): between the two ticks whose
+  // host times enclose a sample's arrival. The delay is then the device's time, so a simulated board whose clock
+  // loses the ticks a loaded machine delayed still shows its instrument's delay in its own ticks.
   std::vector<double> s_ms, v;
+  const double tick_ms = tick_us * 1e-3;
+  size_t at = 0;
   for (const SampleRow& smp : samples_) {
     const double ms = static_cast<double>(smp.ns) * 1e-6;
-    if (ticks > 0 && ms >= T.front() && ms <= T.back() + kMaxLagMs) {
-      s_ms.push_back(ms);
-      v.push_back(smp.value);
-    }
+    if (ticks == 0 || ms < T.front() || ms > T.back() + kMaxLagMs) continue;
+    while (at + 1 < ticks && T[at + 1] <= ms) ++at;
+    const double span = at + 1 < ticks ? T[at + 1] - T[at] : 0.0;
+    const double frac = span > 0.0 ? std::min(1.0, (ms - T[at]) / span) : 0.0;
+    s_ms.push_back(at + 1 < ticks ? (static_cast<double>(at) + frac) * tick_ms
+                                  : static_cast<double>(ticks - 1) * tick_ms + (ms - T.back()));
+    v.push_back(smp.value);
   }
+  for (size_t t = 0; t < ticks; ++t) T[t] = static_cast<double>(t) * tick_ms;  // from here on: device time
   r.link = {{"device", plan_.device}, {"where", link_}, {"device_ticks", ticks}, {"frames", frames.size()},
             {"ticks_unseen", ticks - std::min(ticks, frames.size())},
             {"telemetry_hz", ticks > 1 ? static_cast<double>(frames.size()) * 1e6 / (static_cast<double>(ticks) * tick_us) : 0.0}};
