@@ -319,6 +319,25 @@ std::vector<double> tickTimesOnHost(const std::vector<CycleRow>& frames) {
   return out;
 }
 
+/// The instrument's samples on the device's clock (ms since the step's first tick), given each tick's host time T:
+/// between the two ticks whose host times enclose a sample's arrival. A delay is then in the device's own time, so a
+/// simulated board whose clock loses the ticks a loaded machine delayed still shows its instrument's delay in ticks.
+void samplesOnDeviceClock(const std::vector<double>& T, const std::vector<SampleRow>& samples, double tick_ms,
+                          std::vector<double>& s_ms, std::vector<double>& v) {
+  const size_t ticks = T.size();
+  size_t at = 0;
+  for (const SampleRow& smp : samples) {
+    const double ms = static_cast<double>(smp.ns) * 1e-6;
+    if (ticks == 0 || ms < T.front() || ms > T.back() + kMaxLagMs) continue;
+    while (at + 1 < ticks && T[at + 1] <= ms) ++at;
+    const double span = at + 1 < ticks ? T[at + 1] - T[at] : 0.0;
+    const double frac = span > 0.0 ? std::min(1.0, (ms - T[at]) / span) : 0.0;
+    s_ms.push_back(at + 1 < ticks ? (static_cast<double>(at) + frac) * tick_ms
+                                  : static_cast<double>(ticks - 1) * tick_ms + (ms - T.back()));
+    v.push_back(smp.value);
+  }
+}
+
 /// Pearson correlation of the instrument's samples [i0, i1) against the estimate held at (sample time − lag_ms).
 double correlationAt(const std::vector<double>& T, const std::vector<double>& est, const std::vector<double>& s,
                      const std::vector<double>& v, size_t i0, size_t i1, double lag_ms) {
@@ -434,22 +453,9 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
     if (std::isfinite(ser.est[t])) held = ser.est[t];
     est_held[t] = held;
   }
-  // The instrument's samples on the device's clock (ms since the step's first tick): between the two ticks whose
-  // host times enclose a sample's arrival. The delay is then the device's time, so a simulated board whose clock
-  // loses the ticks a loaded machine delayed still shows its instrument's delay in its own ticks.
-  std::vector<double> s_ms, v;
   const double tick_ms = tick_us * 1e-3;
-  size_t at = 0;
-  for (const SampleRow& smp : samples_) {
-    const double ms = static_cast<double>(smp.ns) * 1e-6;
-    if (ticks == 0 || ms < T.front() || ms > T.back() + kMaxLagMs) continue;
-    while (at + 1 < ticks && T[at + 1] <= ms) ++at;
-    const double span = at + 1 < ticks ? T[at + 1] - T[at] : 0.0;
-    const double frac = span > 0.0 ? std::min(1.0, (ms - T[at]) / span) : 0.0;
-    s_ms.push_back(at + 1 < ticks ? (static_cast<double>(at) + frac) * tick_ms
-                                  : static_cast<double>(ticks - 1) * tick_ms + (ms - T.back()));
-    v.push_back(smp.value);
-  }
+  std::vector<double> s_ms, v;
+  samplesOnDeviceClock(T, samples_, tick_ms, s_ms, v);
   for (size_t t = 0; t < ticks; ++t) T[t] = static_cast<double>(t) * tick_ms;  // from here on: device time
   r.link = {{"device", plan_.device}, {"where", link_}, {"device_ticks", ticks}, {"frames", frames.size()},
             {"ticks_unseen", ticks - std::min(ticks, frames.size())},
