@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -306,6 +307,84 @@ void printLinkStats(const phalanx::linux_hal::FfsLink* ffs, const phalanx::linux
   }
 }
 
+/// The simulated board's code flash (--flash): the STM32G474's geometry (256 pages of 2 KiB), image slot 0 in
+/// pages 0-119, the boot record's two copies in pages 120-121, slot 1 in pages 128-247 (bank 2). firmware-sim
+/// cannot execute the ARM code a slot holds: "booting" a slot is taking its image's identity (the build id the
+/// HelloAck reports) after the same checks the boot stage makes (docs/firmware-update.md).
+class CodeFlash {
+ public:
+  static constexpr size_t kPages = 256, kPageSize = 2048;
+  bool enabled() const { return enabled_; }
+
+  /// Open the file; when no slot holds a valid image and `provision` is given, write it into slot 0 first.
+  std::string open(const std::string& path, const std::string& provision, uint8_t device_type) {
+    enabled_ = true;
+    layout_.slot_first_page[0] = 0;
+    layout_.slot_first_page[1] = 128;
+    layout_.slot_pages = 120;
+    layout_.record_first_page = 120;
+    layout_.board = static_cast<uint8_t>(phalanx::image::BoardId::kStm32g474);
+    layout_.device_type = device_type;
+    if (std::string err = flash_.open(path); !err.empty()) return "--flash " + err;
+    boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+    if (!boot_.valid && !provision.empty()) {
+      if (std::string err = provisionSlot0(provision); !err.empty()) return "--flash-provision " + provision + ": " + err;
+      boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+    }
+    if (!boot_.valid) {
+      return "--flash " + path + ": neither slot holds a valid " + std::string(phalanx::protocol::layoutFor(
+                 static_cast<phalanx::protocol::DeviceType>(device_type))->name) +
+             " image for the stm32g474 board (give --flash-provision IMAGE)";
+    }
+    updater_.emplace(flash_, layout_, boot_);
+    return {};
+  }
+  /// The board resets (after a committed update): the boot stage chooses again, the updater starts afresh.
+  void reboot() {
+    boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+    updater_.emplace(flash_, layout_, boot_);
+  }
+  void report(const char* when) const {
+    std::fprintf(stderr, "firmware-sim: %s: slot %u build %08x (boot record seq %u)%s\n", when, boot_.slot,
+                 static_cast<unsigned>(boot_.build_id), static_cast<unsigned>(boot_.record_sequence),
+                 boot_.fell_back ? ", fell back: the record's slot did not verify" : "");
+  }
+  phalanx::fw::FirmwareUpdate* updater() { return updater_ ? &*updater_ : nullptr; }
+  const phalanx::fw::BootChoice& boot() const { return boot_; }
+  phalanx::sim::FileFlash& flash() { return flash_; }
+
+ private:
+  std::string provisionSlot0(const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (f == nullptr) return std::strerror(errno);
+    std::vector<uint8_t> bytes(layout_.slot_pages * kPageSize + 1);
+    const size_t n = std::fread(bytes.data(), 1, bytes.size(), f);
+    std::fclose(f);
+    if (n == 0 || n > layout_.slot_pages * kPageSize) return std::to_string(n) + " bytes: empty or larger than a slot";
+    bytes.resize((n + 7) / 8 * 8, 0xFF);
+    for (size_t at = 0; at < bytes.size(); at += kPageSize) {
+      const size_t take = bytes.size() - at < kPageSize ? bytes.size() - at : kPageSize;
+      if (!flash_.erase(at / kPageSize) || !flash_.program(at / kPageSize, 0, &bytes[at], take)) return "flash write failed";
+    }
+    phalanx::image::ImageInfo info;
+    if (!phalanx::fw::verifySlot(flash_, layout_, 0, &info)) {
+      return "not a valid image for this board and device (image-info block, board stm32g474, device type, CRC)";
+    }
+    phalanx::fw::BootRecord rec;
+    rec.slot = 0;
+    rec.image_size = info.image_size;
+    rec.image_crc32 = info.image_crc32;
+    rec.build_id = info.build_id;
+    return phalanx::fw::writeBootRecord(flash_, layout_, rec) ? "" : "boot record write failed";
+  }
+
+  bool enabled_ = false;
+  phalanx::sim::FileFlash flash_{kPages, kPageSize};
+  phalanx::fw::UpdateLayout layout_;
+  phalanx::fw::BootChoice boot_;
+  std::optional<phalanx::fw::FirmwareUpdate> updater_;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -359,6 +438,16 @@ int main(int argc, char** argv) {
   cli.add_option("--inject", inject_args,
                  "fail an input on the board's clock (repeatable): sensor-range@T, sensor-stuck@T, estop@T+D (seconds; "
                  "docs/soak.md)");
+  std::string flash_path, flash_provision;
+  long long power_cut_after = -1;
+  cli.add_option("--flash", flash_path,
+                 "the board's code flash (two image slots and a boot record, the STM32G474's geometry), kept in this file: "
+                 "firmware update over the link; the HelloAck's build id is the booted slot's (docs/firmware-update.md)");
+  cli.add_option("--flash-provision", flash_provision,
+                 "when no slot of --flash holds a valid image, write this one into slot 0 first (as the factory would)");
+  cli.add_option("--flash-power-cut-after", power_cut_after,
+                 "lose power after this many more bytes are programmed into --flash: the process ends at once with status 75")
+      ->check(CLI::Range(0ll, 1ll << 30));
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -459,14 +548,29 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  CodeFlash code_flash;
+  if (!flash_path.empty()) {
+    if (const std::string err = code_flash.open(flash_path, flash_provision, static_cast<uint8_t>(dev->app().layout().type));
+        !err.empty()) {
+      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
+      return 2;
+    }
+    if (power_cut_after >= 0) code_flash.flash().cutPowerAfter(static_cast<size_t>(power_cut_after));
+  } else if (!flash_provision.empty() || power_cut_after >= 0) {
+    std::fprintf(stderr, "firmware-sim: error: --flash-provision and --flash-power-cut-after need --flash\n");
+    return 2;
+  }
   fw::CoreConfig cfg;
   cfg.settings = settings.get();
   cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
-  cfg.firmware_build_id = PHALANX_BUILD_ID;
+  cfg.firmware_build_id = code_flash.enabled() ? code_flash.boot().build_id : PHALANX_BUILD_ID;
+  cfg.update = code_flash.updater();
   cfg.device_variant = dev->variant();  // sea_rig: the sea_finger firmware on the test rig
-  fw::FirmwareCore core(board.board(), dev->app(), cfg);
+  std::optional<fw::FirmwareCore> core;  // re-made when the board resets after an update
+  core.emplace(board.board(), dev->app(), cfg);
   LogObserver observer;
-  core.setObserver(&observer);
+  core->setObserver(&observer);
+  if (code_flash.enabled()) code_flash.report("boot");
   if (settings) {
     const fw::SettingsReport& r = settings->lastLoad();
     std::fprintf(stderr, "firmware-sim: settings layout v%u: %s (record v%u seq %u) applied=%u refused=%u dropped=%u\n",
@@ -517,7 +621,7 @@ int main(int argc, char** argv) {
       truth.write(board.clock().nowUs(), truth_values);
       instrument.update(truth_values);
     }
-    const uint64_t deadline_us = core.commandDeadlineUs();
+    const uint64_t deadline_us = core->commandDeadlineUs();
     if (use_ffs) {
       ffs.service();
       if (ffs.online() != ffs_online) {
@@ -540,7 +644,21 @@ int main(int argc, char** argv) {
         tty_reopen_at = n + tick_hz / 20;  // every 50 ms
       }
     }
-    core.tick();
+    core->tick();
+    if (code_flash.enabled() && code_flash.flash().powerLost()) {
+      std::fprintf(stderr, "firmware-sim: power lost (--flash-power-cut-after) t_us=%llu\n",
+                   static_cast<unsigned long long>(board.clock().nowUs()));
+      std::_Exit(75);  // as a board losing power: nothing more is written or flushed
+    }
+    if (cfg.update != nullptr && cfg.update->rebootRequested()) {
+      board.board().pwm->disableAll();
+      code_flash.reboot();
+      cfg.firmware_build_id = code_flash.boot().build_id;
+      cfg.update = code_flash.updater();
+      core.emplace(board.board(), dev->app(), cfg);
+      core->setObserver(&observer);
+      code_flash.report("reset after the update, boot");
+    }
     if (use_can) {
       can.flush();
     } else if (use_tty) {
@@ -554,7 +672,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "firmware-sim: SAFE t_us=%llu deadline_us=%llu period_us=%llu faults=0x%04x\n",
                    static_cast<unsigned long long>(board.clock().nowUs()),
                    static_cast<unsigned long long>(deadline_us), static_cast<unsigned long long>(period_us),
-                   core.faultBits());
+                   core->faultBits());
     }
     was_active = active;
     tick_times.add(woke_ns - timer.lastDeadlineNs(), linux_hal::monotonicNs() - woke_ns);
@@ -564,10 +682,10 @@ int main(int argc, char** argv) {
   std::fprintf(stderr,
                "firmware-sim: stopped ticks=%u overruns=%llu commands=%u rejected=%u cmd_lost=%u cmd_stale=%u rx_crc=%u "
                "rx_framing=%u rx_invalid=%u rx_wrong_direction=%u tx_dropped=%u faults=0x%04x\n",
-               core.counters().ticks, static_cast<unsigned long long>(overruns), core.counters().commands_applied,
-               core.counters().commands_rejected, core.counters().cmd_lost, core.counters().cmd_stale,
-               core.rxStats().crc_errors, core.rxStats().framing_errors, core.counters().frames_invalid,
-               core.counters().frames_wrong_direction, core.counters().tx_dropped, core.faultBits());
+               core->counters().ticks, static_cast<unsigned long long>(overruns), core->counters().commands_applied,
+               core->counters().commands_rejected, core->counters().cmd_lost, core->counters().cmd_stale,
+               core->rxStats().crc_errors, core->rxStats().framing_errors, core->counters().frames_invalid,
+               core->counters().frames_wrong_direction, core->counters().tx_dropped, core->faultBits());
   tick_times.print();
   if (instrument.enabled()) {
     std::fprintf(stderr, "firmware-sim: instrument requests=%llu\n", static_cast<unsigned long long>(instrument.requests()));

@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
-#include <random>
 
 #include "cli_args.h"
 #include "phalanx/host/device_link.h"
@@ -82,22 +81,7 @@ std::string openDevice(const RunOptions& opt, double timeout_s, Device& d) {
   if (!d.link) return error;
   d.session = std::make_unique<HostSession>(d.link->makeSession());
   d.timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
-  std::random_device rd;
-  const uint32_t session_id = rd();
-  const uint64_t t0 = linux_hal::monotonicNs();
-  uint64_t last_hello = 0;
-  while (d.session->handshake() == HandshakeResult::kPending) {
-    const uint64_t now = linux_hal::monotonicNs();
-    if (now - t0 > d.timeout_ns) return "the device did not answer the handshake on " + d.link->where();
-    if (last_hello == 0 || now - last_hello > 500000000ull) {  // repeat the Hello: a backed-up link may lose one
-      d.session->sendHello(session_id, d.link->expectedDevice());
-      d.link->push();
-      last_hello = now;
-    }
-    usleep(1000);
-    d.session->poll(linux_hal::monotonicNs());
-  }
-  if (d.session->handshake() != HandshakeResult::kOk) return d.session->handshakeError();
+  if (std::string err = handshakeDevice(*d.link, *d.session, timeout_s); !err.empty()) return err;
   d.type = d.session->deviceInfo().device_type;
   // Which parameters this firmware keeps: its settings layout (an older firmware keeps fewer).
   protocol::ParamValue a;

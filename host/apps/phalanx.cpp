@@ -5,6 +5,7 @@
 //   phalanx mcu-diag       an MCU board's control-tick statistics through the protocol
 //   phalanx param          device parameters, persistent settings, YAML backup and restore (param_cli.cpp)
 //   phalanx flash          check a firmware image and write it into a board (flash_cli.cpp)
+//   phalanx update         firmware update over the board's own link (update_cli.cpp)
 //   phalanx can            CAN bus-load budget and measurement
 //   phalanx devices        the devices the daemons on the network announce over DDS
 //   phalanx bench          single benches and bench plans (bench_cli.cpp)
@@ -28,6 +29,7 @@
 #include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/protocol/messages.h"
 #include "therapy_cli.h"
+#include "update_cli.h"
 
 namespace {
 
@@ -223,6 +225,7 @@ int main(int argc, char** argv) {
   McuDiagCommand mcu_diag(app);
   ParamCommands param(app);
   FlashCommand flash_cmd(app);
+  UpdateCommand update_cmd(app);
   CanCommands can(app);
   DevicesCommand devices(app);
   BenchCommands bench(app);
@@ -243,6 +246,7 @@ int main(int argc, char** argv) {
   if (mcu_diag.app->parsed()) return mcu_diag.run();
   if (param.parsed()) return param.run();
   if (flash_cmd.app->parsed()) return flash_cmd.run();
+  if (update_cmd.app->parsed()) return update_cmd.run();
   if (version->parsed()) return runVersion();
   return run.run(app, argc, argv);
 }

@@ -67,16 +67,6 @@ image::ImageInfo readInfo(const std::vector<uint8_t>& b) {
 
 std::string hexAddr(uint32_t v) { return "0x" + hex32(v); }
 
-bool readFile(const std::string& path, std::vector<uint8_t>& bytes, std::string& error) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    error = "cannot read image '" + path + "': " + std::strerror(errno);
-    return false;
-  }
-  bytes.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-  return true;
-}
-
 /// Runs argv (no shell), its output going to ours; returns its exit status, or -1 with `error` when it did not run.
 int runTool(const std::vector<std::string>& argv, std::string& error) {
   std::vector<char*> args;
@@ -140,6 +130,16 @@ int verifyByHandshake(const Request& r, const image::ImageInfo& info) {
 }
 
 }  // namespace
+
+bool readImageFile(const std::string& path, std::vector<uint8_t>& bytes, std::string& error) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    error = "cannot read image '" + path + "': " + std::strerror(errno);
+    return false;
+  }
+  bytes.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  return true;
+}
 
 bool parseVia(const std::string& name, Via& via) {
   if (name == "gdb") via = Via::kGdb;
@@ -284,7 +284,7 @@ std::string shellLine(const std::vector<std::string>& argv) {
 int run(const Request& r) {
   std::vector<uint8_t> bytes;
   std::string error;
-  if (!readFile(r.image_path, bytes, error)) {
+  if (!readImageFile(r.image_path, bytes, error)) {
     std::fprintf(stderr, "phalanx flash: error: %s\n", error.c_str());
     return kExitImageRefused;
   }
@@ -325,7 +325,7 @@ int run(const Request& r) {
   }
   if (r.via == Via::kGdb) {
     std::vector<uint8_t> back;
-    const bool read = readFile(readback, back, error);
+    const bool read = readImageFile(readback, back, error);
     unlink(readback.c_str());
     if (!read || back != img.bytes) {
       std::fprintf(stderr, "phalanx flash: error: read-back differs from the image (%s)\n",

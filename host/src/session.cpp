@@ -75,6 +75,18 @@ bool HostSession::sendParamSet(uint16_t id, float value) {
   return sendMsg(set);
 }
 
+bool HostSession::sendUpdate(const protocol::UpdateBegin& m) { return sendMsg(m); }
+bool HostSession::sendUpdate(const protocol::UpdateData& m) { return sendMsg(m); }
+bool HostSession::sendUpdate(const protocol::UpdateCommit& m) { return sendMsg(m); }
+
+bool HostSession::popUpdateStatus(protocol::UpdateStatus& out) {
+  if (update_count_ == 0) return false;
+  out = update_queue_[update_head_];
+  update_head_ = (update_head_ + 1) % kUpdateStatusQueue;
+  --update_count_;
+  return true;
+}
+
 int HostSession::poll(uint64_t now_ns) {
   int telemetry = 0;
   if (packets_ != nullptr) {
@@ -203,6 +215,18 @@ void HostSession::handleFrame(const Frame& f, uint64_t now_ns) {
     }
     case MsgId::kParamValue: {
       if (decodePayload(f.payload, f.len, last_param_)) param_valid_ = true;
+      return;
+    }
+    case MsgId::kUpdateStatus: {
+      protocol::UpdateStatus st;
+      if (!decodePayload(f.payload, f.len, st)) return;
+      if (update_count_ == kUpdateStatusQueue) {  // full: the oldest goes
+        update_head_ = (update_head_ + 1) % kUpdateStatusQueue;
+        --update_count_;
+        ++update_dropped_;
+      }
+      update_queue_[(update_head_ + update_count_) % kUpdateStatusQueue] = st;
+      ++update_count_;
       return;
     }
     default:

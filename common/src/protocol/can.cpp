@@ -31,6 +31,10 @@ bool functionFor(uint8_t msg_id, Function& fn) {
     case MsgId::kParamGet: fn = Function::kParamGet; return true;
     case MsgId::kParamSet: fn = Function::kParamSet; return true;
     case MsgId::kParamValue: fn = Function::kParamValue; return true;
+    case MsgId::kUpdateBegin: fn = Function::kUpdateBegin; return true;
+    case MsgId::kUpdateData: fn = Function::kUpdateData; return true;
+    case MsgId::kUpdateCommit: fn = Function::kUpdateCommit; return true;
+    case MsgId::kUpdateStatus: fn = Function::kUpdateStatus; return true;
   }
   return false;
 }
@@ -47,6 +51,10 @@ uint8_t messageFor(uint8_t fn) {
     case Function::kParamGet: return static_cast<uint8_t>(MsgId::kParamGet);
     case Function::kParamSet: return static_cast<uint8_t>(MsgId::kParamSet);
     case Function::kParamValue: return static_cast<uint8_t>(MsgId::kParamValue);
+    case Function::kUpdateBegin: return static_cast<uint8_t>(MsgId::kUpdateBegin);
+    case Function::kUpdateData: return static_cast<uint8_t>(MsgId::kUpdateData);
+    case Function::kUpdateCommit: return static_cast<uint8_t>(MsgId::kUpdateCommit);
+    case Function::kUpdateStatus: return static_cast<uint8_t>(MsgId::kUpdateStatus);
     default: return 0;
   }
 }
@@ -58,7 +66,10 @@ bool hostSends(uint8_t msg_id) {
     case MsgId::kCommand:
     case MsgId::kClearFaults:
     case MsgId::kParamGet:
-    case MsgId::kParamSet: return true;
+    case MsgId::kParamSet:
+    case MsgId::kUpdateBegin:
+    case MsgId::kUpdateData:
+    case MsgId::kUpdateCommit: return true;
     default: return false;
   }
 }
@@ -69,6 +80,11 @@ bool hostSendsFunction(uint8_t fn) {
   }
   const uint8_t msg = messageFor(fn);
   return msg != 0 && hostSends(msg);
+}
+
+/// Firmware update messages: CAN-FD only (UpdateData alone is 56 bytes).
+bool isUpdateMessage(uint8_t msg_id) {
+  return msg_id >= static_cast<uint8_t>(MsgId::kUpdateBegin) && msg_id <= static_cast<uint8_t>(MsgId::kUpdateStatus);
 }
 
 /// CRC-16/CCITT-FALSE over msg_id | payload: the same check as the byte-stream framing.
@@ -223,6 +239,11 @@ bool Mapper::encodeCompact(uint8_t msg_id, const uint8_t* payload, CanFrame& f, 
 
 size_t Mapper::encodeClassic(uint8_t msg_id, const uint8_t* payload, size_t len, CanFrame* out, EncodeStatus& status) {
   status = EncodeStatus::kOk;
+  if (isUpdateMessage(msg_id)) {
+    refusal_ = "firmware update messages travel on CAN-FD only (docs/firmware-update.md)";
+    status = EncodeStatus::kNotRepresentable;
+    return 0;
+  }
   auto frame = [&](size_t i, Function fn, uint8_t n) -> CanFrame& {
     out[i] = CanFrame{};
     out[i].id = canId(fn, node_);
@@ -599,7 +620,7 @@ bool Mapper::decodeClassic(const CanFrame& f, uint8_t fn, uint8_t& msg_id, uint8
     }
     default: {
       const uint8_t msg = messageFor(fn);
-      if (msg == 0) {
+      if (msg == 0 || isUpdateMessage(msg)) {
         ++stats_.bad_id;
         return false;
       }

@@ -362,6 +362,86 @@ bool decodePayload(const uint8_t* in, size_t len, ParamValue& m) {
   return true;
 }
 
+void encodePayload(const UpdateBegin& m, uint8_t* out) {
+  Writer w(out);
+  w.u32(m.image_size);
+  w.u32(m.image_crc32);
+  w.u32(m.build_id);
+  w.u8(m.device_type);
+  w.u8(m.board);
+  w.u16(m.reserved);
+  w.u32(m.session_id);
+}
+bool decodePayload(const uint8_t* in, size_t len, UpdateBegin& m) {
+  if (len != UpdateBegin::kWireSize) return false;
+  Reader r(in);
+  m.image_size = r.u32();
+  m.image_crc32 = r.u32();
+  m.build_id = r.u32();
+  m.device_type = r.u8();
+  m.board = r.u8();
+  m.reserved = r.u16();
+  m.session_id = r.u32();
+  return true;
+}
+
+void encodePayload(const UpdateData& m, uint8_t* out) {
+  Writer w(out);
+  w.u32(m.offset);
+  w.u8(m.length);
+  for (uint8_t b : m.reserved) w.u8(b);
+  for (uint8_t b : m.data) w.u8(b);
+}
+bool decodePayload(const uint8_t* in, size_t len, UpdateData& m) {
+  if (len != UpdateData::kWireSize) return false;
+  Reader r(in);
+  m.offset = r.u32();
+  m.length = r.u8();
+  for (uint8_t& b : m.reserved) b = r.u8();
+  for (uint8_t& b : m.data) b = r.u8();
+  return true;
+}
+
+void encodePayload(const UpdateCommit& m, uint8_t* out) {
+  Writer w(out);
+  w.u32(m.image_crc32);
+  w.u32(m.build_id);
+}
+bool decodePayload(const uint8_t* in, size_t len, UpdateCommit& m) {
+  if (len != UpdateCommit::kWireSize) return false;
+  Reader r(in);
+  m.image_crc32 = r.u32();
+  m.build_id = r.u32();
+  return true;
+}
+
+void encodePayload(const UpdateStatus& m, uint8_t* out) {
+  Writer w(out);
+  w.u8(static_cast<uint8_t>(m.answers));
+  w.u8(static_cast<uint8_t>(m.result));
+  w.u8(m.detail);
+  w.u8(m.slot);
+  w.u32(m.next_offset);
+  w.u32(m.value);
+}
+bool decodePayload(const uint8_t* in, size_t len, UpdateStatus& m) {
+  if (len != UpdateStatus::kWireSize) return false;
+  Reader r(in);
+  const uint8_t answers = r.u8();
+  if (answers < static_cast<uint8_t>(MsgId::kUpdateBegin) || answers > static_cast<uint8_t>(MsgId::kUpdateCommit)) {
+    return false;
+  }
+  m.answers = static_cast<MsgId>(answers);
+  const uint8_t result = r.u8();
+  if (result >= kUpdateResultCount) return false;
+  m.result = static_cast<UpdateResult>(result);
+  m.detail = r.u8();
+  m.slot = r.u8();
+  m.next_offset = r.u32();
+  m.value = r.u32();
+  return true;
+}
+
 size_t finishFrame(uint8_t* out, size_t len) {
   // out[1] = id, out[2 .. 2 + len) = payload. One pass over id | payload: CRC four bytes at a time, and every zero
   // byte found in the same words becomes a COBS code pointing back at the previous code position.

@@ -22,7 +22,8 @@ constexpr bool seqNewer(uint16_t seq, uint16_t than) {
 }
 /// Messages only a device sends: received by a device they are rejected (wrong direction).
 bool deviceSends(MsgId id) {
-  return id == MsgId::kHelloAck || id == MsgId::kTelemetry || id == MsgId::kEvent || id == MsgId::kParamValue;
+  return id == MsgId::kHelloAck || id == MsgId::kTelemetry || id == MsgId::kEvent || id == MsgId::kParamValue ||
+         id == MsgId::kUpdateStatus;
 }
 Event makeEvent(EventCode code, uint64_t now_us, float value) {
   Event ev;
@@ -183,6 +184,7 @@ void FirmwareCore::handleCommandFrame(const protocol::Frame& frame, uint64_t now
   uint8_t channel = kNoChannel;
   float value = 0.0f;
   if (findFieldError(cmd, reason, channel, value)) return reject(reason, channel, value, now_us);
+  if (updating()) return reject(RejectReason::kUpdateInProgress, kNoChannel, 0.0f, now_us);
   apply(cmd, now_us);
 }
 
@@ -316,6 +318,38 @@ void FirmwareCore::handleParamSet(const protocol::Frame& frame) {
   send(answer);
 }
 
+void FirmwareCore::handleUpdate(const protocol::Frame& frame) {
+  const auto id = static_cast<MsgId>(frame.id);
+  protocol::UpdateBegin begin;
+  protocol::UpdateData data;
+  protocol::UpdateCommit commit;
+  const bool ok = id == MsgId::kUpdateBegin  ? protocol::decodePayload(frame.payload, frame.len, begin)
+                  : id == MsgId::kUpdateData ? protocol::decodePayload(frame.payload, frame.len, data)
+                                             : protocol::decodePayload(frame.payload, frame.len, commit);
+  if (!ok) {
+    ++counters_.frames_invalid;
+    return;
+  }
+  protocol::UpdateStatus answer;
+  answer.answers = id;
+  if (config_.update == nullptr) {
+    answer.result = protocol::UpdateResult::kNoUpdater;
+  } else if (id == MsgId::kUpdateBegin) {
+    // Only with the outputs off; from then until the reboot no command drives them (kUpdateInProgress).
+    if (outputs_active_) {
+      answer.result = protocol::UpdateResult::kBusy;
+    } else {
+      answer = config_.update->begin(begin, session_open_ ? session_id_ : 0u);
+      if (updating()) have_command_ = false;
+    }
+  } else if (id == MsgId::kUpdateData) {
+    answer = config_.update->data(data);
+  } else {
+    answer = config_.update->commit(commit);
+  }
+  send(answer);
+}
+
 void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
   const auto id = static_cast<MsgId>(frame.id);
   if (deviceSends(id)) {
@@ -333,6 +367,9 @@ void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
     case MsgId::kClearFaults: return handleClearFaults(frame, now_us);
     case MsgId::kParamGet: return handleParamGet(frame);
     case MsgId::kParamSet: return handleParamSet(frame);
+    case MsgId::kUpdateBegin:
+    case MsgId::kUpdateData:
+    case MsgId::kUpdateCommit: return handleUpdate(frame);
     default: ++counters_.frames_invalid; return;  // an ID no transport should have delivered
   }
 }
@@ -396,7 +433,7 @@ void FirmwareCore::tick() {
   sensor_conditions_ = app_.sense(dt_s_);
   if (sensor_conditions_ != 0) latch(sensor_conditions_, now_us);
 
-  const bool run = faults_ == 0 && have_command_ && drivesOutputs(command_.mode);
+  const bool run = faults_ == 0 && have_command_ && !updating() && drivesOutputs(command_.mode);
   if (run) {
     if (!outputs_active_ && board_.gpio != nullptr) board_.gpio->setDriveEnable(true);
     outputs_active_ = true;

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "phalanx/fw/crc32.h"
+
 namespace phalanx::fw {
 
 namespace {
@@ -63,14 +65,7 @@ const char* settingsLoadName(SettingsLoad r) {
   return "?";
 }
 
-uint32_t settingsCrc32(const uint8_t* data, size_t n) {
-  uint32_t crc = 0xFFFFFFFFu;
-  for (size_t i = 0; i < n; ++i) {
-    crc ^= data[i];
-    for (int b = 0; b < 8; ++b) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
-  }
-  return ~crc;
-}
+uint32_t settingsCrc32(const uint8_t* data, size_t n) { return crc32(data, n); }
 
 size_t encodeSettingsRecord(const SettingsRecord& rec, uint8_t* out) {
   const uint16_t count = rec.count <= kMaxSettings ? rec.count : static_cast<uint16_t>(kMaxSettings);

@@ -80,8 +80,8 @@ std::string FileFlash::open(const std::string& path) {
   std::vector<uint8_t> buf(total + 1);
   const size_t n = std::fread(buf.data(), 1, buf.size(), f_);
   if (n != total) {
-    return path + ": " + std::to_string(n) + " bytes, a settings file holds " + std::to_string(total) +
-           " (not a settings file of this board?)";
+    return path + ": " + std::to_string(n) + " bytes, this flash file holds " + std::to_string(total) +
+           " (not a flash file of this board's geometry?)";
   }
   ram_.loadImage(buf.data(), total);
   return {};
@@ -98,7 +98,9 @@ bool FileFlash::writeThrough(size_t page) {
 bool FileFlash::erase(size_t page) { return ram_.erase(page) && writeThrough(page); }
 
 bool FileFlash::program(size_t page, size_t offset, const uint8_t* data, size_t n) {
-  return ram_.program(page, offset, data, n) && writeThrough(page);
+  // Written through even when the program failed part-way: what a torn write left is what the flash holds.
+  const bool programmed = ram_.program(page, offset, data, n);
+  return writeThrough(page) && programmed;
 }
 
 }  // namespace phalanx::sim

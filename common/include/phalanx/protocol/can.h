@@ -40,6 +40,10 @@ enum class Function : uint8_t {
   kParamGet = 0x11,          ///< host → device
   kParamSet = 0x12,          ///< host → device
   kParamValue = 0x13,        ///< device → host
+  kUpdateBegin = 0x14,       ///< host → device, CAN-FD only (firmware update: docs/firmware-update.md)
+  kUpdateData = 0x15,        ///< host → device, CAN-FD only
+  kUpdateCommit = 0x16,      ///< host → device, CAN-FD only
+  kUpdateStatus = 0x17,      ///< device → host, CAN-FD only
 };
 constexpr uint8_t kTelemetryGroups = (kMaxSamples + 3) / 4;  // 7 groups of 4 samples
 

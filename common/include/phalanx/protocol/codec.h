@@ -32,6 +32,10 @@ void encodePayload(const ClearFaults& m, uint8_t* out);
 void encodePayload(const ParamGet& m, uint8_t* out);
 void encodePayload(const ParamSet& m, uint8_t* out);
 void encodePayload(const ParamValue& m, uint8_t* out);
+void encodePayload(const UpdateBegin& m, uint8_t* out);
+void encodePayload(const UpdateData& m, uint8_t* out);
+void encodePayload(const UpdateCommit& m, uint8_t* out);
+void encodePayload(const UpdateStatus& m, uint8_t* out);
 bool decodePayload(const uint8_t* in, size_t len, Hello& m);
 bool decodePayload(const uint8_t* in, size_t len, HelloAck& m);
 bool decodePayload(const uint8_t* in, size_t len, Command& m);
@@ -41,6 +45,10 @@ bool decodePayload(const uint8_t* in, size_t len, ClearFaults& m);
 bool decodePayload(const uint8_t* in, size_t len, ParamGet& m);
 bool decodePayload(const uint8_t* in, size_t len, ParamSet& m);
 bool decodePayload(const uint8_t* in, size_t len, ParamValue& m);
+bool decodePayload(const uint8_t* in, size_t len, UpdateBegin& m);
+bool decodePayload(const uint8_t* in, size_t len, UpdateData& m);
+bool decodePayload(const uint8_t* in, size_t len, UpdateCommit& m);
+bool decodePayload(const uint8_t* in, size_t len, UpdateStatus& m);
 
 /// Frame one message for a byte stream into out (capacity ≥ kMaxEncodedFrame). Returns bytes written incl. 0x00.
 /// Single pass: the payload is serialised straight into its place in out, then one pass over id | payload computes

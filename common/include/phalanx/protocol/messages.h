@@ -27,6 +27,10 @@ enum class MsgId : uint8_t {
   kParamGet = 0x40,     ///< host → device
   kParamSet = 0x41,     ///< host → device
   kParamValue = 0x42,   ///< device → host: answer to get/set
+  kUpdateBegin = 0x50,  ///< host → device: start (or resume) a firmware update (docs/firmware-update.md)
+  kUpdateData = 0x51,   ///< host → device: one chunk of the image
+  kUpdateCommit = 0x52, ///< host → device: verify the received image and boot it
+  kUpdateStatus = 0x53, ///< device → host: answer to each of the three
 };
 
 enum class DeviceType : uint8_t {
@@ -145,6 +149,7 @@ enum class RejectReason : uint8_t {
   kBadFlags = 7,
   kReservedNotZero = 8,  ///< the reserved byte; value = it
   kStaleSequence = 9,    ///< seq not newer than the newest received this session; value = that seq
+  kUpdateInProgress = 10,  ///< a firmware update is being received: outputs stay off until it ends (a reboot)
 };
 
 /// Core parameters (ParamGet/ParamSet IDs 0x0001..0x007F, answered by the firmware core, read-only except
@@ -212,6 +217,71 @@ struct ParamValue {
   float value = 0.0f;
 };
 
+/// Firmware update over the device's own link (docs/firmware-update.md). The image goes into the slot the device
+/// did not boot from; the slot it runs from is never written, so a power or link loss at any point leaves it
+/// bootable. Chunks are sequential: UpdateStatus.next_offset is always the first byte the device still needs.
+struct UpdateBegin {
+  static constexpr MsgId kId = MsgId::kUpdateBegin;
+  static constexpr size_t kWireSize = 20;
+  uint32_t image_size = 0;   ///< bytes of the image (its image-info block's image_size)
+  uint32_t image_crc32 = 0;  ///< its image-info CRC-32
+  uint32_t build_id = 0;     ///< its build id (the HelloAck's firmware_build_id after the update)
+  uint8_t device_type = 0;   ///< protocol::DeviceType of the image
+  uint8_t board = 0;         ///< image::BoardId it was linked for
+  uint16_t reserved = 0;
+  uint32_t session_id = 0;   ///< 0 or the open session's id (any other value is refused: another host's session)
+};
+
+/// Largest chunk of image in one UpdateData (a whole number of flash program units).
+constexpr size_t kUpdateChunkBytes = 48;
+
+struct UpdateData {
+  static constexpr MsgId kId = MsgId::kUpdateData;
+  static constexpr size_t kWireSize = 8 + kUpdateChunkBytes;
+  uint32_t offset = 0;   ///< of data[0] in the image; a multiple of 8
+  uint8_t length = 0;    ///< 1..kUpdateChunkBytes; a multiple of 8 except in the image's last chunk
+  uint8_t reserved[3] = {};
+  uint8_t data[kUpdateChunkBytes] = {};  ///< bytes past length must be 0
+};
+
+struct UpdateCommit {
+  static constexpr MsgId kId = MsgId::kUpdateCommit;
+  static constexpr size_t kWireSize = 8;
+  uint32_t image_crc32 = 0;  ///< must be UpdateBegin's
+  uint32_t build_id = 0;     ///< must be UpdateBegin's
+};
+
+/// What an update request came to. Explicit values, never renumbered.
+enum class UpdateResult : uint8_t {
+  kOk = 0,            ///< begun / chunk taken (or already had) / —
+  kCommitted = 1,     ///< the image verified and is marked to boot: the device restarts into it now
+  kBusy = 2,          ///< outputs are active: stop the motion first (nothing was changed)
+  kBadImage = 3,      ///< UpdateBegin's fields do not suit this board (detail: UpdateImageField)
+  kNotStarted = 4,    ///< data or commit without a begun update (or after a failure: begin again)
+  kOutOfOrder = 5,    ///< chunk offset beyond next_offset: resend from next_offset
+  kBadChunk = 6,      ///< length or offset breaks the rules, or runs past image_size
+  kFlashError = 7,    ///< erase/program/read-back failed: begin again (the running image is untouched)
+  kVerifyFailed = 8,  ///< at commit: the received image's CRC or image-info block is wrong: begin again
+  kNoUpdater = 9,     ///< this board cannot be updated over its link
+};
+constexpr uint8_t kUpdateResultCount = 10;
+
+/// UpdateStatus.detail for kBadImage: which of UpdateBegin's fields.
+enum class UpdateImageField : uint8_t {
+  kNone = 0, kDeviceType = 1, kBoard = 2, kSize = 3, kBuildId = 4, kReserved = 5, kSession = 6,
+};
+
+struct UpdateStatus {
+  static constexpr MsgId kId = MsgId::kUpdateStatus;
+  static constexpr size_t kWireSize = 12;
+  MsgId answers = MsgId::kUpdateBegin;   ///< the request this answers
+  UpdateResult result = UpdateResult::kOk;
+  uint8_t detail = 0;                     ///< kBadImage: UpdateImageField
+  uint8_t slot = 0;                       ///< the slot being written (0 or 1)
+  uint32_t next_offset = 0;               ///< first image byte the device does not have yet
+  uint32_t value = 0;                     ///< begin: the running build id; commit: the build id it will boot
+};
+
 // The in-memory structs are laid out without padding, so sizeof equals the wire size; the codec still
 // serialises field by field (explicit little-endian), this only guards against silent layout drift.
 static_assert(sizeof(Hello) == Hello::kWireSize);
@@ -223,6 +293,11 @@ static_assert(sizeof(ClearFaults) == ClearFaults::kWireSize);
 static_assert(sizeof(ParamGet) == ParamGet::kWireSize);
 static_assert(sizeof(ParamSet) == ParamSet::kWireSize);
 static_assert(sizeof(ParamValue) == ParamValue::kWireSize);
+static_assert(sizeof(UpdateBegin) == UpdateBegin::kWireSize);
+static_assert(sizeof(UpdateData) == UpdateData::kWireSize);
+static_assert(sizeof(UpdateCommit) == UpdateCommit::kWireSize);
+static_assert(sizeof(UpdateStatus) == UpdateStatus::kWireSize);
+static_assert(UpdateData::kWireSize <= kMaxPayload && kUpdateChunkBytes % 8 == 0);
 static_assert(Telemetry::kWireSize <= kMaxPayload && Command::kWireSize <= kMaxPayload);
 
 /// Wire size of a message ID's payload, or 0 for an unknown ID.
@@ -237,6 +312,10 @@ constexpr size_t wireSize(uint8_t id) {
     case MsgId::kParamGet: return ParamGet::kWireSize;
     case MsgId::kParamSet: return ParamSet::kWireSize;
     case MsgId::kParamValue: return ParamValue::kWireSize;
+    case MsgId::kUpdateBegin: return UpdateBegin::kWireSize;
+    case MsgId::kUpdateData: return UpdateData::kWireSize;
+    case MsgId::kUpdateCommit: return UpdateCommit::kWireSize;
+    case MsgId::kUpdateStatus: return UpdateStatus::kWireSize;
   }
   return 0;
 }

@@ -70,4 +70,9 @@ class DeviceLink : public RecoveryLink {
 /// Open the link named by opt.device (validated). nullptr and `error` set when it cannot be opened.
 std::unique_ptr<DeviceLink> openDeviceLink(const RunOptions& opt, std::string& error);
 
+/// Handshakes on an open link: a Hello for link.expectedDevice() every 500 ms (a backed-up link may lose one) until
+/// the device answers or `timeout_s` passes. "" once it succeeded (session.deviceInfo() is the HelloAck), else why
+/// not. For the short command-line tools (phalanx param, phalanx update), not the session runner.
+std::string handshakeDevice(DeviceLink& link, HostSession& session, double timeout_s);
+
 }  // namespace phalanx::host

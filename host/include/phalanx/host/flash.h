@@ -49,6 +49,9 @@ struct Expectation {
 /// one when given). Returns "" and fills `out`, or a message naming what was wrong.
 std::string checkImage(const std::vector<uint8_t>& bytes, const Expectation& expect, CheckedImage& out);
 
+/// The bytes of the file at `path`; false and `error` naming the file and the reason.
+bool readImageFile(const std::string& path, std::vector<uint8_t>& bytes, std::string& error);
+
 /// CRC-32 of a raw image with its image-info CRC field read as zero (what the build stores; zlib's CRC-32).
 uint32_t imageCrc(const std::vector<uint8_t>& bytes);
 

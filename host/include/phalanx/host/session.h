@@ -53,6 +53,10 @@ class HostSession {
   void resyncStream() { decoder_.resync(); }
   bool sendParamGet(uint16_t id);
   bool sendParamSet(uint16_t id, float value);
+  /// Firmware update requests (docs/firmware-update.md); each is answered by an UpdateStatus (popUpdateStatus).
+  bool sendUpdate(const protocol::UpdateBegin& m);
+  bool sendUpdate(const protocol::UpdateData& m);
+  bool sendUpdate(const protocol::UpdateCommit& m);
 
   /// Read everything available now. Returns how many telemetry frames arrived; latest() is the newest.
   int poll(uint64_t now_ns);
@@ -103,6 +107,11 @@ class HostSession {
   uint64_t safeRxNs() const { return safe_rx_ns_; }  ///< the poll time of the frame that reported it
   bool lastParamValid() const { return param_valid_; }
   const protocol::ParamValue& lastParam() const { return last_param_; }
+  /// The oldest UpdateStatus not taken yet; false when none. Up to kUpdateStatusQueue are kept; beyond that the
+  /// oldest is dropped and counted (updateStatusDropped).
+  bool popUpdateStatus(protocol::UpdateStatus& out);
+  uint32_t updateStatusDropped() const { return update_dropped_; }
+  static constexpr size_t kUpdateStatusQueue = 64;
 
  private:
   void handleFrame(const protocol::Frame& frame, uint64_t now_ns);
@@ -139,6 +148,9 @@ class HostSession {
   void* event_ctx_ = nullptr;
   protocol::ParamValue last_param_{};
   bool param_valid_ = false;
+  std::array<protocol::UpdateStatus, kUpdateStatusQueue> update_queue_{};
+  size_t update_head_ = 0, update_count_ = 0;
+  uint32_t update_dropped_ = 0;
   bool safe_watch_ = false;
   bool safe_seen_ = false;
   uint16_t safe_after_seq_ = 0;

@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "phalanx/fw/app.h"
+#include "phalanx/fw/firmware_update.h"
 #include "phalanx/fw/settings_store.h"
 #include "phalanx/hal/hal.h"
 #include "phalanx/protocol/codec.h"
@@ -24,6 +25,9 @@ struct CoreConfig {
   /// Persistent settings (docs/params.md): loaded into the app at construction, saved on core_param::kSettingsSave.
   /// nullptr: the board keeps none (the settings core parameters then answer kUnknownParam).
   SettingsStore* settings = nullptr;
+  /// Firmware update over the link (docs/firmware-update.md). nullptr: the board answers every update request
+  /// with UpdateResult::kNoUpdater. The board polls update->rebootRequested() after each tick and resets.
+  FirmwareUpdate* update = nullptr;
 };
 
 /// Observer for what the core does (logging in firmware-sim, assertions in tests). Optional.
@@ -81,6 +85,9 @@ class FirmwareCore {
   void handleClearFaults(const protocol::Frame& frame, uint64_t now_us);
   void handleParamGet(const protocol::Frame& frame);
   void handleParamSet(const protocol::Frame& frame);
+  /// UpdateBegin / UpdateData / UpdateCommit: one UpdateStatus each (an undecodable one is counted invalid).
+  void handleUpdate(const protocol::Frame& frame);
+  bool updating() const { return config_.update != nullptr && config_.update->inProgress(); }
   bool coreParam(uint16_t id, float& value) const;
   bool settingsParam(uint16_t id, float& value) const;
   protocol::ParamStatus saveSettings(float value);

@@ -28,6 +28,8 @@ class RamFlash : public hal::FlashPages {
     bytes_left_ = bytes;
   }
   void restorePower() { cut_armed_ = false; }
+  /// The cut has happened: the budget of cutPowerAfter() is spent.
+  bool powerLost() const { return cut_armed_ && bytes_left_ == 0; }
   uint32_t erases(size_t page) const { return erase_count_[page]; }
   /// Contents as a file holds them: units with any byte programmed (≠ 0xFF) count as programmed.
   void loadImage(const uint8_t* data, size_t n);
@@ -43,7 +45,8 @@ class RamFlash : public hal::FlashPages {
   size_t bytes_left_ = 0;
 };
 
-/// Pages backed by a file of page_count × page_size bytes (created erased when absent). Every erase and program is
+/// Pages backed by a file of page_count × page_size bytes (created erased when absent): firmware-sim's --settings
+/// and --flash. Every erase and program is
 /// written through to the file at once (fflush), as flash keeps data once programmed.
 class FileFlash : public hal::FlashPages {
  public:
@@ -56,6 +59,9 @@ class FileFlash : public hal::FlashPages {
   bool read(size_t page, size_t offset, uint8_t* data, size_t n) override { return ram_.read(page, offset, data, n); }
   bool erase(size_t page) override;
   bool program(size_t page, size_t offset, const uint8_t* data, size_t n) override;
+  /// As RamFlash's: firmware-sim's --flash-power-cut-after (the process then ends as a board losing power would).
+  void cutPowerAfter(size_t bytes) { ram_.cutPowerAfter(bytes); }
+  bool powerLost() const { return ram_.powerLost(); }
 
  private:
   bool writeThrough(size_t page);
