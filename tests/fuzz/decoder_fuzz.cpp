@@ -34,6 +34,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       case MsgId::kParamGet: check<ParamGet>(f); break;
       case MsgId::kParamSet: check<ParamSet>(f); break;
       case MsgId::kParamValue: check<ParamValue>(f); break;
+      case MsgId::kUpdateBegin: check<UpdateBegin>(f); break;
+      case MsgId::kUpdateData: check<UpdateData>(f); break;
+      case MsgId::kUpdateCommit: check<UpdateCommit>(f); break;
+      case MsgId::kUpdateStatus: check<UpdateStatus>(f); break;
     }
   }
   // feed() over the same bytes (in runs of 1 to 16, the split taken from the first byte) must report the same

@@ -6,6 +6,7 @@
 #include "phalanx/fw/core.h"
 #include "phalanx/host/session.h"
 #include "phalanx/sim/board.h"
+#include "phalanx/sim/sim_flash.h"
 
 using namespace phalanx;
 using protocol::Mode;
@@ -526,6 +527,80 @@ TEST_F(CoreTest, DeviceToHostMessagesSentToTheDeviceAreRejectedAndCounted) {
   tick();
   EXPECT_EQ(host.stats().device_rx_errors - rx_before, 4u);
   EXPECT_EQ(core.counters().frames_wrong_direction, 4u);
+}
+
+TEST_F(CoreTest, UpdateRequestsToABoardWithoutAnUpdaterAreAnsweredNoUpdater) {
+  protocol::UpdateBegin b;
+  b.image_size = 4096;
+  b.build_id = 1;
+  host.sendUpdate(b);
+  tick();
+  protocol::UpdateStatus st;
+  ASSERT_TRUE(host.popUpdateStatus(st));
+  EXPECT_EQ(st.answers, protocol::MsgId::kUpdateBegin);
+  EXPECT_EQ(st.result, protocol::UpdateResult::kNoUpdater);
+}
+
+TEST_F(CoreTest, AnUpdateBeginsOnlyWithTheOutputsOffAndThenNoCommandDrivesThem) {
+  // A board with an updater (slots of 4 pages of 2 KiB, records in pages 4-5, slot 1 in pages 8-11): empty flash.
+  sim::RamFlash flash(12, 2048);
+  fw::UpdateLayout l;
+  l.slot_first_page[1] = 8;
+  l.slot_pages = 4;
+  l.record_first_page = 4;
+  l.board = static_cast<uint8_t>(image::BoardId::kStm32g474);
+  l.device_type = static_cast<uint8_t>(app.layout().type);
+  fw::FirmwareUpdate update(flash, l, fw::chooseBoot(flash, l));
+  sim::BytePipe p;
+  TestApp a;
+  sim::SimBoard b(2, 4, 0, p.end(0));
+  fw::CoreConfig cfg{1000, kBuildId, 4 * 69};
+  cfg.update = &update;
+  fw::FirmwareCore c(b.board(), a, cfg);
+  host::HostSession h(p.end(1));
+  auto step = [&]() {
+    b.clock().advanceUs(1000);
+    c.tick();
+    h.poll(b.clock().nowUs() * 1000);
+  };
+  h.sendHello(3, protocol::DeviceType::kAny);
+  step();
+  ASSERT_EQ(h.handshake(), host::HandshakeResult::kOk);
+  protocol::Command cmd = command(0.5f, 50);
+  h.sendCommand(cmd, 0);
+  step();
+  ASSERT_TRUE(c.outputsActive());
+  protocol::UpdateBegin begin;
+  begin.image_size = 4096;
+  begin.build_id = 9;
+  begin.device_type = l.device_type;
+  begin.board = l.board;
+  h.sendUpdate(begin);
+  step();
+  protocol::UpdateStatus st;
+  ASSERT_TRUE(h.popUpdateStatus(st));
+  EXPECT_EQ(st.result, protocol::UpdateResult::kBusy);  // in motion: refused, nothing changed
+  EXPECT_TRUE(c.outputsActive());
+  EXPECT_FALSE(update.inProgress());
+  protocol::Command safe = command(0.0f, 50);
+  safe.mode = Mode::kSafe;
+  h.sendCommand(safe, 0);
+  step();
+  ASSERT_FALSE(c.outputsActive());
+  h.sendUpdate(begin);
+  step();
+  ASSERT_TRUE(h.popUpdateStatus(st));
+  EXPECT_EQ(st.result, protocol::UpdateResult::kOk);
+  EXPECT_TRUE(update.inProgress());
+  const int controls = a.control_calls;
+  protocol::Command again = command(0.5f, 50);
+  h.sendCommand(again, 0);
+  step();
+  step();
+  EXPECT_FALSE(c.outputsActive());
+  EXPECT_EQ(a.control_calls, controls);
+  EXPECT_FALSE(b.io().pwm_enabled);
+  EXPECT_EQ(h.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kUpdateInProgress));
 }
 
 namespace {

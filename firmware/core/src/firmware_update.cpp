@@ -55,7 +55,6 @@ constexpr size_t kCrcField = image::kImageInfoOffset + offsetof(image::ImageInfo
 }  // namespace
 
 void encodeBootRecord(const BootRecord& rec, uint8_t* out) {
-  std::memset(out, 0xFF, kBootRecordSlotBytes);
   put32(out, kBootRecordMagic);
   out[4] = kBootRecordFormat;
   out[5] = rec.slot;
@@ -65,11 +64,12 @@ void encodeBootRecord(const BootRecord& rec, uint8_t* out) {
   put32(out + 12, rec.image_size);
   put32(out + 16, rec.image_crc32);
   put32(out + 20, rec.build_id);
-  put32(out + 24, crc32(out, 24));
+  put32(out + 24, 0);
+  put32(out + 28, crc32(out, 28));
 }
 
 bool decodeBootRecord(const uint8_t* in, BootRecord& rec) {
-  if (get32(in) != kBootRecordMagic || in[4] != kBootRecordFormat || in[5] > 1 || get32(in + 24) != crc32(in, 24)) {
+  if (get32(in) != kBootRecordMagic || in[4] != kBootRecordFormat || in[5] > 1 || get32(in + 28) != crc32(in, 28)) {
     return false;
   }
   rec.slot = in[5];
@@ -111,7 +111,7 @@ bool verifySlot(hal::FlashPages& flash, const UpdateLayout& layout, uint8_t slot
 int readNewestBootRecord(hal::FlashPages& flash, const UpdateLayout& layout, BootRecord& rec) {
   int newest = -1;
   for (int copy = 0; copy < 2; ++copy) {
-    uint8_t buf[kBootRecordSlotBytes];
+    uint8_t buf[kBootRecordBytes];
     BootRecord r;
     if (!flash.read(layout.record_first_page + static_cast<size_t>(copy), 0, buf, sizeof buf) ||
         !decodeBootRecord(buf, r)) {
@@ -150,7 +150,7 @@ bool writeBootRecord(hal::FlashPages& flash, const UpdateLayout& layout, BootRec
   const int at = readNewestBootRecord(flash, layout, newest);
   rec.sequence = at < 0 ? 1u : newest.sequence + 1u;
   const size_t page = layout.record_first_page + static_cast<size_t>(at == 0 ? 1 : 0);
-  uint8_t buf[kBootRecordSlotBytes], check[kBootRecordSlotBytes];
+  uint8_t buf[kBootRecordBytes], check[kBootRecordBytes];
   encodeBootRecord(rec, buf);
   return flash.erase(page) && flash.program(page, 0, buf, sizeof buf) && flash.read(page, 0, check, sizeof check) &&
          std::memcmp(buf, check, sizeof buf) == 0;

@@ -12,8 +12,8 @@
 ///
 /// A boot record is
 ///   magic u32 "PXBT" | format u8 | slot u8 | reserved u16 | sequence u32 | image_size u32 | image_crc32 u32 |
-///   build_id u32 | CRC-32 of everything before it
-/// little-endian, 28 bytes, padded with 0xFF to 32 (whole flash program units).
+///   build_id u32 | reserved u32 | CRC-32 of everything before it
+/// little-endian, 32 bytes (whole flash program units), the CRC last: a write torn anywhere leaves no valid record.
 ///
 /// No heap, no exceptions; every loop is bounded by the slot's size, the two slots or the two record pages.
 #include <cstddef>
@@ -27,8 +27,7 @@ namespace phalanx::fw {
 
 constexpr uint32_t kBootRecordMagic = 0x54425850u;  ///< "PXBT" read as little-endian bytes
 constexpr uint8_t kBootRecordFormat = 1;
-constexpr size_t kBootRecordBytes = 28;
-constexpr size_t kBootRecordSlotBytes = 32;
+constexpr size_t kBootRecordBytes = 32;
 
 /// Where the slots and the boot records are, in pages of one hal::FlashPages, and what images the board takes.
 struct UpdateLayout {
@@ -46,7 +45,7 @@ struct BootRecord {
   uint32_t image_crc32 = 0;
   uint32_t build_id = 0;
 };
-void encodeBootRecord(const BootRecord& rec, uint8_t* out);  ///< kBootRecordSlotBytes bytes
+void encodeBootRecord(const BootRecord& rec, uint8_t* out);  ///< kBootRecordBytes bytes
 bool decodeBootRecord(const uint8_t* in, BootRecord& rec);   ///< false: magic, format, slot or CRC wrong
 
 /// What the boot stage chose.
