@@ -12,13 +12,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <random>
 #include <vector>
 
 #include "phalanx/host/daemon.h"
 #include "phalanx/linux/can_link.h"
 #include "phalanx/linux/fd_link.h"
-#include "phalanx/linux/realtime.h"
 #include "phalanx/linux/usb_link.h"
 
 extern char** environ;
@@ -372,24 +370,8 @@ std::unique_ptr<DeviceLink> openDeviceLink(const RunOptions& opt, std::string& e
 }
 
 std::string handshakeDevice(DeviceLink& link, HostSession& session, double timeout_s) {
-  std::random_device rd;
-  const uint32_t session_id = rd();
-  const auto timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
-  const uint64_t t0 = linux_hal::monotonicNs();
-  uint64_t last_hello = 0;
-  while (session.handshake() == HandshakeResult::kPending) {
-    const uint64_t now = linux_hal::monotonicNs();
-    if (now - t0 > timeout_ns) return "the device did not answer the handshake on " + link.where();
-    if (last_hello == 0 || now - last_hello > 500000000ull) {
-      session.sendHello(session_id, link.expectedDevice());
-      link.push();
-      last_hello = now;
-    }
-    if (const std::string gone = link.deviceGone(); !gone.empty()) return gone;
-    usleep(1000);
-    session.poll(linux_hal::monotonicNs());
-  }
-  return session.handshake() == HandshakeResult::kOk ? "" : session.handshakeError();
+  return session.handshakeWithin(timeout_s, link.expectedDevice(), link.where(), [&] { link.push(); },
+                                 [&] { return link.deviceGone(); });
 }
 
 }  // namespace phalanx::host

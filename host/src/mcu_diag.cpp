@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <random>
 
 #include "../../firmware/mcu/include/phalanx/fw_mcu/board_diag.h"
 #include "phalanx/host/session.h"
@@ -31,26 +30,7 @@ constexpr DiagName kDiagNames[] = {
 
 std::string handshakeBoard(linux_hal::FdLink& link, HostSession& session, double timeout_s,
                            protocol::DeviceType expected, const std::string& what) {
-  std::random_device rd;
-  const uint32_t session_id = rd();
-  const uint64_t timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
-  const uint64_t t0 = linux_hal::monotonicNs();
-  uint64_t last_hello = 0;
-  while (session.handshake() == HandshakeResult::kPending) {
-    const uint64_t now = linux_hal::monotonicNs();
-    if (now - t0 > timeout_ns) return "device did not answer the handshake on " + what;
-    // A board whose link is backed up (telemetry nobody read, an emulated UART) may miss the first Hello: repeat
-    // it every 500 ms until answered.
-    if (last_hello == 0 || now - last_hello > 500000000ull) {
-      session.sendHello(session_id, expected);
-      link.flush();
-      last_hello = now;
-    }
-    usleep(1000);
-    session.poll(linux_hal::monotonicNs());
-  }
-  if (session.handshake() != HandshakeResult::kOk) return session.handshakeError();
-  return "";
+  return session.handshakeWithin(timeout_s, expected, what, [&] { link.flush(); });
 }
 
 nlohmann::json readMcuDiagnostics(const std::string& path, double timeout_s, std::string& error) {

@@ -1,5 +1,11 @@
 #include "phalanx/host/session.h"
 
+#include <unistd.h>
+
+#include <random>
+
+#include "phalanx/linux/realtime.h"
+
 namespace phalanx::host {
 
 using namespace protocol;
@@ -73,6 +79,30 @@ bool HostSession::sendParamSet(uint16_t id, float value) {
   set.value = value;
   param_valid_ = false;
   return sendMsg(set);
+}
+
+std::string HostSession::handshakeWithin(double timeout_s, protocol::DeviceType expected, const std::string& what,
+                                         const std::function<void()>& push, const std::function<std::string()>& gone) {
+  std::random_device rd;
+  const uint32_t session_id = rd();
+  const auto timeout_ns = static_cast<uint64_t>(timeout_s * 1e9);
+  const uint64_t t0 = linux_hal::monotonicNs();
+  uint64_t last_hello = 0;
+  while (handshake_ == HandshakeResult::kPending) {
+    const uint64_t now = linux_hal::monotonicNs();
+    if (now - t0 > timeout_ns) return "the device did not answer the handshake on " + what;
+    if (last_hello == 0 || now - last_hello > 500000000ull) {
+      sendHello(session_id, expected);
+      push();
+      last_hello = now;
+    }
+    if (gone) {
+      if (std::string why = gone(); !why.empty()) return why;
+    }
+    usleep(1000);
+    poll(linux_hal::monotonicNs());
+  }
+  return handshake_ == HandshakeResult::kOk ? "" : handshakeError();
 }
 
 bool HostSession::sendUpdate(const protocol::UpdateBegin& m) { return sendMsg(m); }

@@ -10,6 +10,7 @@
 
 #include "phalanx/fw/crc32.h"
 #include "phalanx/fw/firmware_update.h"
+#include "phalanx/protocol/codec.h"
 #include "phalanx/sim/sim_flash.h"
 
 using namespace phalanx;
@@ -81,16 +82,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (protocol::decodePayload(payload, want, m)) u->commit(m);
     } else if (kind == 3) {
       flash.cutPowerAfter(static_cast<size_t>(payload[0] | payload[1] << 8));
-    } else {
-      flash.restorePower();  // a reset: the boot stage chooses again
-      boot = fw::chooseBoot(flash, layout());
-      if (!boot.valid) std::abort();
-      delete u;
-      u = new fw::FirmwareUpdate(flash, layout(), boot);
-      snapshot();
-      continue;
     }
-    if (u->rebootRequested()) {
+    if (kind == 4 || u->rebootRequested()) {  // a reset (asked for, or after a commit): the boot stage chooses again
       flash.restorePower();
       boot = fw::chooseBoot(flash, layout());
       if (!boot.valid) std::abort();

@@ -104,13 +104,15 @@ double gaugeBound(double force_N, double samples) {
 // spring's command is as noisy as the Hall angles it comes from (k x 0.3 mm ~ 0.1 N from cycle to cycle), which no
 // force loop follows, but the glove's loop is type 1 (the self-locking worm integrates duty; glove5_defaults.cpp),
 // so a window's mean force is the window's mean command within the gauge's bound and the loop's lag behind the
-// command's own change from the window before. The same truth against the telemetry's measured pad force, row by
+// command's own change from the window before (from no force, for the first). The same truth against the telemetry's measured pad force, row by
 // row, is within the gauge's bound (one sample's noise) in >= 99 % of the rows.
 void checkAgainstTruth(const Csv& rec, const std::vector<size_t>& commanded_rows, const std::string& truth_path) {
   const phalanx::test::TruthCsv truth = phalanx::test::readTruthCsv(truth_path);
   constexpr size_t kWindow = 100;
   size_t joined = 0, measured_within = 0, windows = 0, windows_within = 0;
-  double sum_cmd = 0, sum_truth = 0, previous_mean_cmd = NAN, worst = 0;
+  // Before the first commanded row the device held no force (safe until the client's first command): the first
+  // window's lag is the loop's rise from 0 to the command (under load that rise spans part of the window).
+  double sum_cmd = 0, sum_truth = 0, previous_mean_cmd = 0.0, worst = 0;
   for (size_t i : commanded_rows) {
     size_t t = 0;
     if (!truth.find(rec.at("device_time_us", i), t)) continue;
@@ -121,7 +123,7 @@ void checkAgainstTruth(const Csv& rec, const std::vector<size_t>& commanded_rows
     sum_truth += f_true;
     if (joined % kWindow != 0) continue;
     const double mean_cmd = sum_cmd / kWindow, mean_truth = sum_truth / kWindow;
-    const double lag = std::isnan(previous_mean_cmd) ? 0.0 : std::fabs(mean_cmd - previous_mean_cmd);
+    const double lag = std::fabs(mean_cmd - previous_mean_cmd);
     const double tolerance = gaugeBound(mean_cmd, kWindow) + lag;
     ++windows;
     windows_within += std::fabs(mean_truth - mean_cmd) <= tolerance ? 1 : 0;

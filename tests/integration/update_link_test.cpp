@@ -96,7 +96,7 @@ class FirmwareUpdateLink : public ::testing::Test {
 TEST_F(FirmwareUpdateLink, AnUpdateBootsTheNewImageAndARepeatIsNothingToDo) {
   ASSERT_EQ(powerUp(), hex(kOld));
   const Outcome o = update(new_);
-  ASSERT_EQ(o.rc, 0) << o.err;
+  ASSERT_EQ(o.rc, 0) << o.err << "\nfirmware-sim:\n" << sim_->stderrText();
   EXPECT_NE(o.out.find("to build " + hex(kNew)), std::string::npos) << o.out;
   EXPECT_NE(sim_->stderrText().find("reset after the update, boot: slot 1 build " + hex(kNew)), std::string::npos);
   const Outcome again = update(new_);

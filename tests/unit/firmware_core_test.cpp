@@ -7,6 +7,7 @@
 #include "phalanx/host/session.h"
 #include "phalanx/sim/board.h"
 #include "phalanx/sim/sim_flash.h"
+#include "../support/test_image.h"
 
 using namespace phalanx;
 using protocol::Mode;
@@ -601,6 +602,64 @@ TEST_F(CoreTest, AnUpdateBeginsOnlyWithTheOutputsOffAndThenNoCommandDrivesThem) 
   EXPECT_EQ(a.control_calls, controls);
   EXPECT_FALSE(b.io().pwm_enabled);
   EXPECT_EQ(h.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kUpdateInProgress));
+}
+
+TEST_F(CoreTest, NothingReceivedAfterACommittedUpdateIsHandledBeforeTheReset) {
+  // A board with an updater and an image of 5000 bytes streamed into slot 1; the commit and a Hello arrive in the
+  // same tick: the board resets after the commit, so the Hello must wait for the new image (the host's handshake
+  // after an update must reach the new firmware, not the old one).
+  sim::RamFlash flash(12, 2048);
+  fw::UpdateLayout l;
+  l.slot_first_page[1] = 8;
+  l.slot_pages = 4;
+  l.record_first_page = 4;
+  l.board = static_cast<uint8_t>(image::BoardId::kStm32g474);
+  l.device_type = static_cast<uint8_t>(app.layout().type);
+  fw::FirmwareUpdate update(flash, l, fw::chooseBoot(flash, l));
+  sim::BytePipe p;
+  TestApp a;
+  sim::SimBoard b(2, 4, 0, p.end(0));
+  fw::CoreConfig cfg{1000, kBuildId, 4 * 69};
+  cfg.update = &update;
+  fw::FirmwareCore c(b.board(), a, cfg);
+  host::HostSession h(p.end(1));
+  auto step = [&]() {
+    b.clock().advanceUs(1000);
+    c.tick();
+    h.poll(b.clock().nowUs() * 1000);
+  };
+  const std::vector<uint8_t> img = test::makeImage(0x51515151u, l.device_type, image::BoardId::kStm32g474, 5000);
+  image::ImageInfo info;
+  std::memcpy(&info, &img[image::kImageInfoOffset], sizeof info);
+  protocol::UpdateBegin begin;
+  begin.image_size = info.image_size;
+  begin.image_crc32 = info.image_crc32;
+  begin.build_id = info.build_id;
+  begin.device_type = info.device_type;
+  begin.board = info.board;
+  h.sendUpdate(begin);
+  step();
+  for (uint32_t at = 0; at < img.size(); at += protocol::kUpdateChunkBytes) {
+    protocol::UpdateData d;
+    d.offset = at;
+    d.length = static_cast<uint8_t>(std::min<size_t>(protocol::kUpdateChunkBytes, img.size() - at));
+    std::memcpy(d.data, &img[at], d.length);
+    h.sendUpdate(d);
+    step();
+  }
+  protocol::UpdateCommit commit;
+  commit.image_crc32 = info.image_crc32;
+  commit.build_id = info.build_id;
+  h.sendUpdate(commit);
+  h.sendHello(77, protocol::DeviceType::kAny);
+  step();
+  protocol::UpdateStatus st, last;
+  while (h.popUpdateStatus(st)) last = st;
+  EXPECT_EQ(last.answers, protocol::MsgId::kUpdateCommit);
+  EXPECT_EQ(last.result, protocol::UpdateResult::kCommitted);
+  EXPECT_TRUE(update.rebootRequested());
+  EXPECT_EQ(h.handshake(), host::HandshakeResult::kPending);  // the old firmware did not answer the Hello
+  EXPECT_FALSE(c.sessionOpen());
 }
 
 namespace {

@@ -7,8 +7,9 @@ of glove5, sea_finger and pantograph over the compact CAN-FD mapping (fd-compact
 bus load per 1 kHz tick at 1/5 Mbit/s at most 20 %) and bad compact frames injected by cansend; frames with bad
 identifiers, lengths and CRCs injected by cansend (rejected and counted on the side they reach); bus-off and
 restart error frames injected by cansend (both ends stop sending, the device goes safe by itself, traffic resumes);
-and the interface taken down and up mid-session (writes fail with ENETDOWN, traffic resumes); and a bench plan run by
-`phalanx bench run` over CAN-FD against firmware-sim's Modbus load cell (bench).
+and the interface taken down and up mid-session (writes fail with ENETDOWN, traffic resumes); a bench plan run by
+`phalanx bench run` over CAN-FD against firmware-sim's Modbus load cell (bench); and a firmware update over CAN-FD
+and the compact mapping by `phalanx update`, with the power lost mid-transfer once (update).
 Prints RESULT lines; exits non-zero on the first failed expectation.
 Usage (inside the VM, from the repository root): python3 tests/vm/can_session.py [scenario...]
 """
@@ -21,6 +22,7 @@ import struct
 import subprocess
 import sys
 import time
+import zlib
 
 import vmlib
 
@@ -476,9 +478,81 @@ steps:
              aligned), flush=True)
 
 
+def test_image(path, build_id, size, device_type=2):
+    """A firmware image for the update (docs/firmware-update.md): random bytes with a valid image-info block
+    (common/include/phalanx/image_info.h) for the stm32g474 board, its CRC-32 over the image with the CRC field 0."""
+    import random
+    rnd = random.Random(build_id)
+    b = bytearray(rnd.getrandbits(8) for _ in range(size))
+    b[0x200:0x220] = struct.pack("<IHHBBHIIIII", 0x49584850, 1, 32, device_type, 1, 0, build_id, 0x08000000, size, 0, 0)
+    b[0x218:0x21C] = struct.pack("<I", zlib.crc32(bytes(b)))
+    with open(path, "wb") as f:
+        f.write(b)
+
+
+def update():
+    """`phalanx update` over SocketCAN (docs/firmware-update.md): firmware-sim (sea_finger) with a code flash file on
+    vcan0, updated over CAN-FD, then over the compact mapping back to the first image; once the power is lost
+    (firmware-sim ends at a byte of the transfer) and the board must come back on its old image. Gated: each
+    update completes, the board reports the image's build id after its reset, and after the power loss it boots the
+    old build and the retry completes. Printed: the transfer time and the resends."""
+    bus = "vcan0"
+    vcan(bus, True)
+    old, new, flash = "/tmp/update-old.bin", "/tmp/update-new.bin", "/tmp/update-code.flash"
+    test_image(old, 0x0a11ce01, 30011)
+    test_image(new, 0x0b0b0b02, 45007)
+    if os.path.exists(flash):
+        os.remove(flash)
+
+    def board(mode, cut=None):
+        args = [BIN + "/firmware-sim", "--device", "sea_finger", "--can", bus, "--node", str(NODE), "--can-mode", mode,
+                "--flash", flash, "--flash-provision", old, "--seconds", "300"]
+        if cut is not None:
+            args += ["--flash-power-cut-after", str(cut)]
+        log = open(os.path.join(OUT, "update-%s.firmware.log" % mode), "a+")
+        fw = subprocess.Popen(["chrt", "-f", "70"] + args, stdout=subprocess.PIPE, stderr=log, text=True)
+        check(fw.stdout.readline().startswith("CAN %s" % bus), "firmware-sim did not report its CAN link")
+        return fw
+
+    def run_update(image, mode):
+        t0 = time.monotonic()
+        r = subprocess.run(["chrt", "-f", "80", BIN + "/phalanx", "update", image, "--device",
+                            "can:%s:%d@%s" % (bus, NODE, mode), "--timeout", "5", "--reconnects", "0"],
+                           capture_output=True, text=True, timeout=240)
+        with open(os.path.join(OUT, "update-%s.log" % mode), "a") as f:
+            f.write(r.stdout + r.stderr)
+        return r, time.monotonic() - t0
+
+    for image, build, mode in ((new, "0b0b0b02", "fd"), (old, "0a11ce01", "fd-compact")):
+        fw = board(mode)
+        r, secs = run_update(image, mode)
+        check(r.returncode == 0 and ("to build " + build) in r.stdout,
+              "update over %s: exit %d: %s %s" % (mode, r.returncode, r.stdout, r.stderr[-600:]))
+        fw.terminate()
+        fw.wait(timeout=10)
+        resent = re.search(r"resent (\d+) chunks", r.stdout)
+        print("RESULT can-update-%s: %d bytes over CAN-FD (%s) in %.2f s wall, %s chunks resent, the board came back "
+              "as build %s" % (mode, os.path.getsize(image), mode, secs, resent.group(1) if resent else "?", build),
+              flush=True)
+    # Power lost a third of the way through an update of the new image: the board must boot the old one again.
+    fw = board("fd", cut=15000)
+    r, _ = run_update(new, "fd")
+    check(r.returncode != 0, "an update whose power was cut reported success")
+    check(fw.wait(timeout=20) == 75, "firmware-sim did not end as a board losing power")
+    fw = board("fd")
+    r, _ = run_update(new, "fd")
+    check(r.returncode == 0 and "from build 0a11ce01 to build 0b0b0b02" in r.stdout,
+          "after the power loss: exit %d: %s %s" % (r.returncode, r.stdout, r.stderr[-600:]))
+    fw.terminate()
+    fw.wait(timeout=10)
+    print("RESULT can-update-power-loss: power lost after 15000 programmed bytes; the board booted build 0a11ce01 "
+          "again and the retry updated it to 0b0b0b02", flush=True)
+
+
 SCENARIOS = {"fd": lambda: quiet("fd"), "classic": lambda: quiet("classic"),
              "fd-compact": lambda: [quiet("fd-compact", d, 3) for d in ("glove5", "sea_finger", "pantograph")],
-             "inject-compact": inject_compact, "inject": inject, "busoff": busoff, "linkdown": linkdown, "bench": bench}
+             "inject-compact": inject_compact, "inject": inject, "busoff": busoff, "linkdown": linkdown, "bench": bench,
+             "update": update}
 
 if __name__ == "__main__":
     os.makedirs(OUT, exist_ok=True)

@@ -377,7 +377,7 @@ void FirmwareCore::handleFrame(const protocol::Frame& frame, uint64_t now_us) {
 void FirmwareCore::receive(uint64_t now_us) {
   if (board_.packets != nullptr) {
     uint8_t payload[protocol::kMaxPayload];
-    for (size_t i = 0; i < config_.max_rx_messages_per_tick; ++i) {
+    for (size_t i = 0; i < config_.max_rx_messages_per_tick && !resetting(); ++i) {
       protocol::Frame frame;
       if (!board_.packets->receive(frame.id, payload, frame.len)) break;
       frame.payload = payload;
@@ -387,12 +387,12 @@ void FirmwareCore::receive(uint64_t now_us) {
   }
   uint8_t buf[64];
   size_t budget = config_.max_rx_bytes_per_tick;
-  while (budget > 0) {
+  while (budget > 0 && !resetting()) {
     const size_t n = board_.link->read(buf, budget < sizeof buf ? budget : sizeof buf);
     if (n == 0) break;
     budget -= n;
     const uint8_t* p = buf;
-    while (p < buf + n) {  // each feed() consumes at least one byte
+    while (p < buf + n && !resetting()) {  // each feed() consumes at least one byte
       if (decoder_.feed(p, buf + n)) handleFrame(decoder_.frame(), now_us);
     }
   }

@@ -2,6 +2,7 @@
 /// The host's protocol endpoint for one device: handshake, command sending, telemetry decoding and the
 /// link statistics (lost frames, CRC errors, round-trip latency from the echoed command sequence).
 #include <array>
+#include <functional>
 #include <cstdint>
 #include <string>
 
@@ -46,6 +47,12 @@ class HostSession {
   explicit HostSession(hal::PacketLink& packets);
 
   void sendHello(uint32_t session_id, protocol::DeviceType expected);
+  /// A whole handshake, for the command-line tools (not the session runner): a Hello with a random session id
+  /// every 500 ms (a backed-up link may lose one; push() sends it) until the device answers or `timeout_s` passes,
+  /// or gone() names why the device cannot answer. "" once it succeeded (deviceInfo() is the HelloAck), else why
+  /// not; `what` names the link in the message.
+  std::string handshakeWithin(double timeout_s, protocol::DeviceType expected, const std::string& what,
+                              const std::function<void()>& push, const std::function<std::string()>& gone = {});
   /// Assigns the next sequence number, records the send time for the round-trip measurement, sends.
   bool sendCommand(protocol::Command& cmd, uint64_t now_ns);
   void sendClearFaults();

@@ -88,6 +88,9 @@ class FirmwareCore {
   /// UpdateBegin / UpdateData / UpdateCommit: one UpdateStatus each (an undecodable one is counted invalid).
   void handleUpdate(const protocol::Frame& frame);
   bool updating() const { return config_.update != nullptr && config_.update->inProgress(); }
+  /// A committed update: the board resets after this tick, so nothing received after the commit is handled (the
+  /// host's next Hello is for the new image).
+  bool resetting() const { return config_.update != nullptr && config_.update->rebootRequested(); }
   bool coreParam(uint16_t id, float& value) const;
   bool settingsParam(uint16_t id, float& value) const;
   protocol::ParamStatus saveSettings(float value);
