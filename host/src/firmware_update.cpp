@@ -69,16 +69,17 @@ class Updater {
       }
       // The link was lost: reopen it and resume.
       std::fprintf(stderr, "phalanx update: %s\n", error_.c_str());
-      std::string err;
-      while (reconnects < r_.reconnects) {
+      std::string err = "no reconnects left (--reconnects " + std::to_string(r_.reconnects) + ")";
+      bool reopened = false;
+      while (!reopened && reconnects < r_.reconnects) {
         ++reconnects;
         usleep(500000);
         err = connect();
-        if (err.empty()) break;
-        std::fprintf(stderr, "phalanx update: reconnect %u of %u: %s\n", reconnects, r_.reconnects, err.c_str());
+        reopened = err.empty();
+        if (!reopened) std::fprintf(stderr, "phalanx update: reconnect %u of %u: %s\n", reconnects, r_.reconnects, err.c_str());
       }
-      if (!err.empty() || !link_) {
-        return fail(kExitUpdateFailed, "the link was lost and could not be reopened (" + err +
+      if (!reopened) {
+        return fail(kExitUpdateFailed, "the link was lost and not reopened (" + err +
                                            "); run the update again: it resumes or restarts, and the board boots a "
                                            "valid image meanwhile");
       }
@@ -228,7 +229,7 @@ class Updater {
           }
           continue;
         }
-        error_ = "chunk at byte " + std::to_string(st.next_offset) + ": " + resultName(st.result, st.detail);
+        error_ = "after byte " + std::to_string(acked) + ": " + resultName(st.result, st.detail);
         return st.result == UpdateResult::kBadChunk ? Outcome::kFailed : Outcome::kRestart;
       }
       if (acked * 10 / size != shown) {
