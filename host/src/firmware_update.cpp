@@ -151,12 +151,7 @@ class Updater {
 
   /// Begin (or resume), stream, commit, over the open link.
   Outcome attempt() {
-    protocol::UpdateBegin b;
-    b.image_size = info_.image_size;
-    b.image_crc32 = info_.image_crc32;
-    b.build_id = info_.build_id;
-    b.device_type = info_.device_type;
-    b.board = info_.board;
+    const protocol::UpdateBegin b = image::updateBeginFor(info_);
     UpdateStatus st;
     if (!session_->sendUpdate(b) || !link_->push() || !await(MsgId::kUpdateBegin, st)) return lost("at the begin");
     if (st.result == UpdateResult::kBadImage) {

@@ -30,4 +30,11 @@ inline std::vector<uint8_t> makeImage(uint32_t build_id, uint8_t device_type = 1
   return b;
 }
 
+/// The image-info block of an image made by makeImage (or any image on a little-endian host).
+inline image::ImageInfo infoOf(const std::vector<uint8_t>& img) {
+  image::ImageInfo info;
+  std::memcpy(&info, &img[image::kImageInfoOffset], sizeof info);
+  return info;
+}
+
 }  // namespace phalanx::test

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <tuple>
 #include <vector>
 
 #include "phalanx/fw/core.h"
@@ -542,28 +543,50 @@ TEST_F(CoreTest, UpdateRequestsToABoardWithoutAnUpdaterAreAnsweredNoUpdater) {
   EXPECT_EQ(st.result, protocol::UpdateResult::kNoUpdater);
 }
 
+namespace {
+/// A board with an updater for the update tests: slots of 4 pages of 2 KiB (slot 0 pages 0-3, slot 1 pages 8-11),
+/// the boot records in pages 4-5, empty flash; the two-channel test app; a host session on its link.
+struct UpdaterBoard {
+  UpdaterBoard() : update(flash, layout, fw::chooseBoot(flash, layout)), board(2, 4, 0, pipe.end(0)),
+                   core(board.board(), app, config()), host(pipe.end(1)) {}
+  static fw::UpdateLayout makeLayout() {
+    fw::UpdateLayout l;
+    l.slot_first_page[1] = 8;
+    l.slot_pages = 4;
+    l.record_first_page = 4;
+    l.board = static_cast<uint8_t>(image::BoardId::kStm32g474);
+    l.device_type = static_cast<uint8_t>(protocol::kSeaFingerLayout.type);
+    return l;
+  }
+  fw::CoreConfig config() {
+    fw::CoreConfig cfg{1000, 3713657881u, 4 * 69};
+    cfg.update = &update;
+    return cfg;
+  }
+  /// One 1 ms tick of the firmware, then the host reads.
+  void step() {
+    board.clock().advanceUs(1000);
+    core.tick();
+    host.poll(board.clock().nowUs() * 1000);
+  }
+  auto parts() { return std::tie(update, app, board, core, host); }
+
+  sim::RamFlash flash{12, 2048};
+  fw::UpdateLayout layout = makeLayout();
+  fw::FirmwareUpdate update;
+  sim::BytePipe pipe;
+  TestApp app;
+  sim::SimBoard board;
+  fw::FirmwareCore core;
+  host::HostSession host;
+};
+}  // namespace
+
 TEST_F(CoreTest, AnUpdateBeginsOnlyWithTheOutputsOffAndThenNoCommandDrivesThem) {
-  // A board with an updater (slots of 4 pages of 2 KiB, records in pages 4-5, slot 1 in pages 8-11): empty flash.
-  sim::RamFlash flash(12, 2048);
-  fw::UpdateLayout l;
-  l.slot_first_page[1] = 8;
-  l.slot_pages = 4;
-  l.record_first_page = 4;
-  l.board = static_cast<uint8_t>(image::BoardId::kStm32g474);
-  l.device_type = static_cast<uint8_t>(app.layout().type);
-  fw::FirmwareUpdate update(flash, l, fw::chooseBoot(flash, l));
-  sim::BytePipe p;
-  TestApp a;
-  sim::SimBoard b(2, 4, 0, p.end(0));
-  fw::CoreConfig cfg{1000, kBuildId, 4 * 69};
-  cfg.update = &update;
-  fw::FirmwareCore c(b.board(), a, cfg);
-  host::HostSession h(p.end(1));
-  auto step = [&]() {
-    b.clock().advanceUs(1000);
-    c.tick();
-    h.poll(b.clock().nowUs() * 1000);
-  };
+  UpdaterBoard u;
+  auto [update, a, b, c, h] = u.parts();
+  const fw::UpdateLayout& l = u.layout;
+  auto step = [&]() { u.step(); };
   h.sendHello(3, protocol::DeviceType::kAny);
   step();
   ASSERT_EQ(h.handshake(), host::HandshakeResult::kOk);
@@ -608,36 +631,13 @@ TEST_F(CoreTest, NothingReceivedAfterACommittedUpdateIsHandledBeforeTheReset) {
   // A board with an updater and an image of 5000 bytes streamed into slot 1; the commit and a Hello arrive in the
   // same tick: the board resets after the commit, so the Hello must wait for the new image (the host's handshake
   // after an update must reach the new firmware, not the old one).
-  sim::RamFlash flash(12, 2048);
-  fw::UpdateLayout l;
-  l.slot_first_page[1] = 8;
-  l.slot_pages = 4;
-  l.record_first_page = 4;
-  l.board = static_cast<uint8_t>(image::BoardId::kStm32g474);
-  l.device_type = static_cast<uint8_t>(app.layout().type);
-  fw::FirmwareUpdate update(flash, l, fw::chooseBoot(flash, l));
-  sim::BytePipe p;
-  TestApp a;
-  sim::SimBoard b(2, 4, 0, p.end(0));
-  fw::CoreConfig cfg{1000, kBuildId, 4 * 69};
-  cfg.update = &update;
-  fw::FirmwareCore c(b.board(), a, cfg);
-  host::HostSession h(p.end(1));
-  auto step = [&]() {
-    b.clock().advanceUs(1000);
-    c.tick();
-    h.poll(b.clock().nowUs() * 1000);
-  };
+  UpdaterBoard u;
+  auto [update, a, b, c, h] = u.parts();
+  const fw::UpdateLayout& l = u.layout;
+  auto step = [&]() { u.step(); };
   const std::vector<uint8_t> img = test::makeImage(0x51515151u, l.device_type, image::BoardId::kStm32g474, 5000);
-  image::ImageInfo info;
-  std::memcpy(&info, &img[image::kImageInfoOffset], sizeof info);
-  protocol::UpdateBegin begin;
-  begin.image_size = info.image_size;
-  begin.image_crc32 = info.image_crc32;
-  begin.build_id = info.build_id;
-  begin.device_type = info.device_type;
-  begin.board = info.board;
-  h.sendUpdate(begin);
+  const image::ImageInfo info = test::infoOf(img);
+  h.sendUpdate(image::updateBeginFor(info));
   step();
   for (uint32_t at = 0; at < img.size(); at += protocol::kUpdateChunkBytes) {
     protocol::UpdateData d;

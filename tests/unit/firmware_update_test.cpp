@@ -49,17 +49,7 @@ void provision(hal::FlashPages& flash, uint8_t slot, const std::vector<uint8_t>&
   ASSERT_TRUE(fw::writeBootRecord(flash, l, rec));
 }
 
-protocol::UpdateBegin beginFor(const std::vector<uint8_t>& img) {
-  image::ImageInfo info;
-  std::memcpy(&info, &img[image::kImageInfoOffset], sizeof info);
-  protocol::UpdateBegin b;
-  b.image_size = info.image_size;
-  b.image_crc32 = info.image_crc32;
-  b.build_id = info.build_id;
-  b.device_type = info.device_type;
-  b.board = info.board;
-  return b;
-}
+protocol::UpdateBegin beginFor(const std::vector<uint8_t>& img) { return image::updateBeginFor(test::infoOf(img)); }
 
 protocol::UpdateData chunk(const std::vector<uint8_t>& img, uint32_t at) {
   protocol::UpdateData d;

@@ -68,4 +68,15 @@ constexpr const BoardPart* boardPart(BoardId id) {
   return nullptr;
 }
 
+/// The UpdateBegin that announces an image with this block (docs/firmware-update.md).
+constexpr protocol::UpdateBegin updateBeginFor(const ImageInfo& info) {
+  protocol::UpdateBegin b{};
+  b.image_size = info.image_size;
+  b.image_crc32 = info.image_crc32;
+  b.build_id = info.build_id;
+  b.device_type = info.device_type;
+  b.board = info.board;
+  return b;
+}
+
 }  // namespace phalanx::image
