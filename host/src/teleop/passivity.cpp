@@ -1,0 +1,96 @@
+// Time-domain passivity control of the delayed position-force channel (host/include/phalanx/host/teleop/passivity.h,
+// docs/teleop.md).
+#include "phalanx/host/teleop/passivity.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace phalanx::teleop {
+namespace {
+
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+Vec3 axpy(const Vec3& y, double a, const Vec3& x) { return {y[0] + a * x[0], y[1] + a * x[1], y[2] + a * x[2]}; }
+constexpr double kTinySquare = 1e-18;  // |v|² or |F|² below which a port carries no power worth correcting
+
+}  // namespace
+
+const char* schemeName(Scheme s) { return s == Scheme::kPassive ? "passive" : "plain"; }
+
+bool parseScheme(const char* text, Scheme& out) {
+  if (std::strcmp(text, "passive") == 0) out = Scheme::kPassive;
+  else if (std::strcmp(text, "plain") == 0) out = Scheme::kPlain;
+  else return false;
+  return true;
+}
+
+void PortEnergy::add(double power_W, double dt_s) {
+  if (power_W > 0.0) in_J += power_W * dt_s;
+  else out_J -= power_W * dt_s;
+}
+
+Vec3 MasterPort::step(const Vec3& v_m, const Sample& slave, bool has_slave, double dt_s) {
+  if (!has_slave) return {};
+  Vec3 F = {-slave.force_N[0], -slave.force_N[1], -slave.force_N[2]};
+  // Power from the operator into the channel: −F·v_m (the operator pushing against the displayed force).
+  const double out_planned_J = std::max(0.0, dot(F, v_m)) * dt_s;
+  if (cfg_.scheme == Scheme::kPassive && out_planned_J > 0.0) {
+    // The bound E_out_M ≤ E_in_S(received): what may still leave here.
+    const double allowed_J = std::max(0.0, slave.energy_in_J - energy_.out_J);
+    const double v2 = dot(v_m, v_m);
+    if (out_planned_J > allowed_J && v2 > kTinySquare) {
+      const double alpha = std::min((out_planned_J - allowed_J) / (v2 * dt_s), cfg_.max_damping_N_s_per_m);
+      F = axpy(F, -alpha, v_m);
+      energy_.dissipated_J += alpha * v2 * dt_s;
+      ++energy_.pc_active_cycles;
+    }
+  }
+  energy_.add(-dot(F, v_m), dt_s);
+  return F;
+}
+
+Vec3 SlavePort::step(const Vec3& x_s, const Vec3& v_s, const Sample& master, bool has_master, double dt_s) {
+  if (has_master && cfg_.scheme == Scheme::kPlain) x_ref_ = master.position_m;
+  Vec3 F_c;
+  for (int i = 0; i < 3; ++i) F_c[i] = cfg_.stiffness_N_per_m * (x_ref_[i] - x_s[i]) - cfg_.damping_N_s_per_m * v_s[i];
+  if (!has_master) return F_c;  // holds the arm where it started until the master is heard
+  if (cfg_.scheme == Scheme::kPlain) {
+    energy_.add(-dot(F_c, master.velocity_m_s), dt_s);  // booked, not bounded: the plain scheme's channel
+    return F_c;
+  }
+  // The reference follows the master's velocity plus a drift term towards its position; the channel delivers
+  // F_c·v to the slave side while it moves, bounded by E_out_S ≤ E_in_M(received).
+  Vec3 v = master.velocity_m_s;
+  for (int i = 0; i < 3; ++i) v[i] += cfg_.drift_gain_per_s * (master.position_m[i] - x_ref_[i]);
+  const double out_planned_J = std::max(0.0, dot(F_c, v)) * dt_s;
+  const double allowed_J = std::max(0.0, master.energy_in_J - energy_.out_J);
+  const double f2 = dot(F_c, F_c);
+  if (out_planned_J > allowed_J && f2 > kTinySquare) {
+    const double beta = (out_planned_J - allowed_J) / (f2 * dt_s);
+    v = axpy(v, -beta, F_c);
+    energy_.dissipated_J += beta * f2 * dt_s;
+    ++energy_.pc_active_cycles;
+  }
+  energy_.add(-dot(F_c, v), dt_s);
+  x_ref_ = axpy(x_ref_, dt_s, v);
+  return F_c;
+}
+
+void SlaveArm::step(const Vec3& coupling_force_N, double dt_s) {
+  const int n = std::max(1, static_cast<int>(std::ceil(dt_s / 1e-4)));
+  const double h = dt_s / n;
+  for (int k = 0; k < n; ++k) {
+    const double depth = x_m[0] - cfg.wall_x_m;
+    const double push = depth > 0.0 ? std::max(0.0, cfg.wall_stiffness_N_per_m * depth + cfg.wall_damping_N_s_per_m * v_m_s[0])
+                                     : 0.0;
+    contact_force_N = {-push, 0.0, 0.0};
+    for (int i = 0; i < 3; ++i) {
+      const double a = (coupling_force_N[i] + contact_force_N[i] - cfg.viscous_N_s_per_m * v_m_s[i]) / cfg.mass_kg;
+      v_m_s[i] += a * h;
+    }
+    wall_work_J += contact_force_N[0] * v_m_s[0] * h;
+    for (int i = 0; i < 3; ++i) x_m[i] += v_m_s[i] * h;
+  }
+}
+
+}  // namespace phalanx::teleop
