@@ -400,8 +400,8 @@ int main(int argc, char** argv) {
   cli.add_option("--tick-hz", tick_hz, "firmware tick rate")->check(CLI::Range(100u, 10000u));
   cli.add_option("--substeps", substeps, "plant integration steps per tick")->check(CLI::Range(1u, 100u));
   cli.add_option("--seed", dev_opt.seed, "plant noise seed");
-  cli.add_option("--scenario", dev_opt.scenario, "simulated user: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)")
-      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic"}));
+  cli.add_option("--scenario", dev_opt.scenario, "simulated user: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)|press (pantograph: push along +x)")
+      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic", "press"}));
   cli.add_option("--seconds", seconds, "stop after this long (0: until SIGTERM)")->check(CLI::Range(0.0, 86400.0));
   std::string can_if;
   unsigned can_node = 1;

@@ -70,8 +70,10 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
     // The pen's hand: "still" and "grasp" hold the pen at home; "random" and "close-open" move it about.
     if (options.scenario == "still" || options.scenario == "grasp") cfg.scenario = sim::PenHandScenario::kHold;
     else if (options.scenario == "random" || options.scenario == "close-open") cfg.scenario = sim::PenHandScenario::kRandom;
+    else if (options.scenario == "press") cfg.scenario = sim::PenHandScenario::kPress;
     else {
-      error = "unknown scenario '" + options.scenario + "' (still, grasp: hold the pen; random, close-open: move it)";
+      error = "unknown scenario '" + options.scenario +
+              "' (still, grasp: hold the pen; random, close-open: move it; press: push 3.5 cm along +x from 3 s on)";
       return nullptr;
     }
     try {

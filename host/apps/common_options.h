@@ -35,8 +35,8 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--pen-floor-mm", opt.pen_floor_mm,
                  "pantograph: height of the box floor in {B}, mm (default -90: 2 cm below the tip at home, -70)")
       ->check(cli::inRange(-120.0, -40.0));
-  app.add_option("--scenario", opt.scenario, "simulated hand: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)")
-      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic"}));
+  app.add_option("--scenario", opt.scenario, "simulated hand: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)|press (pantograph: push along +x)")
+      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic", "press"}));
   app.add_option("--scene", opt.scene, "glove virtual scene: none|rigid-ball|soft-ball|wall")
       ->check(CLI::IsMember({"none", "rigid-ball", "soft-ball", "wall"}));
   app.add_option("--mode", opt.mode, "glove: render (virtual scene) | transparent (zero force)")

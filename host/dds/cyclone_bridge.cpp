@@ -17,24 +17,11 @@
 #include "phalanx/host/client/device_model.h"
 #include "phalanx/host/dds/model_view.h"
 #include "phalanx/host/stats.h"
+#include "cyclone_domain.h"
 #include "ros2_msgs.h"
 
 namespace phalanx::host::dds {
-namespace {
 
-uint64_t clockNs(clockid_t id) {
-  timespec ts{};
-  clock_gettime(id, &ts);
-  return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
-}
-
-char* text(const std::string& s) { return const_cast<char*>(s.c_str()); }  // Cyclone only reads samples we write
-
-nlohmann::json histogram(const Histogram& h) {
-  return {{"count", h.count()}, {"p50_us", h.percentile(0.5)}, {"p99_us", h.percentile(0.99)}, {"max_us", h.max()}};
-}
-
-/// A domain on one interface (name or IPv4 address), when one is given; else Cyclone's default.
 std::string createDomain(uint32_t domain_id, const std::string& interface, dds_entity_t& domain) {
   if (interface.empty()) return {};
   in_addr a{};
@@ -48,6 +35,20 @@ std::string createDomain(uint32_t domain_id, const std::string& interface, dds_e
            "': " + dds_strretcode(domain);
   }
   return {};
+}
+
+namespace {
+
+uint64_t clockNs(clockid_t id) {
+  timespec ts{};
+  clock_gettime(id, &ts);
+  return static_cast<uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<uint64_t>(ts.tv_nsec);
+}
+
+char* text(const std::string& s) { return const_cast<char*>(s.c_str()); }  // Cyclone only reads samples we write
+
+nlohmann::json histogram(const Histogram& h) {
+  return {{"count", h.count()}, {"p50_us", h.percentile(0.5)}, {"p99_us", h.percentile(0.99)}, {"max_us", h.max()}};
 }
 
 constexpr const char* kDevicesTopic = "rt/phalanx/devices";  // one topic for every daemon (docs/dds.md)

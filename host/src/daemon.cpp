@@ -210,8 +210,11 @@ std::string validate(const RunOptions& opt) {
   if (opt.rt_priority < 1 || opt.rt_priority > 99) return "realtime.priority: must be in [1, 99]";
   if (CycleMode m; !parseCycleMode(opt.cycle, m)) return "cycle: '" + opt.cycle + "' is not one of telemetry, timer";
   if (opt.scenario != "still" && opt.scenario != "close-open" && opt.scenario != "grasp" && opt.scenario != "random" &&
-      opt.scenario != "spastic") {
-    return "scenario: '" + opt.scenario + "' is not one of still, close-open, grasp, random, spastic";
+      opt.scenario != "spastic" && opt.scenario != "press") {
+    return "scenario: '" + opt.scenario + "' is not one of still, close-open, grasp, random, spastic, press";
+  }
+  if (opt.scenario == "press" && opt.device.rfind("sim:", 0) == 0 && opt.device != "sim:pantograph") {
+    return "scenario: 'press' is the pen's (sim:pantograph), not " + opt.device + "'s";
   }
   if (opt.scenario == "spastic" && opt.device.rfind("sim:", 0) == 0 && opt.device != "sim:sea_finger") {
     return "scenario: 'spastic' (a finger with a stretch reflex) is for sim:sea_finger only, not " + opt.device;

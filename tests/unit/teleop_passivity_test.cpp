@@ -86,6 +86,7 @@ Result run(Scheme scheme, int delay_ms, double loss, uint32_t seed = 7) {
     r.max_force_N = std::max(r.max_force_N, std::fabs(F[0]));
     if (has_slave) r.worst_bound_excess_J = std::max(r.worst_bound_excess_J, master.energy().out_J - from_slave.energy_in_J);
     Sample ms;
+    ms.seq = static_cast<uint32_t>(n + 1);
     ms.position_m = xd;
     ms.velocity_m_s = vd;
     ms.energy_in_J = master.energy().in_J;

@@ -1,5 +1,6 @@
 #include "phalanx/sim/pen_plant.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -100,6 +101,15 @@ void PenPlant::handTarget(double t, PenVec5& target, PenVec5& target_dot) const 
         target[i] = base + 0.5 * amp[i] * (std::sin(w1 * t + a) + std::sin(w2 * t + 2 * a));
         target_dot[i] = 0.5 * amp[i] * (w1 * std::cos(w1 * t + a) + w2 * std::cos(w2 * t + 2 * a));
       }
+      return;
+    }
+    case PenHandScenario::kPress: {
+      constexpr double kStart_s = 3.0, kRamp_s = 1.0, kDistance_m = 0.035, kPi = 3.141592653589793;
+      const double u = std::clamp((t - kStart_s) / kRamp_s, 0.0, 1.0);
+      target = hand_target_;  // the start pose
+      target_dot = {};
+      target[0] += kDistance_m * 0.5 * (1.0 - std::cos(kPi * u));
+      if (u > 0.0 && u < 1.0) target_dot[0] = kDistance_m * 0.5 * kPi / kRamp_s * std::sin(kPi * u);
       return;
     }
     case PenHandScenario::kHold:

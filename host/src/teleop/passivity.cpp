@@ -59,9 +59,20 @@ Vec3 SlavePort::step(const Vec3& x_s, const Vec3& v_s, const Sample& master, boo
     return F_c;
   }
   // The reference follows the master's velocity plus a drift term towards its position; the channel delivers
-  // F_c·v to the slave side while it moves, bounded by E_out_S ≤ E_in_M(received).
-  Vec3 v = master.velocity_m_s;
-  for (int i = 0; i < 3; ++i) v[i] += cfg_.drift_gain_per_s * (master.position_m[i] - x_ref_[i]);
+  // F_c·v to the slave side while it moves, bounded by E_out_S ≤ E_in_M(received). What the bound holds back is
+  // position drift, which the drift term makes up while energy arrives (its motion passes the same check).
+  // The master's motion enters once per sample, as its displacement since the sample used before (a sample
+  // reused because none arrived this period adds none; one lost is made up by the next): integrating a velocity
+  // would count a reused sample twice.
+  Vec3 v{};
+  const bool fresh = master.seq != last_master_seq_;
+  for (int i = 0; i < 3; ++i) {
+    if (fresh && started_) v[i] = (master.position_m[i] - last_master_pos_[i]) / dt_s;
+    v[i] += cfg_.drift_gain_per_s * (master.position_m[i] - x_ref_[i]);
+  }
+  last_master_seq_ = master.seq;
+  last_master_pos_ = master.position_m;
+  started_ = true;
   const double out_planned_J = std::max(0.0, dot(F_c, v)) * dt_s;
   const double allowed_J = std::max(0.0, master.energy_in_J - energy_.out_J);
   const double f2 = dot(F_c, F_c);

@@ -17,6 +17,8 @@
 ///   slave (admittance port: force in, velocity out): the commanded velocity is reduced along the coupling force,
 ///   v' = v − β F_c; the slave's reference position integrates v', with a drift term that pulls it back to the
 ///   master's position (the drift's motion passes the same check, so it is paid for with energy that arrived).
+/// The master's velocity is its position increment over the period (host/apps/teleop.cpp): a sum of F·Δx is the
+/// discrete energy exactly, where a quantised encoder's differentiated velocity would be noise.
 /// Without the controllers (Scheme::kPlain) the same code is the classic delayed position-force scheme: the slave's
 /// reference is the master position received, the master displays the coupling force received.
 ///
@@ -51,7 +53,7 @@ struct Sample {
   uint32_t seq = 0;
   uint64_t stamp_ns = 0;  ///< CLOCK_MONOTONIC of the sender when it sent
   Vec3 position_m{};      ///< master: the device's position; slave: the slave arm's
-  Vec3 velocity_m_s{};
+  Vec3 velocity_m_s{};    ///< for the peer's records: the slave moves its reference by position increments
   Vec3 force_N{};         ///< slave: the coupling force F_c (on the arm, towards the master's position)
   double energy_in_J = 0; ///< this side's cumulative E_in
 };
@@ -97,7 +99,9 @@ class SlavePort {
   Config cfg_;
   PortEnergy energy_;
   Vec3 x_ref_{};
-  bool started_ = false;
+  Vec3 last_master_pos_{};
+  uint32_t last_master_seq_ = 0;
+  bool started_ = false;  ///< a master sample was used
 };
 
 /// The remote environment: a point mass (the slave arm's end effector) with viscous loss, in front of a wall, the
