@@ -547,6 +547,28 @@ TEST(SettingsThroughTheCore, OnASlowFlashTheSaveIsAnsweredWhenItEndsAndCommandsA
   EXPECT_EQ(app.values[kA], 9.0f);
 }
 
+TEST(SettingsThroughTheCore, OnAFlashThatCompletesAtOnceTheSaveIsAnsweredInLineAndACommandBehindItApplies) {
+  sim::RamFlash flash = twoSlots();
+  ParamApp app;
+  CoreRig rig(flash, app);
+  rig.host.sendHello(1, protocol::DeviceType::kAny);
+  rig.tick();
+  ASSERT_EQ(rig.host.handshake(), host::HandshakeResult::kOk);
+  ASSERT_EQ(rig.set(kA, 2.0f).status, protocol::ParamStatus::kOk);
+  rig.host.sendParamSet(protocol::core_param::kSettingsSave, 1.0f);
+  protocol::Command c;
+  c.mode = protocol::Mode::kSetpoint;
+  c.channel_count = protocol::kSeaFingerLayout.setpoint_count;
+  c.timeout_ms = 50;
+  rig.host.sendCommand(c, rig.board.clock().nowUs() * 1000);
+  rig.tick();  // both in one tick: the save ended before the command was handled
+  EXPECT_EQ(rig.host.lastParam().param_id, protocol::core_param::kSettingsSave);
+  EXPECT_EQ(rig.host.lastParam().status, protocol::ParamStatus::kOk);
+  EXPECT_EQ(rig.host.lastParam().value, 1.0f);
+  EXPECT_TRUE(rig.core.outputsActive());
+  EXPECT_EQ(rig.core.counters().commands_rejected, 0u);
+}
+
 TEST(SettingsThroughTheCore, ASaveWhoseFlashFailsIsAnsweredFailedAndTheOlderRecordStays) {
   sim::RamFlash ram = twoSlots();
   ParamApp app;

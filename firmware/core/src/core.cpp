@@ -283,7 +283,10 @@ bool FirmwareCore::saveSettings(float value, protocol::ParamValue& answer) {
     answer.status = protocol::ParamStatus::kOutOfRange;
     return true;
   }
-  const SettingsSave r = config_.settings->beginSave(app_);
+  SettingsSave r = config_.settings->beginSave(app_);
+  // Its first step at once: on a flash that completes at once (firmware-sim's file, the tests' RAM) the save
+  // ends here and is answered in line, before the next frame of this tick is handled.
+  if (r == SettingsSave::kInProgress) r = config_.settings->stepSave();
   if (r != SettingsSave::kInProgress) {
     answer = saveAnswer(r);
     return true;
@@ -455,7 +458,7 @@ void FirmwareCore::tick() {
   ++counters_.ticks;
   rejection_answered_ = false;
   receive(now_us);
-  // A save begun by this tick's ParamSet takes its first step now (on a flash that completes at once, all of it).
+  // A save under way (an MCU's flash: over tens of ticks) takes one step per tick.
   stepSettings();
 
   // Supervisor: the firmware never depends on the host for safety.
