@@ -28,9 +28,11 @@ class Stm32g4FlashPages final : public hal::FlashPages {
   size_t pageCount() const override { return count_; }
   size_t pageSize() const override { return flash::kPageBytes; }
 
-  /// Memory-mapped reads (no register access: reading needs no unlock).
+  /// Memory-mapped reads (no register access: reading needs no unlock). Refused while a begun operation still
+  /// runs: a read of the bank being written stalls the CPU until the operation ends (RM0440 §3.3.1), for an
+  /// erase longer than the board's watchdog allows. (One that has ended is left for its owner's poll().)
   bool read(size_t page, size_t offset, uint8_t* data, size_t n) override {
-    if (!inRange(page, offset, n)) return false;
+    if (!inRange(page, offset, n) || (pending_ != Pending::kNone && flash_.busy())) return false;
     const uint32_t a = address(page, offset);
     for (size_t i = 0; i < n; ++i) data[i] = bus_.readFlash8(a + static_cast<uint32_t>(i));
     return true;
