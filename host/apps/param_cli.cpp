@@ -29,7 +29,7 @@ const char* statusName(protocol::ParamStatus s) {
     case protocol::ParamStatus::kUnknownParam: return "unknown to this firmware";
     case protocol::ParamStatus::kOutOfRange: return "out of range";
     case protocol::ParamStatus::kReadOnly: return "read-only";
-    case protocol::ParamStatus::kBusy: return "busy: the device's outputs are active";
+    case protocol::ParamStatus::kBusy: return "busy: the device's outputs are active, or a save or an update is under way";
     case protocol::ParamStatus::kFailed: return "failed on the device (flash write)";
   }
   return "unknown status";

@@ -25,6 +25,9 @@ class TinyApp : public fw::DeviceApp {
     v = 7.0f;
     return protocol::ParamStatus::kOk;
   }
+  fw::SettingsHistory settingsHistory() const override { return {kLayouts, 1}; }
+  static constexpr uint16_t kIds[] = {0x0100};
+  static constexpr fw::SettingsLayout kLayouts[] = {{1, kIds, 1, nullptr, 0}};
 };
 
 class FakeDiag : public fw_mcu::DiagSource {
@@ -108,4 +111,11 @@ TEST(McuBoardDiag, UnknownBoardParameterIsUnknownAndReadOnlyOnesRefuseWrites) {
   set.param_id = fw_mcu::diag_param::kResetStats;
   EXPECT_EQ(rig.set(set).status, protocol::ParamStatus::kOk);
   EXPECT_EQ(rig.diag.worst, 0.0f);
+}
+
+TEST(McuBoardDiag, TheWrapperPassesOnTheAppsSettingsLayoutSoTheBoardsStoreKeepsItsSettings) {
+  Rig rig;
+  const fw::SettingsHistory h = rig.wrapped.settingsHistory();
+  ASSERT_EQ(h.count, 1);
+  EXPECT_EQ(h.layouts, TinyApp::kLayouts);
 }

@@ -10,6 +10,7 @@
 // selects. Where the manual is silent the model's choice is marked "model:".
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <map>
 #include <set>
@@ -145,6 +146,24 @@ class FlashModel {
 
   // ---- Test controls and observations ----
   void setBusySteps(uint32_t n) { busy_steps_ = n; }  ///< SR reads that show BSY per operation (≥ 1)
+  /// SR reads that show BSY for a page erase (0: as any operation). A tick-stepped caller reads SR once per
+  /// tick, so this is the erase's length in ticks: 22 ms typical at 1 kHz (DS12288), against 82 µs for a double word.
+  void setEraseBusySteps(uint32_t n) { erase_busy_steps_ = n; }
+  /// Power lost (then reset()): an operation in flight leaves its cells torn. model: an erase has set the page's
+  /// first half to 0xFF and left the rest; a double word has its low word programmed and its high word not.
+  void powerCut() {
+    if (busy_ > 0 && op_ == Op::kErase) {
+      const uint32_t base = ((op_page_ >= 128) ? kBank2 : kMem) + (op_page_ % 128u) * kPage;
+      std::memset(&mem_[base - kMem], 0xFF, kPage / 2);
+      ++torn_;
+    } else if (busy_ > 0 && op_ == Op::kProgram) {
+      for (int i = 0; i < 4; ++i) mem_[op_addr_ - kMem + i] &= static_cast<uint8_t>(op_lo_ >> (8 * i));
+      ++torn_;
+    }
+    reset();
+  }
+  int tornOperations() const { return torn_; }
+  bool operationRunning() const { return busy_ > 0; }
   void setStuck(bool s) { stuck_ = s; }               ///< BSY never clears
   void setDualBank(bool d) { optr_ = d ? (optr_ | kDbank) : (optr_ & ~kDbank); }
   void protectPage(uint32_t global_page) { protected_pages_.insert(global_page); }
@@ -233,7 +252,7 @@ class FlashModel {
 
   void start(Op op) {
     op_ = op;
-    busy_ = busy_steps_;
+    busy_ = op == Op::kErase && erase_busy_steps_ > 0 ? erase_busy_steps_ : busy_steps_;
   }
   void complete() {
     if (op_ == Op::kErase) {
@@ -261,7 +280,8 @@ class FlashModel {
   uint32_t cr_ = 0, sr_ = 0, acr_ = 0, optr_ = 0xF0000000u | kDbank;
   int key_step_ = 0;
   bool latched_ = false;
-  uint32_t busy_ = 0, busy_steps_ = 3;
+  uint32_t busy_ = 0, busy_steps_ = 3, erase_busy_steps_ = 0;
+  int torn_ = 0;
   bool stuck_ = false;
   Op op_ = Op::kNone;
   uint32_t op_addr_ = 0, op_lo_ = 0, op_hi_ = 0, op_page_ = 0;
@@ -532,7 +552,7 @@ TEST(McuStm32g4Flash, EverySrErrorFlagDecodesToItsResult) {
       EXPECT_TRUE(names.insert(n).second) << n;
     }
   }
-  EXPECT_EQ(names.size(), 14u);
+  EXPECT_EQ(names.size(), 15u);
 }
 
 // ---- The FlashPages adapter ----
@@ -667,6 +687,272 @@ TEST(McuStm32g4FlashPages, TheSettingsStoreSurvivesAResetOnTheBoardsPages) {
   EXPECT_EQ(m.busErrors(), 0);
   EXPECT_EQ(m.pgAndPerTogether(), 0);
   EXPECT_GE(m.erases(), 2);
+}
+
+// ---- Operations begun and polled (the tick-stepped path: a page erase outlasts the board's 5 ms watchdog) ----
+
+TEST(McuStm32g4Flash, ABegunEraseReturnsAtOnceAndIsFinishedOnceBsyClears) {
+  FlashModel m;
+  m.setBusySteps(50);
+  Driver d(m);
+  const uint32_t page_addr = kBank2 + 126 * kPage;
+  dirty(m, page_addr, kPage);
+  ASSERT_EQ(d.unlock(), FlashResult::kSuccess);
+  const long before = m.srReads();
+  ASSERT_EQ(d.beginErasePage(2, 126), FlashResult::kSuccess);
+  EXPECT_EQ(m.srReads() - before, 1) << "one SR read (BSY clear before the start), no wait";
+  EXPECT_TRUE(m.operationRunning());
+  EXPECT_EQ(m.cr() & (kPer | kBker), kPer | kBker) << "armed while it runs";
+  int polls = 0;
+  while (d.busy()) ASSERT_LT(++polls, 100);
+  EXPECT_EQ(polls, 49);
+  EXPECT_EQ(d.finishErase(), FlashResult::kSuccess);
+  for (uint32_t i = 0; i < kPage; ++i) ASSERT_EQ(m.at(page_addr + i), 0xFF) << i;
+  EXPECT_EQ(m.cr() & (kPer | kBker | kStrt), 0u);
+  EXPECT_EQ(m.icacheResets(), 1) << "caches reset after the erase, as the blocking one";
+  EXPECT_EQ(m.cacheResetWhileOn(), 0);
+}
+
+TEST(McuStm32g4Flash, ABegunDoubleWordIsProgrammedAndItsErrorReportedByFinish) {
+  FlashModel m;
+  m.setBusySteps(4);
+  Driver d(m);
+  ASSERT_EQ(d.unlock(), FlashResult::kSuccess);
+  ASSERT_EQ(d.beginProgramDoubleWord(kBank2 + 16, 0x04030201u, 0x08070605u), FlashResult::kSuccess);
+  EXPECT_TRUE(m.cr() & kPg);
+  EXPECT_EQ(d.beginProgramDoubleWord(kBank2 + 24, 1, 2), FlashResult::kBusy) << "BSY set: nothing stored";
+  EXPECT_EQ(d.beginErasePage(2, 0), FlashResult::kBusy);
+  EXPECT_EQ(m.programs(), 1);
+  EXPECT_EQ(m.erases(), 0);
+  while (d.busy()) {
+  }
+  EXPECT_EQ(d.finishProgram(), FlashResult::kSuccess);
+  EXPECT_EQ(m.cr() & kPg, 0u);
+  for (uint32_t i = 0; i < 8; ++i) EXPECT_EQ(m.at(kBank2 + 16 + i), i + 1) << i;
+  ASSERT_EQ(d.beginProgramDoubleWord(kBank2 + 16, 0x10u, 0u), FlashResult::kSuccess);
+  while (d.busy()) {
+  }
+  EXPECT_EQ(d.finishProgram(), FlashResult::kProgramError) << "not erased";
+  EXPECT_EQ(m.sr() & kClearable, 0u) << "flags cleared for the next operation";
+  EXPECT_EQ(d.beginProgramDoubleWord(kBank2 + 4, 1, 2), FlashResult::kBadArgument);
+  d.lock();
+  EXPECT_EQ(d.beginErasePage(2, 0), FlashResult::kLocked);
+}
+
+TEST(McuStm32g4FlashPages, ABegunOperationIsPolledToItsEndOneSrReadEachAndRelocks) {
+  FlashModel m;
+  m.setBusySteps(1000);
+  dirty(m, kBank2 + 126 * kPage, 2 * kPage);
+  Pages p(m, 254, 2, 10);  // the blocking wait's bound (10 reads) does not apply to a begun operation
+  EXPECT_EQ(p.poll(), hal::FlashOp::kDone) << "nothing pending";
+  ASSERT_EQ(p.beginErase(0), hal::FlashOp::kBusy);
+  EXPECT_FALSE(m.locked()) << "FLASH_CR stays unlocked while the erase runs";
+  EXPECT_TRUE(p.operationPending());
+  EXPECT_EQ(p.beginErase(1), hal::FlashOp::kFailed) << "one operation at a time";
+  EXPECT_EQ(p.lastResult(), FlashResult::kBusy);
+  EXPECT_FALSE(p.erase(1));
+  const uint8_t unit[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+  EXPECT_FALSE(p.program(1, 0, unit, 8));
+  EXPECT_EQ(m.erases(), 1);
+  EXPECT_EQ(m.flashStores(), 0);
+  uint8_t byte = 0;
+  EXPECT_FALSE(p.read(1, 0, &byte, 1)) << "no read while the erase runs (it would stall the CPU)";
+  int busy = 0;
+  for (;;) {
+    const long before = m.srReads();
+    const hal::FlashOp op = p.poll();
+    ASSERT_EQ(m.srReads() - before, 1);
+    if (op != hal::FlashOp::kBusy) {
+      EXPECT_EQ(op, hal::FlashOp::kDone);
+      break;
+    }
+    ASSERT_LT(++busy, 2000);
+  }
+  EXPECT_GT(busy, 900) << "the polls before (and the read's), not counted against the blocking bound";
+  EXPECT_TRUE(m.locked());
+  EXPECT_FALSE(p.operationPending());
+  EXPECT_EQ(m.at(kBank2 + 126 * kPage), 0xFF);
+  EXPECT_EQ(m.at(kBank2 + 127 * kPage), 0x5A) << "only page 0 of the range";
+  m.setBusySteps(3);
+  ASSERT_EQ(p.beginProgram(0, 8, unit), hal::FlashOp::kBusy);
+  while (p.poll() == hal::FlashOp::kBusy) {
+  }
+  uint8_t back[8] = {};
+  ASSERT_TRUE(p.read(0, 8, back, 8));
+  EXPECT_EQ(std::memcmp(back, unit, 8), 0);
+  const int stores = m.flashStores();
+  EXPECT_EQ(p.beginProgram(0, 8, unit), hal::FlashOp::kFailed) << "programmed already";
+  EXPECT_EQ(p.lastResult(), FlashResult::kProgramError);
+  EXPECT_EQ(p.beginProgram(0, 4, unit), hal::FlashOp::kFailed);
+  EXPECT_EQ(p.beginProgram(0, 2048, unit), hal::FlashOp::kFailed);
+  EXPECT_EQ(p.beginErase(2), hal::FlashOp::kFailed);
+  EXPECT_EQ(m.flashStores(), stores);
+  EXPECT_TRUE(m.locked());
+}
+
+TEST(McuStm32g4FlashPages, AnOperationGivenUpOnDoesNotBlockTheNextOnceItHasEnded) {
+  FlashModel m;
+  m.setBusySteps(5);
+  Pages p(m, 254, 2);
+  ASSERT_EQ(p.beginErase(0), hal::FlashOp::kBusy);  // and never polled by its caller
+  EXPECT_EQ(p.beginErase(1), hal::FlashOp::kFailed) << "first poll: still busy";
+  for (int i = 0; i < 5; ++i) m.read32(kSr);  // time passes
+  EXPECT_EQ(p.beginErase(1), hal::FlashOp::kBusy) << "the first one has ended: the next starts";
+  while (p.poll() == hal::FlashOp::kBusy) {
+  }
+  EXPECT_EQ(m.erases(), 2);
+  EXPECT_TRUE(m.locked());
+}
+
+// ---- The settings store's stepped save on the board's pages ----
+
+/// What a stepped save did: its result, the steps it took, the most SR reads in one step.
+struct SteppedSave {
+  fw::SettingsSave result = fw::SettingsSave::kInProgress;
+  int steps = 0;
+  long max_sr_reads_per_step = 0;
+};
+
+SteppedSave stepToEnd(FlashModel& m, fw::SettingsStore& store, const fw::DeviceApp& app, int max_steps) {
+  SteppedSave s;
+  s.result = store.beginSave(app);
+  while (s.result == fw::SettingsSave::kInProgress && s.steps < max_steps) {
+    const long before = m.srReads();
+    s.result = store.stepSave();
+    ++s.steps;
+    s.max_sr_reads_per_step = std::max(s.max_sr_reads_per_step, m.srReads() - before);
+  }
+  return s;
+}
+
+/// A fresh board after a reset: a new adapter, store and app over the model's cells; load's report.
+fw::SettingsReport reboot(FlashModel& m, ThreeParamApp& app) {
+  m.reset();
+  Pages p(m, mcu::g474::kSettingsFirstPage, mcu::g474::kSettingsPages);
+  app = ThreeParamApp();
+  fw::SettingsStore store(p);
+  return store.load(app);
+}
+
+TEST(McuStm32g4SettingsSave, ASaveRunsOverManyTicksWithNoStepWaitingForTheFlash) {
+  FlashModel m;
+  m.setEraseBusySteps(22);  // 22 ms at one poll per 1 ms tick
+  m.setBusySteps(2);
+  dirty(m, kMem + mcu::g474::kSettingsFirstPage * kPage, 2 * kPage);
+  Pages p(m, mcu::g474::kSettingsFirstPage, mcu::g474::kSettingsPages);
+  ThreeParamApp app;
+  fw::SettingsStore store(p);
+  store.load(app);
+  app.values[0] = 0.5f;
+  app.values[1] = 7.0f;
+  app.values[2] = -3.0f;
+  const SteppedSave s = stepToEnd(m, store, app, 1000);
+  ASSERT_EQ(s.result, fw::SettingsSave::kSaved);
+  EXPECT_LE(s.max_sr_reads_per_step, 2) << "a step polls; it never spins on BSY";
+  // 48 bytes = 6 double words, 2 polls each, after the 22 of the erase.
+  EXPECT_GE(s.steps, 22 + 6);
+  EXPECT_LE(s.steps, 22 + 6 * 2 + 2);
+  EXPECT_FALSE(store.saving());
+  EXPECT_EQ(store.newestSequence(), 1u);
+  EXPECT_TRUE(m.locked());
+  EXPECT_EQ(m.pgAndPerTogether(), 0);
+  EXPECT_EQ(m.busErrors(), 0);
+  EXPECT_EQ(store.stepSave(), fw::SettingsSave::kUnchanged) << "no save under way";
+  const fw::SettingsReport r = reboot(m, app);
+  EXPECT_EQ(r.result, fw::SettingsLoad::kLoaded);
+  EXPECT_EQ(app.values[0], 0.5f);
+  EXPECT_EQ(app.values[1], 7.0f);
+  EXPECT_EQ(app.values[2], -3.0f);
+}
+
+TEST(McuStm32g4SettingsSave, ABusyFlagSetForThousandsOfPollsIsWaitedOutOneStepAtATime) {
+  FlashModel m;
+  m.setEraseBusySteps(5000);
+  m.setBusySteps(300);
+  Pages p(m, mcu::g474::kSettingsFirstPage, mcu::g474::kSettingsPages);
+  ThreeParamApp app;
+  fw::SettingsStore store(p, 0, 0, 6000);
+  app.values[0] = 2.0f;
+  const SteppedSave s = stepToEnd(m, store, app, 10000);
+  ASSERT_EQ(s.result, fw::SettingsSave::kSaved);
+  EXPECT_LE(s.max_sr_reads_per_step, 2);
+  EXPECT_GE(s.steps, 5000 + 6 * 300);
+  EXPECT_EQ(reboot(m, app).result, fw::SettingsLoad::kLoaded);
+  EXPECT_EQ(app.values[0], 2.0f);
+}
+
+TEST(McuStm32g4SettingsSave, AFlashThatStaysBusyFailsTheSaveAfterItsBoundAndTheOlderRecordStays) {
+  FlashModel m;
+  Pages p(m, mcu::g474::kSettingsFirstPage, mcu::g474::kSettingsPages);
+  ThreeParamApp app;
+  fw::SettingsStore store(p);
+  app.values[0] = 1.0f;
+  ASSERT_EQ(store.save(app), fw::SettingsSave::kSaved);
+  app.values[0] = 9.0f;
+  m.setStuck(true);
+  const SteppedSave s = stepToEnd(m, store, app, 1000);
+  EXPECT_EQ(s.result, fw::SettingsSave::kWriteFailed);
+  EXPECT_EQ(s.steps, static_cast<int>(fw::kSettingsBusyStepBound));
+  EXPECT_FALSE(store.saving());
+  EXPECT_EQ(store.beginSave(app), fw::SettingsSave::kBusy) << "still busy: refused, nothing read or started";
+  EXPECT_EQ(m.erases(), 2);
+  m.setStuck(false);
+  EXPECT_EQ(reboot(m, app).sequence, 1u);
+  EXPECT_EQ(app.values[0], 1.0f);
+}
+
+TEST(McuStm32g4SettingsSave, APowerCutAtEveryStepLeavesTheOlderOrTheNewRecordNeverNone) {
+  int cuts_in_flight = 0;
+  int full_steps = -1;
+  int new_before_end = 0;
+  for (int cut = 0; full_steps < 0 || cut <= full_steps; ++cut) {
+    FlashModel m;
+    m.setEraseBusySteps(22);
+    m.setBusySteps(2);
+    ThreeParamApp app;
+    {
+      Pages p(m, mcu::g474::kSettingsFirstPage, mcu::g474::kSettingsPages);
+      fw::SettingsStore store(p);
+      // Records 1 and 2 in both slots: the save below erases the one holding record 1.
+      app.values[0] = 1.0f;
+      ASSERT_EQ(store.save(app), fw::SettingsSave::kSaved);
+      app.values[0] = 2.0f;
+      ASSERT_EQ(store.save(app), fw::SettingsSave::kSaved);
+      app.values[0] = 3.0f;
+      fw::SettingsSave r = store.beginSave(app);
+      ASSERT_EQ(r, fw::SettingsSave::kInProgress);
+      int steps = 0;
+      for (; steps < cut && r == fw::SettingsSave::kInProgress; ++steps) r = store.stepSave();
+      if (r == fw::SettingsSave::kSaved && full_steps < 0) full_steps = steps;
+      if (m.operationRunning()) ++cuts_in_flight;
+      m.powerCut();
+    }
+    const fw::SettingsReport rep = reboot(m, app);
+    ASSERT_EQ(rep.result, fw::SettingsLoad::kLoaded) << "cut after " << cut << " steps";
+    // The new record is in force once the save ended, and may be once its last double word (holding the CRC's
+    // low word: the high word is 0xFF padding) is in flight; before that never.
+    const bool finished = full_steps >= 0 && cut >= full_steps;
+    if (finished) {
+      ASSERT_EQ(rep.sequence, 3u) << "cut after " << cut << " steps";
+    }
+    ASSERT_TRUE(rep.sequence == 2u || rep.sequence == 3u) << "cut after " << cut << " steps";
+    ASSERT_EQ(app.values[0], static_cast<float>(rep.sequence)) << "the record's own values, cut after " << cut;
+    if (!finished && rep.sequence == 3u) ++new_before_end;
+  }
+  EXPECT_LE(new_before_end, 2) << "only while the last double word was in flight";
+  EXPECT_GE(full_steps, 22 + 6);
+  EXPECT_GE(cuts_in_flight, full_steps - 1) << "nearly every cut tore an erase or a double word in flight";
+}
+
+TEST(McuStm32g474Board, TheSettingsPagesLieInBank2BeyondTheUpdateSlotsAndOnlyTheirEccErrorsAreSurvived) {
+  using mcu::g474::isSettingsEccError;
+  EXPECT_EQ(mcu::g474::kSettingsFirstPage, 254u);
+  EXPECT_EQ(mcu::stm32g4::flash::pageAddress(mcu::g474::kSettingsFirstPage), 0x0807F000u);
+  const uint32_t eccd = 1u << 31, bk2 = 1u << 21, sysf = 1u << 22;
+  EXPECT_TRUE(isSettingsEccError(eccd | bk2 | 0x3F008u));
+  EXPECT_FALSE(isSettingsEccError(eccd)) << "bank 1: the image itself";
+  EXPECT_FALSE(isSettingsEccError(eccd | bk2 | sysf)) << "system memory";
+  EXPECT_FALSE(isSettingsEccError(bk2 | (1u << 30))) << "a corrected single error raises no NMI";
 }
 
 }  // namespace

@@ -345,7 +345,7 @@ TEST(SettingsStore, TheSeaFingerKeepsItsControllerAndThatControllersGains) {
 // --- Through the firmware core (core_param::kSettingsSave) ------------------------------------------------------
 
 struct CoreRig {
-  explicit CoreRig(sim::RamFlash& flash, ParamApp& app_)
+  explicit CoreRig(hal::FlashPages& flash, ParamApp& app_)
       : app(app_), store(flash), board(2, 4, 0, pipe.end(0)), core(board.board(), app, config()), host(pipe.end(1)) {}
   fw::CoreConfig config() {
     fw::CoreConfig c;
@@ -417,6 +417,175 @@ TEST(SettingsThroughTheCore, FirmwareWithoutAStoreDoesNotKnowTheSettingsParamete
   host.poll(board.clock().nowUs() * 1000);
   ASSERT_TRUE(host.lastParamValid());
   EXPECT_EQ(host.lastParam().status, protocol::ParamStatus::kUnknownParam);
+}
+
+/// RamFlash seen through the begin/poll path as an MCU's flash behaves: a begun erase or program takes effect
+/// after `busy_polls` polls that report busy (erase()/program() stay immediate).
+class SlowFlash : public hal::FlashPages {
+ public:
+  SlowFlash(sim::RamFlash& ram, int busy_polls) : ram_(ram), busy_polls_(busy_polls) {}
+  size_t pageCount() const override { return ram_.pageCount(); }
+  size_t pageSize() const override { return ram_.pageSize(); }
+  bool read(size_t page, size_t offset, uint8_t* data, size_t n) override {
+    if (pending_) ++reads_while_busy;
+    return ram_.read(page, offset, data, n);
+  }
+  bool erase(size_t page) override { return ram_.erase(page); }
+  bool program(size_t page, size_t offset, const uint8_t* data, size_t n) override {
+    return ram_.program(page, offset, data, n);
+  }
+  hal::FlashOp beginErase(size_t page) override { return begin(true, page, 0, nullptr); }
+  hal::FlashOp beginProgram(size_t page, size_t offset, const uint8_t* unit) override {
+    return begin(false, page, offset, unit);
+  }
+  hal::FlashOp poll() override {
+    ++polls;
+    if (!pending_) return hal::FlashOp::kDone;
+    if (left_ > 0) {
+      --left_;
+      return hal::FlashOp::kBusy;
+    }
+    pending_ = false;
+    const bool ok = erase_ ? ram_.erase(page_) : ram_.program(page_, offset_, unit_, hal::kFlashProgramUnit);
+    return ok ? hal::FlashOp::kDone : hal::FlashOp::kFailed;
+  }
+  int polls = 0;
+  int reads_while_busy = 0;
+  int begun = 0;
+
+ private:
+  hal::FlashOp begin(bool erase, size_t page, size_t offset, const uint8_t* unit) {
+    if (pending_) return hal::FlashOp::kFailed;
+    ++begun;
+    erase_ = erase;
+    page_ = page;
+    offset_ = offset;
+    if (unit != nullptr) std::memcpy(unit_, unit, sizeof unit_);
+    left_ = busy_polls_;
+    pending_ = true;
+    return hal::FlashOp::kBusy;
+  }
+  sim::RamFlash& ram_;
+  int busy_polls_;
+  bool pending_ = false, erase_ = false;
+  int left_ = 0;
+  size_t page_ = 0, offset_ = 0;
+  uint8_t unit_[hal::kFlashProgramUnit] = {};
+};
+
+TEST(SettingsStore, ASteppedSaveOnASlowFlashTakesOneOperationPerStepAndNeverReadsWhileBusy) {
+  sim::RamFlash ram = twoSlots();
+  SlowFlash slow(ram, 5);
+  ParamApp app;
+  fw::SettingsStore store(slow);
+  app.values[kA] = 4.0f;
+  ASSERT_EQ(store.beginSave(app), SettingsSave::kInProgress);
+  EXPECT_TRUE(store.saving());
+  EXPECT_EQ(store.beginSave(app), SettingsSave::kBusy) << "one save at a time";
+  app.values[kA] = 6.0f;  // after the request: not in this record
+  int steps = 0;
+  SettingsSave r = SettingsSave::kInProgress;
+  while (r == SettingsSave::kInProgress && steps < 1000) {
+    const int polls = slow.polls;
+    r = store.stepSave();
+    ++steps;
+    ASSERT_LE(slow.polls - polls, 1) << "one poll per step";
+  }
+  ASSERT_EQ(r, SettingsSave::kSaved);
+  const int units = static_cast<int>((fw::kSettingsHeaderBytes + 8 * 3 + 4 + 7) / 8);
+  EXPECT_EQ(slow.begun, 1 + units);
+  EXPECT_EQ(steps, 6 * (1 + units)) << "each operation: 5 busy polls and the one that sees it end";
+  EXPECT_EQ(slow.reads_while_busy, 0) << "an MCU stalls reading the bank it writes";
+  EXPECT_EQ(powerCycle(ram, app).sequence, 1u);
+  EXPECT_EQ(app.values[kA], 4.0f) << "the values as they were when the save was requested";
+}
+
+TEST(SettingsThroughTheCore, OnASlowFlashTheSaveIsAnsweredWhenItEndsAndCommandsAreRefusedUntilThen) {
+  sim::RamFlash ram = twoSlots();
+  SlowFlash slow(ram, 20);
+  ParamApp app;
+  {
+    CoreRig rig(slow, app);
+    rig.host.sendHello(1, protocol::DeviceType::kAny);
+    rig.tick();
+    ASSERT_EQ(rig.host.handshake(), host::HandshakeResult::kOk);
+    ASSERT_EQ(rig.set(kA, 9.0f).status, protocol::ParamStatus::kOk);
+    rig.host.sendParamSet(protocol::core_param::kSettingsSave, 1.0f);
+    rig.tick();
+    EXPECT_EQ(rig.host.lastParam().param_id, kA) << "no answer yet: the erase runs";
+    // Meanwhile: a command is refused (reason 11) and drives nothing; reads and RAM writes are answered; a
+    // second save is busy.
+    protocol::Command c;
+    c.mode = protocol::Mode::kSetpoint;
+    c.channel_count = protocol::kSeaFingerLayout.setpoint_count;
+    c.timeout_ms = 50;
+    rig.host.sendCommand(c, rig.board.clock().nowUs() * 1000);
+    rig.tick();
+    EXPECT_FALSE(rig.core.outputsActive());
+    EXPECT_EQ(rig.host.lastEvent().code, protocol::EventCode::kCommandRejected);
+    EXPECT_EQ(rig.host.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kSaveInProgress));
+    rig.host.sendParamGet(protocol::core_param::kSettingsSave);
+    rig.tick();
+    EXPECT_EQ(rig.host.lastParam().param_id, protocol::core_param::kSettingsSave);
+    EXPECT_EQ(rig.host.lastParam().value, 0.0f) << "the newest record stored: none yet";
+    EXPECT_EQ(rig.set(protocol::core_param::kSettingsSave, 1.0f).status, protocol::ParamStatus::kBusy);
+    EXPECT_EQ(rig.set(kA, 5.0f).status, protocol::ParamStatus::kOk) << "RAM only: the save has its values";
+    int ticks = 0;
+    while (!(rig.host.lastParam().param_id == protocol::core_param::kSettingsSave &&
+             rig.host.lastParam().status == protocol::ParamStatus::kOk && rig.host.lastParam().value == 1.0f)) {
+      ASSERT_LT(++ticks, 1000);
+      rig.tick();
+      ASSERT_FALSE(rig.core.outputsActive());
+    }
+    EXPECT_GT(ticks, 20) << "answered when the save ended, many ticks later";
+    rig.host.sendCommand(c, rig.board.clock().nowUs() * 1000);
+    rig.tick();
+    EXPECT_TRUE(rig.core.outputsActive()) << "commands apply again";
+  }
+  app = ParamApp();
+  CoreRig after(ram, app);
+  EXPECT_EQ(app.values[kA], 9.0f);
+}
+
+TEST(SettingsThroughTheCore, OnAFlashThatCompletesAtOnceTheSaveIsAnsweredInLineAndACommandBehindItApplies) {
+  sim::RamFlash flash = twoSlots();
+  ParamApp app;
+  CoreRig rig(flash, app);
+  rig.host.sendHello(1, protocol::DeviceType::kAny);
+  rig.tick();
+  ASSERT_EQ(rig.host.handshake(), host::HandshakeResult::kOk);
+  ASSERT_EQ(rig.set(kA, 2.0f).status, protocol::ParamStatus::kOk);
+  rig.host.sendParamSet(protocol::core_param::kSettingsSave, 1.0f);
+  protocol::Command c;
+  c.mode = protocol::Mode::kSetpoint;
+  c.channel_count = protocol::kSeaFingerLayout.setpoint_count;
+  c.timeout_ms = 50;
+  rig.host.sendCommand(c, rig.board.clock().nowUs() * 1000);
+  rig.tick();  // both in one tick: the save ended before the command was handled
+  EXPECT_EQ(rig.host.lastParam().param_id, protocol::core_param::kSettingsSave);
+  EXPECT_EQ(rig.host.lastParam().status, protocol::ParamStatus::kOk);
+  EXPECT_EQ(rig.host.lastParam().value, 1.0f);
+  EXPECT_TRUE(rig.core.outputsActive());
+  EXPECT_EQ(rig.core.counters().commands_rejected, 0u);
+}
+
+TEST(SettingsThroughTheCore, ASaveWhoseFlashFailsIsAnsweredFailedAndTheOlderRecordStays) {
+  sim::RamFlash ram = twoSlots();
+  ParamApp app;
+  {
+    CoreRig rig(ram, app);
+    rig.host.sendHello(1, protocol::DeviceType::kAny);
+    rig.tick();
+    ASSERT_EQ(rig.host.handshake(), host::HandshakeResult::kOk);
+    ASSERT_EQ(rig.set(kA, 3.0f).status, protocol::ParamStatus::kOk);
+    ASSERT_EQ(rig.set(protocol::core_param::kSettingsSave, 1.0f).status, protocol::ParamStatus::kOk);
+    ASSERT_EQ(rig.set(kA, 4.0f).status, protocol::ParamStatus::kOk);
+    ram.cutPowerAfter(10);
+    EXPECT_EQ(rig.set(protocol::core_param::kSettingsSave, 1.0f).status, protocol::ParamStatus::kFailed);
+    ram.restorePower();
+  }
+  EXPECT_EQ(powerCycle(ram, app).sequence, 1u);
+  EXPECT_EQ(app.values[kA], 3.0f);
 }
 
 }  // namespace

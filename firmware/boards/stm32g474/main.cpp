@@ -2,12 +2,18 @@
 // the firmware core and the device app, ticking at 1 kHz from SysTick; the independent watchdog is refreshed by
 // the tick, so a stuck tick resets the MCU with every output at its reset (off) state.
 //
+// Device settings (docs/params.md) are kept in the last two pages of bank 2 (flash_pages.h): a `param save` erases
+// and programs one of them one step per tick (fw::SettingsStore::stepSave), the erase running in the background
+// while the tick executes from bank 1, so the watchdog is refreshed every tick throughout.
+//
 // The tick's duration is measured in CPU cycles with the DWT cycle counter and exposed through the board
 // diagnostic parameters (0x0080.., phalanx/fw_mcu/board_diag.h), like the emulated board's instruction counts.
 #include <cstdint>
 
 #include "board.h"
+#include "flash_pages.h"
 #include "phalanx/fw/core.h"
+#include "phalanx/fw/settings_store.h"
 #include "phalanx/fw_mcu/app_registry.h"
 #include "phalanx/fw_mcu/board_diag.h"
 #include "phalanx/mcu/cortex_m.h"
@@ -82,6 +88,9 @@ hal::Board g_board;
 fw_mcu::StaticObject<Diagnostics> g_diag;
 fw_mcu::StaticObject<fw_mcu::AppType> g_app;
 fw_mcu::StaticObject<fw_mcu::DiagApp> g_diag_app;
+MmioFlashBus g_flash_bus;
+fw_mcu::StaticObject<g474::FlashPages> g_settings_flash;
+fw_mcu::StaticObject<fw::SettingsStore> g_settings;
 fw_mcu::StaticObject<fw::FirmwareCore> g_core;
 volatile bool g_running = false;
 volatile const char* g_fatal_reason = nullptr;  // inspect with a debugger after a fault
@@ -148,6 +157,8 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   fw::CoreConfig cfg;
   cfg.tick_rate_hz = kTickHz;
   cfg.firmware_build_id = PHALANX_BUILD_ID;
+  // The core loads the settings at construction (memory-mapped reads, before the watchdog starts).
+  cfg.settings = &g_settings.emplace(g_settings_flash.emplace(g_flash_bus, kSettingsFirstPage, kSettingsPages));
   g_core.emplace(g_board, diag_app, cfg);
 
   cm4::setIrqPriority(kIrqExti15_10, kPrioEstop);

@@ -1,6 +1,7 @@
 // Vector table, reset and fault entry of the STM32G474 image (ARMv7-M B1.5.3; RM0440 Table 97: 102 interrupts).
 #include <cstdint>
 
+#include "flash_pages.h"
 #include "phalanx/mcu/cortex_m.h"
 #include "regs.h"
 
@@ -18,7 +19,12 @@ extern "C" [[noreturn]] void phalanx_reset_continue() {
   phalanx_board_main();
 }
 
-extern "C" void NMI_Handler() { phalanx_fatal("NMI (clock security system?)"); }
+/// A double-bit ECC error in a settings page (a save cut by a reset) is survivable: the read returned garbage the
+/// record's CRC rejects, and the other slot holds the previous record. Any other NMI is fatal.
+extern "C" void NMI_Handler() {
+  if (phalanx::mcu::g474::takeSettingsEccError()) return;
+  phalanx_fatal("NMI (clock security system?)");
+}
 extern "C" void HardFault_Handler() { phalanx_fatal("HardFault"); }
 extern "C" void MemManage_Handler() { phalanx_fatal("MemManage"); }
 extern "C" void BusFault_Handler() { phalanx_fatal("BusFault"); }

@@ -185,6 +185,7 @@ void FirmwareCore::handleCommandFrame(const protocol::Frame& frame, uint64_t now
   float value = 0.0f;
   if (findFieldError(cmd, reason, channel, value)) return reject(reason, channel, value, now_us);
   if (updating()) return reject(RejectReason::kUpdateInProgress, kNoChannel, 0.0f, now_us);
+  if (saving()) return reject(RejectReason::kSaveInProgress, kNoChannel, 0.0f, now_us);
   apply(cmd, now_us);
 }
 
@@ -272,13 +273,44 @@ bool FirmwareCore::settingsParam(uint16_t id, float& value) const {
   }
 }
 
-protocol::ParamStatus FirmwareCore::saveSettings(float value) {
-  // A flash erase stalls the CPU for milliseconds on the MCUs: never while the outputs are driven.
-  if (outputs_active_) return protocol::ParamStatus::kBusy;
-  if (value != 1.0f) return protocol::ParamStatus::kOutOfRange;
-  const SettingsSave r = config_.settings->save(app_);
-  return r == SettingsSave::kSaved || r == SettingsSave::kUnchanged ? protocol::ParamStatus::kOk
-                                                                    : protocol::ParamStatus::kFailed;
+bool FirmwareCore::saveSettings(float value, protocol::ParamValue& answer) {
+  // Never while the outputs are driven (settings never move a motor), and one flash writer at a time.
+  if (outputs_active_ || saving() || updating()) {
+    answer.status = protocol::ParamStatus::kBusy;
+    return true;
+  }
+  if (value != 1.0f) {
+    answer.status = protocol::ParamStatus::kOutOfRange;
+    return true;
+  }
+  SettingsSave r = config_.settings->beginSave(app_);
+  // Its first step at once: on a flash that completes at once (firmware-sim's file, the tests' RAM) the save
+  // ends here and is answered in line, before the next frame of this tick is handled.
+  if (r == SettingsSave::kInProgress) r = config_.settings->stepSave();
+  if (r != SettingsSave::kInProgress) {
+    answer = saveAnswer(r);
+    return true;
+  }
+  // Until the save ends commands are refused (kSaveInProgress): the one in effect ends here, as for an update.
+  have_command_ = false;
+  return false;
+}
+
+protocol::ParamValue FirmwareCore::saveAnswer(SettingsSave result) const {
+  protocol::ParamValue a;
+  a.param_id = protocol::core_param::kSettingsSave;
+  const bool ok = result == SettingsSave::kSaved || result == SettingsSave::kUnchanged;
+  a.status = ok                               ? protocol::ParamStatus::kOk
+             : result == SettingsSave::kBusy ? protocol::ParamStatus::kBusy
+                                              : protocol::ParamStatus::kFailed;
+  a.value = ok ? static_cast<float>(config_.settings->newestSequence()) : 1.0f;
+  return a;
+}
+
+void FirmwareCore::stepSettings() {
+  if (!saving()) return;
+  const SettingsSave r = config_.settings->stepSave();
+  if (r != SettingsSave::kInProgress) send(saveAnswer(r));
 }
 
 void FirmwareCore::handleParamGet(const protocol::Frame& frame) {
@@ -304,8 +336,7 @@ void FirmwareCore::handleParamSet(const protocol::Frame& frame) {
   answer.value = set.value;
   float core_value = 0.0f;
   if (set.param_id == protocol::core_param::kSettingsSave && config_.settings != nullptr) {
-    answer.status = saveSettings(set.value);
-    if (answer.status == protocol::ParamStatus::kOk) answer.value = static_cast<float>(config_.settings->newestSequence());
+    if (!saveSettings(set.value, answer)) return;  // answered when the save ends
   } else if (coreParam(set.param_id, core_value)) {
     answer.status = protocol::ParamStatus::kReadOnly;
   } else if (outputs_active_) {
@@ -335,8 +366,9 @@ void FirmwareCore::handleUpdate(const protocol::Frame& frame) {
   if (config_.update == nullptr) {
     answer.result = protocol::UpdateResult::kNoUpdater;
   } else if (id == MsgId::kUpdateBegin) {
-    // Only with the outputs off; from then until the reboot no command drives them (kUpdateInProgress).
-    if (outputs_active_) {
+    // Only with the outputs off; from then until the reboot no command drives them (kUpdateInProgress). Not
+    // during a settings save: one flash writer at a time.
+    if (outputs_active_ || saving()) {
       answer.result = protocol::UpdateResult::kBusy;
     } else {
       answer = config_.update->begin(begin, session_open_ ? session_id_ : 0u);
@@ -426,6 +458,8 @@ void FirmwareCore::tick() {
   ++counters_.ticks;
   rejection_answered_ = false;
   receive(now_us);
+  // A save under way (an MCU's flash: over tens of ticks) takes one step per tick.
+  stepSettings();
 
   // Supervisor: the firmware never depends on the host for safety.
   if (have_command_ && now_us > deadline_us_) latch(protocol::fault::kCommandTimeout, now_us);
@@ -433,7 +467,7 @@ void FirmwareCore::tick() {
   sensor_conditions_ = app_.sense(dt_s_);
   if (sensor_conditions_ != 0) latch(sensor_conditions_, now_us);
 
-  const bool run = faults_ == 0 && have_command_ && !updating() && drivesOutputs(command_.mode);
+  const bool run = faults_ == 0 && have_command_ && !updating() && !saving() && drivesOutputs(command_.mode);
   if (run) {
     if (!outputs_active_ && board_.gpio != nullptr) board_.gpio->setDriveEnable(true);
     outputs_active_ = true;

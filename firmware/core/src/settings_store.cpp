@@ -145,17 +145,6 @@ int SettingsStore::readNewest(SettingsRecord& rec) {
   return newest;
 }
 
-bool SettingsStore::writeSlot(size_t slot, const SettingsRecord& rec) {
-  const size_t page = first_page_ + slot;
-  const size_t len = encodeSettingsRecord(rec, buf_);
-  const size_t n = (len + hal::kFlashProgramUnit - 1) / hal::kFlashProgramUnit * hal::kFlashProgramUnit;
-  for (size_t i = len; i < n; ++i) buf_[i] = 0xFF;
-  // One pass, each unit once (ECC flash); a write cut anywhere leaves a record whose CRC fails.
-  if (!flash_.erase(page) || !flash_.program(page, 0, buf_, n)) return false;
-  if (!flash_.read(page, 0, check_, n)) return false;
-  return std::memcmp(buf_, check_, n) == 0;
-}
-
 SettingsReport SettingsStore::load(DeviceApp& app) {
   SettingsReport rep;
   SettingsRecord rec;
@@ -195,7 +184,11 @@ SettingsReport SettingsStore::load(DeviceApp& app) {
   return rep;
 }
 
-SettingsSave SettingsStore::save(const DeviceApp& app) {
+SettingsSave SettingsStore::beginSave(const DeviceApp& app) {
+  if (saving()) return SettingsSave::kBusy;
+  // An operation a failed save gave up on may still run: reading the slots now would stall an MCU on the bank
+  // being written (for up to an erase: longer than its watchdog allows).
+  if (flash_.poll() == hal::FlashOp::kBusy) return SettingsSave::kBusy;
   const SettingsLayout* cur = builtLayout(app);
   if (cur == nullptr) return SettingsSave::kNoLayout;
   SettingsRecord rec;
@@ -208,14 +201,74 @@ SettingsSave SettingsStore::save(const DeviceApp& app) {
   }
   SettingsRecord newest;
   const int slot = readNewest(newest);
-  if (slot >= 0) {
-    if (sameValues(rec, newest)) return SettingsSave::kUnchanged;
-  }
+  if (slot >= 0 && sameValues(rec, newest)) return SettingsSave::kUnchanged;
   rec.sequence = slot >= 0 ? newest.sequence + 1u : 1u;
   const size_t target = slot == 0 ? 1u : 0u;
-  if (!writeSlot(target, rec)) return SettingsSave::kWriteFailed;
-  newest_seq_ = rec.sequence;
-  return SettingsSave::kSaved;
+  target_page_ = first_page_ + target;
+  if (target_page_ >= flash_.pageCount() || flash_.pageSize() < kSettingsSlotBytes) return SettingsSave::kWriteFailed;
+  // One pass, each unit once (ECC flash); a write cut anywhere leaves a record whose CRC fails.
+  const size_t len = encodeSettingsRecord(rec, buf_);
+  write_len_ = (len + hal::kFlashProgramUnit - 1) / hal::kFlashProgramUnit * hal::kFlashProgramUnit;
+  for (size_t i = len; i < write_len_; ++i) buf_[i] = 0xFF;
+  pending_seq_ = rec.sequence;
+  next_unit_ = 0;
+  busy_steps_ = 0;
+  phase_ = Phase::kErase;
+  const hal::FlashOp op = flash_.beginErase(target_page_);
+  if (op == hal::FlashOp::kFailed) return endSave(SettingsSave::kWriteFailed);
+  op_pending_ = op == hal::FlashOp::kBusy;
+  return SettingsSave::kInProgress;
+}
+
+SettingsSave SettingsStore::stepSave() {
+  if (!saving()) return SettingsSave::kUnchanged;
+  if (op_pending_) {
+    const hal::FlashOp op = flash_.poll();
+    if (op == hal::FlashOp::kBusy) {
+      return ++busy_steps_ < busy_bound_ ? SettingsSave::kInProgress : endSave(SettingsSave::kWriteFailed);
+    }
+    op_pending_ = false;
+    if (op == hal::FlashOp::kFailed) return endSave(SettingsSave::kWriteFailed);
+  }
+  // Operations that end at once (hal/sim) follow each other within this step; one that runs on (kBusy) ends it.
+  // At most one erase, the record's units and the check: bounded by kSettingsSlotBytes.
+  for (size_t i = 0; i < kSettingsSlotBytes / hal::kFlashProgramUnit + 2; ++i) {
+    const SettingsSave r = advanceOnce();
+    if (r != SettingsSave::kInProgress || op_pending_) return r;
+  }
+  return SettingsSave::kInProgress;
+}
+
+SettingsSave SettingsStore::advanceOnce() {
+  busy_steps_ = 0;
+  if (phase_ == Phase::kErase) phase_ = Phase::kProgram;
+  if (phase_ == Phase::kProgram && next_unit_ < write_len_) {
+    const hal::FlashOp op = flash_.beginProgram(target_page_, next_unit_, buf_ + next_unit_);
+    next_unit_ += hal::kFlashProgramUnit;
+    if (op == hal::FlashOp::kFailed) return endSave(SettingsSave::kWriteFailed);
+    op_pending_ = op == hal::FlashOp::kBusy;
+    return SettingsSave::kInProgress;
+  }
+  // Every unit programmed and ended: the read-back check (no operation runs, the page may be read).
+  if (!flash_.read(target_page_, 0, check_, write_len_) || std::memcmp(buf_, check_, write_len_) != 0) {
+    return endSave(SettingsSave::kWriteFailed);
+  }
+  newest_seq_ = pending_seq_;
+  return endSave(SettingsSave::kSaved);
+}
+
+SettingsSave SettingsStore::endSave(SettingsSave r) {
+  phase_ = Phase::kIdle;
+  op_pending_ = false;
+  return r;
+}
+
+SettingsSave SettingsStore::save(const DeviceApp& app) {
+  SettingsSave r = beginSave(app);
+  // Each step either moves the save on by one operation or counts one busy poll of it: bounded.
+  const size_t max_steps = (kSettingsSlotBytes / hal::kFlashProgramUnit + 2) * (static_cast<size_t>(busy_bound_) + 1);
+  for (size_t i = 0; r == SettingsSave::kInProgress && i < max_steps; ++i) r = stepSave();
+  return r == SettingsSave::kInProgress ? endSave(SettingsSave::kWriteFailed) : r;
 }
 
 }  // namespace phalanx::fw

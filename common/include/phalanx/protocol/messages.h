@@ -150,6 +150,7 @@ enum class RejectReason : uint8_t {
   kReservedNotZero = 8,  ///< the reserved byte; value = it
   kStaleSequence = 9,    ///< seq not newer than the newest received this session; value = that seq
   kUpdateInProgress = 10,  ///< a firmware update is being received: outputs stay off until it ends (a reboot)
+  kSaveInProgress = 11,    ///< a settings save (core_param::kSettingsSave) is being written: outputs stay off until it ends
 };
 
 /// Core parameters (ParamGet/ParamSet IDs 0x0001..0x007F, answered by the firmware core, read-only except
@@ -161,8 +162,10 @@ constexpr uint16_t kBuildIdLow = 0x0002;     ///< firmware_build_id bits 0..15 (
 constexpr uint16_t kBuildIdHigh = 0x0003;    ///< firmware_build_id bits 16..31
 constexpr uint16_t kDeviceVariant = 0x0004;  ///< protocol::variant::* (what the firmware is mounted on)
 /// Persistent settings (docs/params.md); unknown (kUnknownParam) on firmware without a settings store.
-/// Set 1: save the device parameters the app persists to flash (kBusy while outputs are active, kFailed when the
-/// write failed; the previous record is kept). Read: sequence number of the newest record stored (0: none).
+/// Set 1: save the device parameters the app persists to flash (kBusy while outputs are active or a save or an
+/// update is under way, kFailed when the write failed; the previous record is kept). The answer comes when the
+/// save has ended, which on an MCU board is some ticks later (docs/params.md). Read: sequence number of the newest
+/// record stored (0: none).
 constexpr uint16_t kSettingsSave = 0x0010;
 constexpr uint16_t kSettingsLoad = 0x0011;     ///< what the load at start found: fw::SettingsLoad (settings_store.h)
 constexpr uint16_t kSettingsLayout = 0x0012;   ///< the settings layout version this firmware writes

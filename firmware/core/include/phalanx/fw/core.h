@@ -22,7 +22,8 @@ struct CoreConfig {
   uint16_t max_rx_messages_per_tick = 32;
   /// protocol::variant::* reported by core parameter core_param::kDeviceVariant (the sea_finger on its test rig).
   uint8_t device_variant = protocol::variant::kStandard;
-  /// Persistent settings (docs/params.md): loaded into the app at construction, saved on core_param::kSettingsSave.
+  /// Persistent settings (docs/params.md): loaded into the app at construction, saved on core_param::kSettingsSave
+  /// one step per tick (SettingsStore::stepSave), commands refused (kSaveInProgress) until the save ends.
   /// nullptr: the board keeps none (the settings core parameters then answer kUnknownParam).
   SettingsStore* settings = nullptr;
   /// Firmware update over the link (docs/firmware-update.md). nullptr: the board answers every update request
@@ -93,7 +94,13 @@ class FirmwareCore {
   bool resetting() const { return config_.update != nullptr && config_.update->rebootRequested(); }
   bool coreParam(uint16_t id, float& value) const;
   bool settingsParam(uint16_t id, float& value) const;
-  protocol::ParamStatus saveSettings(float value);
+  /// A ParamSet of core_param::kSettingsSave: true with `answer` filled when it is answered now; false when the
+  /// save has begun and runs on over the next ticks (stepSettings answers when it ends).
+  bool saveSettings(float value, protocol::ParamValue& answer);
+  /// Once per tick: one step of the save under way, and its answer when it ends.
+  void stepSettings();
+  bool saving() const { return config_.settings != nullptr && config_.settings->saving(); }
+  protocol::ParamValue saveAnswer(SettingsSave result) const;
   /// Fault conditions present now: the e-stop input, and the sensor faults the last sense() reported.
   uint16_t presentConditions() const;
   /// Whether mode drives the outputs on this device (kLock only where the mechanism locks passively).

@@ -7,7 +7,11 @@
 /// (each double word once, as ECC flash requires), written alternately into two flash pages (slots): a save goes
 /// to the slot that does not hold the newest valid record, so a power loss mid-write leaves that one intact; the newest valid record (highest
 /// sequence, CRC good) wins at load. A save that would write what the newest record already holds writes nothing.
-/// No heap, no exceptions, loops bounded by kMaxSettings and the two slots.
+/// A save runs as steps (beginSave, then stepSave once per control tick): erase started, polled until it ends, one
+/// program unit started per step and polled, then the read-back check — so that a flash whose page erase outlasts
+/// the tick and the watchdog (the STM32G474's: 22 ms typical) never makes a step wait. On a flash that completes
+/// at once (hal/sim) the whole save is one step; save() runs the steps back to back.
+/// No heap, no exceptions, loops bounded by kMaxSettings, the two slots and the record's program units.
 #include <cstddef>
 #include <cstdint>
 
@@ -69,21 +73,39 @@ enum class SettingsSave : uint8_t {
   kNoLayout = 2,     ///< the app persists nothing
   kReadFailed = 3,   ///< the app did not answer one of its own persisted ids
   kWriteFailed = 4,  ///< erase, program or the read-back check failed: the other slot still holds the previous record
+  kInProgress = 5,   ///< beginSave/stepSave: the save is under way, call stepSave() again (next tick)
+  kBusy = 6,         ///< beginSave: a save is already under way, or the flash still busy (nothing new started)
 };
+
+/// Steps one flash operation may stay busy before the save gives up (kWriteFailed): at 1 kHz, 200 ms, 8× the
+/// STM32G474's longest page erase (DS12288 t_ERASE max 24.5 ms).
+constexpr uint32_t kSettingsBusyStepBound = 200;
 
 class SettingsStore {
  public:
   /// Slots are pages first_page and first_page + 1 (each at least kSettingsSlotBytes). built_version: the
   /// layout version this firmware writes, one of the app's history; 0 = its newest. (firmware-sim lets a test pick
   /// an older one to play the firmware before an update.)
-  explicit SettingsStore(hal::FlashPages& flash, size_t first_page = 0, uint16_t built_version = 0)
-      : flash_(flash), first_page_(first_page), built_version_(built_version) {}
+  /// busy_step_bound: stepSave() calls one flash operation may report busy before the save fails.
+  explicit SettingsStore(hal::FlashPages& flash, size_t first_page = 0, uint16_t built_version = 0,
+                         uint32_t busy_step_bound = kSettingsBusyStepBound)
+      : flash_(flash), first_page_(first_page), built_version_(built_version), busy_bound_(busy_step_bound) {}
 
   /// Read the newest valid record and apply it through app.setParam, migrating an older layout. Call once at init,
   /// outputs off.
   SettingsReport load(DeviceApp& app);
-  /// Write the app's current values of its persisted ids as a new record.
+  /// Write the app's current values of its persisted ids as a new record: beginSave and stepSave until it ends
+  /// (waits for the flash: for hal/sim's flashes and tests; the MCU boards use the steps).
   SettingsSave save(const DeviceApp& app);
+  /// Starts a save of the app's current values (taken now: later changes are not in this record). kInProgress:
+  /// call stepSave() once per tick until it returns something else; any other result is final (nothing to
+  /// write, refused, or kBusy when a save is already under way). Reads the slots: no flash operation runs.
+  SettingsSave beginSave(const DeviceApp& app);
+  /// One bounded step of the save under way: polls the flash once, starts the next operation when the last one
+  /// ended. kInProgress until the save ends, then its result (kSaved or kWriteFailed) once; kInProgress never
+  /// when no save is under way (then kUnchanged).
+  SettingsSave stepSave();
+  bool saving() const { return phase_ != Phase::kIdle; }
 
   const SettingsReport& lastLoad() const { return last_load_; }
   /// Sequence of the newest valid record in flash (0: none).
@@ -96,11 +118,23 @@ class SettingsStore {
   /// The newest valid record into rec; its slot index, or -1 when neither slot holds one.
   int readNewest(SettingsRecord& rec);
   bool readSlot(size_t slot, SettingsRecord& rec);
-  bool writeSlot(size_t slot, const SettingsRecord& rec);
+  enum class Phase : uint8_t { kIdle, kErase, kProgram };
+  /// After the last operation ended: starts the next unit's programming, or runs the read-back check once every
+  /// unit is programmed (kSaved / kWriteFailed then).
+  SettingsSave advanceOnce();
+  SettingsSave endSave(SettingsSave r);
 
   hal::FlashPages& flash_;
   size_t first_page_;
   uint16_t built_version_;
+  uint32_t busy_bound_;
+  Phase phase_ = Phase::kIdle;
+  bool op_pending_ = false;    ///< an operation was begun and has not yet been seen to end
+  uint32_t busy_steps_ = 0;    ///< steps the pending operation has reported busy
+  size_t target_page_ = 0;
+  size_t write_len_ = 0;       ///< bytes of buf_ to program (whole units)
+  size_t next_unit_ = 0;       ///< offset of the next unit to program
+  uint32_t pending_seq_ = 0;   ///< the sequence of the record being written
   uint32_t newest_seq_ = 0;
   SettingsReport last_load_;
   uint8_t buf_[kSettingsSlotBytes] = {};

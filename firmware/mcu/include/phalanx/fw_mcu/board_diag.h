@@ -58,6 +58,9 @@ class DiagApp final : public fw::DeviceApp {
     if (diag_.diagSet(id, value)) return protocol::ParamStatus::kOk;
     return diag_.diagGet(id, unused) ? protocol::ParamStatus::kReadOnly : protocol::ParamStatus::kUnknownParam;
   }
+  /// The app's persisted settings (the board diagnostics are never kept): without this the settings store would
+  /// see no layout behind the wrapper and keep nothing.
+  fw::SettingsHistory settingsHistory() const override { return app_.settingsHistory(); }
 
  private:
   fw::DeviceApp& app_;

@@ -69,6 +69,7 @@ enum class FlashResult : uint8_t {
   kLocked = 2,          ///< FLASH_CR still locked after the key sequence (a wrong sequence locks it until reset)
   kBusyTimeout = 3,     ///< BSY still set after kBusyWaitBound reads (before or during the operation)
   kSingleBank = 4,      ///< FLASH_OPTR.DBANK = 0: page geometry differs (4 KiB), refused
+  kBusy = 5,            ///< begin*(): BSY already set (an operation still running): nothing started
   kProgramError = 16,   ///< PROGERR: the double word was not erased (and the data not all zero)
   kWriteProtected = 17, ///< WRPERR: page in a write-protected (WRP/PCROP/securable) area
   kAlignmentError = 18, ///< PGAERR: the two words not in one double word, or the double word incomplete
@@ -104,6 +105,7 @@ constexpr const char* flashResultName(FlashResult r) {
     case FlashResult::kLocked: return "locked";
     case FlashResult::kBusyTimeout: return "busy-timeout";
     case FlashResult::kSingleBank: return "single-bank";
+    case FlashResult::kBusy: return "busy";
     case FlashResult::kProgramError: return "program-error";
     case FlashResult::kWriteProtected: return "write-protected";
     case FlashResult::kAlignmentError: return "alignment-error";
@@ -144,19 +146,12 @@ class Stm32g4Flash {
   /// §3.3.6 page erase: BSY clear, error flags cleared, PER + PNB + BKER, then STRT, wait for BSY, PER cleared.
   /// bank 1 or 2, page 0..127 within it. The caches are reset afterwards (they may hold the page's old contents).
   FlashResult erasePage(uint32_t bank, uint32_t page) {
-    using namespace flash;
-    if ((bank != 1 && bank != 2) || page >= kPagesPerBank) return FlashResult::kBadArgument;
-    if (!dualBank()) return FlashResult::kSingleBank;
-    if (locked()) return FlashResult::kLocked;
+    FlashResult r = checkErase(bank, page);
+    if (r != FlashResult::kSuccess) return r;
     if (!waitNotBusy()) return FlashResult::kBusyTimeout;
-    clearFlags();
-    uint32_t c = cr() & ~(kCrPg | kCrPer | kCrMer1 | kCrMer2 | kCrPnbMask | kCrBker | kCrStrt | kCrFstpg);
-    c |= kCrPer | (page << kCrPnbShift) | (bank == 2 ? kCrBker : 0u);
-    setCr(c);
-    setCr(c | kCrStrt);
-    const FlashResult r = finish();
-    setCr(cr() & ~(kCrPer | kCrPnbMask | kCrBker));
-    resetCaches();
+    startErase(bank, page);
+    r = waitNotBusy() ? takeResult() : FlashResult::kBusyTimeout;
+    endErase();
     return r;
   }
 
@@ -164,20 +159,53 @@ class Stm32g4Flash {
   /// clear, error flags cleared, PG set, the low word stored at address then the high word at address + 4 (the
   /// second store starts the programming), wait for BSY, PG cleared. lo is the word at the lower address.
   FlashResult programDoubleWord(uint32_t address, uint32_t lo, uint32_t hi) {
-    using namespace flash;
-    if (address % 8u != 0 || address < kMemoryBase || address - kMemoryBase >= kMemoryBytes) {
-      return FlashResult::kBadArgument;
-    }
-    if (!dualBank()) return FlashResult::kSingleBank;
-    if (locked()) return FlashResult::kLocked;
+    FlashResult r = checkProgram(address);
+    if (r != FlashResult::kSuccess) return r;
     if (!waitNotBusy()) return FlashResult::kBusyTimeout;
-    clearFlags();
-    const uint32_t c = cr() & ~(kCrPer | kCrMer1 | kCrMer2 | kCrStrt | kCrFstpg);
-    setCr(c | kCrPg);
-    bus_.writeFlash32(address, lo);
-    bus_.writeFlash32(address + 4u, hi);
-    const FlashResult r = finish();
-    setCr(cr() & ~kCrPg);
+    startProgram(address, lo, hi);
+    r = waitNotBusy() ? takeResult() : FlashResult::kBusyTimeout;
+    endProgram();
+    return r;
+  }
+
+  // The same two operations without the wait, for a caller that polls once per control tick (a page erase,
+  // ~22 ms typical by DS12288, outlasts the board's 5 ms watchdog). begin*() checks, starts the operation and
+  // returns; busy() reads FLASH_SR once; once it is false, finishErase()/finishProgram() decode the result and
+  // disarm PER/PG. Meanwhile nothing else may touch FLASH_CR, and the code must not read the bank being written:
+  // a read of that bank stalls until the operation ends (RM0440 §3.3.1: read-while-write holds between the two
+  // banks only), which for an erase is several watchdog periods.
+
+  /// As erasePage up to STRT. kBusy when FLASH_SR.BSY is already set (nothing started).
+  FlashResult beginErasePage(uint32_t bank, uint32_t page) {
+    const FlashResult r = checkErase(bank, page);
+    if (r != FlashResult::kSuccess) return r;
+    if (busy()) return FlashResult::kBusy;
+    startErase(bank, page);
+    return FlashResult::kSuccess;
+  }
+  /// As programDoubleWord up to the second store. kBusy when BSY is already set (nothing stored).
+  FlashResult beginProgramDoubleWord(uint32_t address, uint32_t lo, uint32_t hi) {
+    const FlashResult r = checkProgram(address);
+    if (r != FlashResult::kSuccess) return r;
+    if (busy()) return FlashResult::kBusy;
+    startProgram(address, lo, hi);
+    return FlashResult::kSuccess;
+  }
+  /// FLASH_SR.BSY now (one register read; lastStatus() keeps the value read).
+  bool busy() {
+    last_sr_ = bus_.read32(flash::kBase + flash::kSr);
+    return (last_sr_ & flash::kSrBsy) != 0;
+  }
+  /// After busy() returned false: the erase's result; PER, PNB, BKER cleared and the caches reset.
+  FlashResult finishErase() {
+    const FlashResult r = takeResult();
+    endErase();
+    return r;
+  }
+  /// After busy() returned false: the double word's result; PG cleared.
+  FlashResult finishProgram() {
+    const FlashResult r = takeResult();
+    endProgram();
     return r;
   }
 
@@ -197,10 +225,47 @@ class Stm32g4Flash {
     }
     return false;
   }
-  /// Waits for the end of the operation and decodes SR. EOP is set only with EOPIE (§3.7.5), which this driver
-  /// leaves off: success is BSY clear with no error flag. The flags are cleared for the next operation.
-  FlashResult finish() {
-    if (!waitNotBusy()) return FlashResult::kBusyTimeout;
+  FlashResult checkErase(uint32_t bank, uint32_t page) {
+    if ((bank != 1 && bank != 2) || page >= flash::kPagesPerBank) return FlashResult::kBadArgument;
+    return checkMode();
+  }
+  FlashResult checkProgram(uint32_t address) {
+    using namespace flash;
+    if (address % 8u != 0 || address < kMemoryBase || address - kMemoryBase >= kMemoryBytes) {
+      return FlashResult::kBadArgument;
+    }
+    return checkMode();
+  }
+  FlashResult checkMode() {
+    if (!dualBank()) return FlashResult::kSingleBank;
+    return locked() ? FlashResult::kLocked : FlashResult::kSuccess;
+  }
+  /// With BSY clear: flags cleared, PER + PNB + BKER, then STRT (§3.3.6).
+  void startErase(uint32_t bank, uint32_t page) {
+    using namespace flash;
+    clearFlags();
+    uint32_t c = cr() & ~(kCrPg | kCrPer | kCrMer1 | kCrMer2 | kCrPnbMask | kCrBker | kCrStrt | kCrFstpg);
+    c |= kCrPer | (page << kCrPnbShift) | (bank == 2 ? kCrBker : 0u);
+    setCr(c);
+    setCr(c | kCrStrt);
+  }
+  /// With BSY clear: flags cleared, PG, then the two word stores (§3.3.7).
+  void startProgram(uint32_t address, uint32_t lo, uint32_t hi) {
+    using namespace flash;
+    clearFlags();
+    const uint32_t c = cr() & ~(kCrPer | kCrMer1 | kCrMer2 | kCrStrt | kCrFstpg);
+    setCr(c | kCrPg);
+    bus_.writeFlash32(address, lo);
+    bus_.writeFlash32(address + 4u, hi);
+  }
+  void endErase() {
+    setCr(cr() & ~(flash::kCrPer | flash::kCrPnbMask | flash::kCrBker));
+    resetCaches();
+  }
+  void endProgram() { setCr(cr() & ~flash::kCrPg); }
+  /// Decodes the SR read that saw BSY clear. EOP is set only with EOPIE (§3.7.5), which this driver leaves off:
+  /// success is BSY clear with no error flag. The flags are cleared for the next operation.
+  FlashResult takeResult() {
     const FlashResult r = flashErrorOf(last_sr_);
     clearFlags();
     return r;
