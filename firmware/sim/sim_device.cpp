@@ -73,7 +73,7 @@ std::unique_ptr<SimDevice> makeSimDevice(const std::string& name, const SimDevic
     else if (options.scenario == "press") cfg.scenario = sim::PenHandScenario::kPress;
     else {
       error = "unknown scenario '" + options.scenario +
-              "' (still, grasp: hold the pen; random, close-open: move it; press: push 3.5 cm along +x from 3 s on)";
+              "' (still, grasp: hold the pen; random, close-open: move it; press: push 3.5 cm along +x from 2 s on)";
       return nullptr;
     }
     try {

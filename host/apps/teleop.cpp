@@ -9,7 +9,8 @@
 // displays the force the passivity layer gives (host/include/phalanx/host/teleop/passivity.h) as a pen wrench: the
 // daemon's limits stage, client deadline and force-off causes apply as for any client (docs/sdk.md).
 // remote: a simulated slave arm against a wall at 1 kHz, coupled to the master's position.
-// Each prints a JSON summary on stdout at the end; --csv writes one row per cycle.
+// Each prints a JSON summary on stdout at the end; --csv writes one row per cycle (the master's with the device's
+// time, the remote's with the master sample it used: the rows of the two sides and of the device line up).
 #include <dds/dds.h>
 #include <signal.h>
 #include <time.h>
@@ -53,6 +54,7 @@ struct Options {
   std::string csv;
   std::string socket;       // master
   unsigned deadline_ms = 50;
+  teleop::MasterPort::Config master;   // master
   teleop::SlaveArm::Config arm;        // remote
   teleop::SlavePort::Config coupling;  // remote
 };
@@ -81,8 +83,9 @@ class Link {
     dds_qset_data_representation(q, 1, rep);
     const std::string mine = "rt/" + o.ns + (master ? "/teleop/master" : "/teleop/slave");
     const std::string theirs = "rt/" + o.ns + (master ? "/teleop/slave" : "/teleop/master");
-    const dds_entity_t tw = dds_create_topic(participant_, &phalanx_msgs_msg_dds__TeleopSample__desc, mine.c_str(), q, nullptr);
-    const dds_entity_t tr = dds_create_topic(participant_, &phalanx_msgs_msg_dds__TeleopSample__desc, theirs.c_str(), q, nullptr);
+    const dds_topic_descriptor_t* desc = &phalanx_msgs_msg_dds__TeleopSample__desc;
+    const dds_entity_t tw = dds_create_topic(participant_, desc, mine.c_str(), q, nullptr);
+    const dds_entity_t tr = dds_create_topic(participant_, desc, theirs.c_str(), q, nullptr);
     writer_ = tw < 0 ? tw : dds_create_writer(participant_, tw, q, nullptr);
     reader_ = tr < 0 ? tr : dds_create_reader(participant_, tr, q, nullptr);
     dds_delete_qos(q);
@@ -213,9 +216,11 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
     std::fprintf(stderr, "phalanx-teleop: master needs a pantograph (the daemon drives another device)\n");
     return 2;
   }
-  std::FILE* csv = openCsv(o.csv, "t_s,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,fx_N,fy_N,fz_N,energy_in_J,energy_out_J,"
-                                  "slave_seq,slave_age_ms");
-  teleop::MasterPort port({scheme});
+  std::FILE* csv = openCsv(o.csv, "t_s,device_time_us,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,fx_N,fy_N,fz_N,energy_in_J,"
+                                  "energy_out_J,slave_seq,slave_age_ms");
+  teleop::MasterPort::Config mc = o.master;
+  mc.scheme = scheme;
+  teleop::MasterPort port(mc);
   Sample slave, out;
   bool has_slave = false, started = false;
   Vec3 origin{}, x_prev{};
@@ -231,26 +236,28 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
     if (!started) origin = centre;
     started = true;
     const Vec3 x = {centre[0] - origin[0], centre[1] - origin[1], centre[2] - origin[2]};
-    // Velocity as the position increment over the period (passivity.h says why), not the daemon's estimate.
-    const Vec3 v = {(x[0] - x_prev[0]) / dt, (x[1] - x_prev[1]) / dt, (x[2] - x_prev[2]) / dt};
-    x_prev = x;
     if (link.take(slave, rx)) {
       has_slave = true;
       ages.add(slave.stamp_ns);
     }
-    const Vec3 F = port.step(v, slave, has_slave, dt);
+    const Vec3 F = port.step(x, slave, has_slave, dt);
+    const Vec3& xf = port.position();  // filtered (passivity.h): what the port booked
+    // Velocity as the position increment over the period (passivity.h says why), not the daemon's estimate.
+    const Vec3 v = {(xf[0] - x_prev[0]) / dt, (xf[1] - x_prev[1]) / dt, (xf[2] - x_prev[2]) / dt};
+    x_prev = xf;
     if (has_slave) worst_excess = std::max(worst_excess, port.energy().out_J - slave.energy_in_J);
     cmd.penWrench(F);
     out.seq = static_cast<uint32_t>(++cycles);
     out.stamp_ns = monoNs();
-    out.position_m = x;
+    out.position_m = x;  // unfiltered: the slave's reference gets no lag from the booking's filter
     out.velocity_m_s = v;
     out.force_N = F;
     out.energy_in_J = port.energy().in_J;
     if (!link.send(out)) ++send_errors;
     if (csv != nullptr) {
-      std::fprintf(csv, "%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.5g,%.5g,%.5g,%.6g,%.6g,%u,%.3f\n",
-                   static_cast<double>(out.stamp_ns - t0) * 1e-9, x[0], x[1], x[2], v[0], v[1], v[2], F[0], F[1], F[2],
+      std::fprintf(csv, "%.6f,%llu,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.5g,%.5g,%.5g,%.6g,%.6g,%u,%.3f\n",
+                   static_cast<double>(out.stamp_ns - t0) * 1e-9, static_cast<unsigned long long>(s.device_time_us),
+                   x[0], x[1], x[2], v[0], v[1], v[2], F[0], F[1], F[2],
                    port.energy().in_J, port.energy().out_J, slave.seq,
                    has_slave ? static_cast<double>(out.stamp_ns - slave.stamp_ns) * 1e-6 : -1.0);
     }
@@ -348,6 +355,15 @@ int main(int argc, char** argv) {
   CLI::App* m = app.add_subcommand("master", "the operator's side: a client of the local phalanxd (pantograph)");
   common(m);
   m->add_option("--socket", o.socket, "phalanxd's client socket (--client-socket)")->required();
+  m->add_option("--max-damping", o.master.max_damping_N_s_per_m,
+                "the passivity controller's largest damper on the device, N·s/m (passivity.h says why it is bounded)")
+      ->check(CLI::Range(1.0, 5000.0))->capture_default_str();
+  m->add_option("--damping", o.master.local_damping_N_s_per_m,
+                "a damper on the pen outside the channel, N·s/m (the local loop's own delay: passivity.h)")
+      ->check(CLI::Range(0.0, 100.0))->capture_default_str();
+  m->add_option("--position-filter", o.master.position_filter_hz,
+                "low-pass on the pen position before it is booked and sent, Hz (0: none; passivity.h says why)")
+      ->check(CLI::Range(0.0, 500.0))->capture_default_str();
   m->add_option("--deadline-ms", o.deadline_ms, "the client deadline (docs/sdk.md)")->check(CLI::Range(2u, 1000u))->capture_default_str();
   CLI::App* r = app.add_subcommand("remote", "the remote side: a simulated slave arm against a wall, at 1 kHz");
   common(r);

@@ -57,7 +57,7 @@ class Link {
   bool have_ = false;
 };
 
-Result run(Scheme scheme, int delay_ms, double loss, uint32_t seed = 7) {
+Result run(Scheme scheme, int delay_ms, double loss, double wall_N_per_m = 5000.0, uint32_t seed = 7) {
   const double dt = 1e-3;
   MasterPort::Config mc;
   mc.scheme = scheme;
@@ -66,6 +66,7 @@ Result run(Scheme scheme, int delay_ms, double loss, uint32_t seed = 7) {
   MasterPort master(mc);
   SlavePort slave(sc);
   SlaveArm arm;
+  arm.cfg.wall_stiffness_N_per_m = wall_N_per_m;
   Link to_slave(delay_ms, loss, seed), to_master(delay_ms, loss, seed + 1);
   // Master device (x: towards the wall) and the operator's hand.
   const double m_dev = 0.1, m_hand = 0.25, k_grip = 2000, b_grip = 8, k_arm = 200, b_arm = 5;
@@ -82,7 +83,7 @@ Result run(Scheme scheme, int delay_ms, double loss, uint32_t seed = 7) {
     // The operator presses 2 cm beyond the wall (ramp over 1 s from t = 0.5 s), then holds.
     const double target = arm.cfg.wall_x_m + 0.02 * std::clamp((t - 0.5) / 1.0, 0.0, 1.0);
     const bool has_slave = to_master.receive(n, from_slave);
-    const Vec3 F = master.step(vd, from_slave, has_slave, dt);
+    const Vec3 F = master.step(xd, from_slave, has_slave, dt);
     r.max_force_N = std::max(r.max_force_N, std::fabs(F[0]));
     if (has_slave) r.worst_bound_excess_J = std::max(r.worst_bound_excess_J, master.energy().out_J - from_slave.energy_in_J);
     Sample ms;
@@ -202,5 +203,27 @@ TEST(Teleop, PrintsTheLockstepTable) {
                     r.hold_peak_to_peak_m * 1e3, r.earlier_velocity_rms_m_s * 1e3, r.hold_velocity_rms_m_s * 1e3, r.contact_changes, r.hold_force_N,
                     r.max_force_N, r.channel_net_out_J, r.worst_bound_excess_J);
       }
+}
+}  // namespace
+
+namespace {
+bool holds(const Result& r) {
+  return r.contact_changes == 0 && r.hold_peak_to_peak_m < 1e-3 && r.hold_velocity_rms_m_s <= r.earlier_velocity_rms_m_s + 1e-3;
+}
+
+// The largest wall stiffness each scheme holds, per delay (docs/teleop.md): printed, and the passive scheme must
+// hold at least what the plain one holds at every delay.
+TEST(Teleop, LargestStableWallStiffness) {
+  const double ks[] = {100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000};
+  std::printf("largest stable wall stiffness, N/m (of 100 ... 50000; 0: none)\n delay_ms  plain  passive\n");
+  for (int delay : {0, 10, 50, 100}) {
+    double best[2] = {0, 0};
+    for (Scheme s : {Scheme::kPlain, Scheme::kPassive})
+      for (double k : ks)
+        if (holds(run(s, delay, 0.0, k))) best[static_cast<int>(s)] = k;
+    std::printf("%9d %6.0f %8.0f\n", delay, best[0], best[1]);
+    EXPECT_GE(best[1], best[0]) << "delay " << delay;
+    EXPECT_EQ(best[1], 50000.0) << "the passive scheme should hold the stiffest wall tried at " << delay << " ms";
+  }
 }
 }  // namespace

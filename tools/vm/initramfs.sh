@@ -9,8 +9,9 @@ KV="$1"
 CACHE="$ROOT/build/vm"
 KROOT="$CACHE/kroot-$KV"
 OUT="$CACHE/initramfs-$KV.cpio.gz"
-# 9p (host root and repository), CAN (vcan, vxcan pairs, raw sockets), configfs (gadgets, gpio-sim).
-MODULES=(virtio_pci 9pnet_virtio 9p vcan vxcan can-raw can-bcm configfs)
+# 9p (host root and repository), CAN (vcan, vxcan pairs, raw sockets), configfs (gadgets, gpio-sim), veth and
+# netem (the teleoperation test's two namespaces and their delay).
+MODULES=(virtio_pci 9pnet_virtio 9p vcan vxcan can-raw can-bcm configfs veth sch_netem)
 
 EXTRA="$CACHE/extra-modules/$KV"
 stamp=$({ cat "$0" "$ROOT/tools/vm/init" "$EXTRA"/extra.load "$EXTRA"/*.ko 2>/dev/null || true; } | sha256sum | cut -c1-16)

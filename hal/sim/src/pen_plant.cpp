@@ -104,7 +104,7 @@ void PenPlant::handTarget(double t, PenVec5& target, PenVec5& target_dot) const 
       return;
     }
     case PenHandScenario::kPress: {
-      constexpr double kStart_s = 3.0, kRamp_s = 1.0, kDistance_m = 0.035, kPi = 3.141592653589793;
+      constexpr double kStart_s = 2.0, kRamp_s = 1.0, kDistance_m = 0.035, kPi = 3.141592653589793;
       const double u = std::clamp((t - kStart_s) / kRamp_s, 0.0, 1.0);
       target = hand_target_;  // the start pose
       target_dot = {};

@@ -29,58 +29,77 @@ void PortEnergy::add(double power_W, double dt_s) {
   else out_J -= power_W * dt_s;
 }
 
-Vec3 MasterPort::step(const Vec3& v_m, const Sample& slave, bool has_slave, double dt_s) {
-  if (!has_slave) return {};
-  Vec3 F = {-slave.force_N[0], -slave.force_N[1], -slave.force_N[2]};
-  // Power from the operator into the channel: −F·v_m (the operator pushing against the displayed force).
-  const double out_planned_J = std::max(0.0, dot(F, v_m)) * dt_s;
-  if (cfg_.scheme == Scheme::kPassive && out_planned_J > 0.0) {
-    // The bound E_out_M ≤ E_in_S(received): what may still leave here.
-    const double allowed_J = std::max(0.0, slave.energy_in_J - energy_.out_J);
-    const double v2 = dot(v_m, v_m);
+Vec3 ImpedancePort::step(const Vec3& x, const Vec3& F_N, double available_in_J, bool bounded, double dt_s) {
+  if (started_) {
+    // The last period: the force then exerted, against the displacement since. Moving along the force, the
+    // device took energy out of the network; against it, the device (operator or arm) put energy in.
+    const Vec3 dx = {x[0] - x_prev_[0], x[1] - x_prev_[1], x[2] - x_prev_[2]};
+    energy_.add(-dot(F_prev_, dx) / dt_s, dt_s);
+    v_ = {dx[0] / dt_s, dx[1] / dt_s, dx[2] / dt_s};
+  }
+  Vec3 F = F_N;
+  const double out_planned_J = std::max(0.0, dot(F, v_)) * dt_s;  // the coming period, moving as in the last
+  if (scheme_ == Scheme::kPassive && bounded && out_planned_J > 0.0) {
+    const double allowed_J = std::max(0.0, available_in_J - energy_.out_J);
+    const double v2 = dot(v_, v_);
     if (out_planned_J > allowed_J && v2 > kTinySquare) {
-      const double alpha = std::min((out_planned_J - allowed_J) / (v2 * dt_s), cfg_.max_damping_N_s_per_m);
-      F = axpy(F, -alpha, v_m);
+      const double alpha = std::min((out_planned_J - allowed_J) / (v2 * dt_s), max_damping_);
+      F = axpy(F, -alpha, v_);
       energy_.dissipated_J += alpha * v2 * dt_s;
       ++energy_.pc_active_cycles;
     }
   }
-  energy_.add(-dot(F, v_m), dt_s);
+  x_prev_ = x;
+  F_prev_ = F;
+  started_ = true;
   return F;
 }
 
+Vec3 MasterPort::step(const Vec3& x_m, const Sample& slave, bool has_slave, double dt_s) {
+  x_f_prev_ = filter_started_ ? x_f_ : x_m;
+  if (!filter_started_ || cfg_.position_filter_hz <= 0.0) {
+    x_f_ = x_m;
+  } else {
+    const double a = 1.0 - std::exp(-2.0 * 3.141592653589793 * cfg_.position_filter_hz * dt_s);
+    for (int i = 0; i < 3; ++i) x_f_[i] += a * (x_m[i] - x_f_[i]);
+  }
+  filter_started_ = true;
+  const Vec3 F = has_slave ? Vec3{-slave.force_N[0], -slave.force_N[1], -slave.force_N[2]} : Vec3{};
+  Vec3 F_out = port_.step(x_f_, F, slave.energy_in_J, has_slave, dt_s);
+  for (int i = 0; i < 3; ++i) F_out[i] -= cfg_.local_damping_N_s_per_m * (x_f_[i] - x_f_prev_[i]) / dt_s;
+  return F_out;
+}
+
 Vec3 SlavePort::step(const Vec3& x_s, const Vec3& v_s, const Sample& master, bool has_master, double dt_s) {
-  if (has_master && cfg_.scheme == Scheme::kPlain) x_ref_ = master.position_m;
+  if (!held_) x_ref_ = x_s;  // held where it is until the master is heard
+  held_ = true;
   Vec3 F_c;
   for (int i = 0; i < 3; ++i) F_c[i] = cfg_.stiffness_N_per_m * (x_ref_[i] - x_s[i]) - cfg_.damping_N_s_per_m * v_s[i];
-  if (!has_master) return F_c;  // holds the arm where it started until the master is heard
-  if (cfg_.scheme == Scheme::kPlain) {
-    energy_.add(-dot(F_c, master.velocity_m_s), dt_s);  // booked, not bounded: the plain scheme's channel
-    return F_c;
-  }
-  // The reference follows the master's velocity plus a drift term towards its position; the channel delivers
-  // F_c·v to the slave side while it moves, bounded by E_out_S ≤ E_in_M(received). What the bound holds back is
-  // position drift, which the drift term makes up while energy arrives (its motion passes the same check).
-  // The master's motion enters once per sample, as its displacement since the sample used before (a sample
-  // reused because none arrived this period adds none; one lost is made up by the next): integrating a velocity
-  // would count a reused sample twice.
+  if (!has_master) return F_c;
+  // The reference moves by the master's displacement since the sample used before (a sample reused because none
+  // arrived this period adds none; one lost is made up by the next), plus, in kPassive, a drift term back to the
+  // master's position. The network delivers F_c·v to the slave side while the reference moves.
   Vec3 v{};
   const bool fresh = master.seq != last_master_seq_;
   for (int i = 0; i < 3; ++i) {
     if (fresh && started_) v[i] = (master.position_m[i] - last_master_pos_[i]) / dt_s;
-    v[i] += cfg_.drift_gain_per_s * (master.position_m[i] - x_ref_[i]);
+    if (cfg_.scheme == Scheme::kPassive) v[i] += cfg_.drift_gain_per_s * (master.position_m[i] - x_ref_[i]);
   }
   last_master_seq_ = master.seq;
   last_master_pos_ = master.position_m;
+  if (!started_ && cfg_.scheme == Scheme::kPlain) x_ref_ = master.position_m;
   started_ = true;
-  const double out_planned_J = std::max(0.0, dot(F_c, v)) * dt_s;
-  const double allowed_J = std::max(0.0, master.energy_in_J - energy_.out_J);
-  const double f2 = dot(F_c, F_c);
-  if (out_planned_J > allowed_J && f2 > kTinySquare) {
-    const double beta = (out_planned_J - allowed_J) / (f2 * dt_s);
-    v = axpy(v, -beta, F_c);
-    energy_.dissipated_J += beta * f2 * dt_s;
-    ++energy_.pc_active_cycles;
+  if (cfg_.scheme == Scheme::kPassive) {
+    // Bounded: E_out_S ≤ E_in_M(received); the excess is taken off the reference's velocity along F_c.
+    const double out_planned_J = std::max(0.0, dot(F_c, v)) * dt_s;
+    const double allowed_J = std::max(0.0, master.energy_in_J - energy_.out_J);
+    const double f2 = dot(F_c, F_c);
+    if (out_planned_J > allowed_J && f2 > kTinySquare) {
+      const double beta = (out_planned_J - allowed_J) / (f2 * dt_s);
+      v = axpy(v, -beta, F_c);
+      energy_.dissipated_J += beta * f2 * dt_s;
+      ++energy_.pc_active_cycles;
+    }
   }
   energy_.add(-dot(F_c, v), dt_s);
   x_ref_ = axpy(x_ref_, dt_s, v);

@@ -35,7 +35,7 @@ enum class PenHandScenario : std::uint8_t {
   kHold = 1,      ///< holds the pen still at the start pose
   kRandom = 2,    ///< band-limited random motion inside the workspace (seeded)
   kExternal = 3,  ///< the hand target is set by the caller every tick (setHandTarget): benches and tests
-  kPress = 4,     ///< presses along +x: from 3 s on the target moves 3.5 cm in 1 s (a smooth ramp) and stays there
+  kPress = 4,     ///< presses along +x: from 2 s on the target moves 3.5 cm in 1 s (a smooth ramp) and stays there
                   ///< (teleoperation against a remote wall, docs/teleop.md)
 };
 

@@ -1,0 +1,7 @@
+# Teleoperation over DDS between two network namespaces with tc netem's delay and loss on their veth pair, under
+# Debian's kernel (this build machine's has no netem): every case of tests/dds/teleop_netns_test.sh, whose checks
+# are in tests/dds/teleop_check.py. TELEOP_CASES overrides the cases (scheme:delay_ms:loss_pct ...).
+# shellcheck disable=SC2086
+# Under TCG the device's clock runs at 1/2 to 2/3 of real time and the master takes seconds to start: 24 s of
+# master. phalanxd without mlockall (it would fault in every page of the binaries over 9p: docs/vm-lane.md).
+TELEOP_SECONDS=${TELEOP_SECONDS:-24} TELEOP_DAEMON_ARGS=${TELEOP_DAEMON_ARGS:---no-realtime} exec bash tests/dds/teleop_netns_test.sh build/host/bin ${TELEOP_CASES:-}
