@@ -54,6 +54,7 @@ struct Options {
   std::string csv;
   std::string socket;       // master
   unsigned deadline_ms = 50;
+  double slave_timeout_ms = 500;
   teleop::MasterPort::Config master;   // master
   teleop::SlaveArm::Config arm;        // remote
   teleop::SlavePort::Config coupling;  // remote
@@ -226,7 +227,7 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
   Vec3 origin{}, x_prev{};
   RxCounts rx;
   Ages ages;
-  uint64_t cycles = 0, send_errors = 0;
+  uint64_t cycles = 0, send_errors = 0, stale_cycles = 0, last_rx_ns = 0;
   double worst_excess = 0;
   const uint64_t t0 = monoNs();
   const double dt = 1.0 / cl.device().rate_hz;
@@ -236,11 +237,20 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
     if (!started) origin = centre;
     started = true;
     const Vec3 x = {centre[0] - origin[0], centre[1] - origin[1], centre[2] - origin[2]};
+    const uint64_t now = monoNs();
     if (link.take(slave, rx)) {
       has_slave = true;
+      last_rx_ns = now;
       ages.add(slave.stamp_ns);
     }
-    const Vec3 F = port.step(x, slave, has_slave, dt);
+    // The remote silent for --slave-timeout-ms (gone, or the network down): its last force is not held on the
+    // pen; the port then books a zero force, and the bound still applies when samples return.
+    Sample shown = slave;
+    if (has_slave && static_cast<double>(now - last_rx_ns) * 1e-6 > o.slave_timeout_ms) {
+      shown.force_N = {};
+      ++stale_cycles;
+    }
+    const Vec3 F = port.step(x, shown, has_slave, dt);
     const Vec3& xf = port.position();  // filtered (passivity.h): what the port booked
     // Velocity as the position increment over the period (passivity.h says why), not the daemon's estimate.
     const Vec3 v = {(xf[0] - x_prev[0]) / dt, (xf[1] - x_prev[1]) / dt, (xf[2] - x_prev[2]) / dt};
@@ -267,6 +277,7 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
   if (csv != nullptr) std::fclose(csv);
   nlohmann::json j = {{"role", "master"}, {"scheme", teleop::schemeName(scheme)}, {"cycles", cycles},
                       {"send_errors", send_errors}, {"rx", rx.json()}, {"slave_sample_age", ages.json()},
+                      {"slave_silent_cycles", stale_cycles},
                       {"energy", energyJson(port.energy(), worst_excess)},
                       {"exit", rc == PHALANX_OK ? "ok" : "forced off"}};
   std::printf("%s\n", j.dump(2).c_str());
@@ -364,6 +375,9 @@ int main(int argc, char** argv) {
   m->add_option("--position-filter", o.master.position_filter_hz,
                 "low-pass on the pen position before it is booked and sent, Hz (0: none; passivity.h says why)")
       ->check(CLI::Range(0.0, 500.0))->capture_default_str();
+  m->add_option("--slave-timeout-ms", o.slave_timeout_ms,
+                "no slave sample for this long: the pen shows no force until one arrives (above the network's delay)")
+      ->check(CLI::Range(10.0, 10000.0))->capture_default_str();
   m->add_option("--deadline-ms", o.deadline_ms, "the client deadline (docs/sdk.md)")->check(CLI::Range(2u, 1000u))->capture_default_str();
   CLI::App* r = app.add_subcommand("remote", "the remote side: a simulated slave arm against a wall, at 1 kHz");
   common(r);
