@@ -44,46 +44,7 @@ ip -n "$NB" link set "$VB" up
 NETEM=1
 ip netns exec "$NA" tc qdisc add dev "$VA" root netem delay 1ms 2>"$WORK/tc.err" || NETEM=0
 if [ $NETEM = 0 ]; then
-  # The remote killed -9 mid-press (0 ms, no netem needed): within --slave-timeout-ms (500) of its last sample the
-# pen shows no wall force any more; its last force is not held.
-remote_killed() {
-  rm -f "$SOCK"
-  ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --scenario press --scene none --seconds $((SECS + 2)) \
-    ${TELEOP_DAEMON_ARGS:-} --client-socket "$SOCK" --json >"$WORK/kill.d.json" 2>"$WORK/kill.d.err" &
-  local d=$!
-  PIDS+=($d)
-  for _ in $(seq 100); do [ -S "$SOCK" ] && break; sleep 0.05; done
-  ip netns exec "$NB" "$BIN/phalanx-teleop" remote --domain $DOMAIN --interface "$VB" --ns lab/teleop \
-    --seconds 20 >/dev/null 2>&1 &
-  local r=$!
-  PIDS+=($r)
-  ip netns exec "$NA" "$BIN/phalanx-teleop" master --domain $DOMAIN --interface "$VA" --ns lab/teleop \
-    --socket "$SOCK" --seconds $((SECS * 9 / 10)) --csv "$WORK/kill.m.csv" >"$WORK/kill.m.json" 2>"$WORK/kill.m.err" &
-  local m=$!
-  PIDS+=($m)
-  sleep $((SECS * 6 / 10))  # in the hold phase (the device's 3 s on), also on the VM lane's slow clock
-  kill -9 $r
-  wait $m || { cat "$WORK/kill.m.err"; echo "FAIL: the master failed after the remote was killed"; exit 1; }
-  wait $d || true
-  python3 - "$WORK/kill.m.csv" "$WORK/kill.m.json" <<'PY'
-import csv, json, sys
-rows = list(csv.DictReader(open(sys.argv[1])))
-silent = json.load(open(sys.argv[2]))["slave_silent_cycles"]
-last_new = max(i for i in range(1, len(rows)) if rows[i]["slave_seq"] != rows[i - 1]["slave_seq"])
-t_last = float(rows[last_new]["t_s"])
-before = [abs(float(r["fx_N"])) for r in rows[last_new - 500:last_new]]
-after = [abs(float(r["fx_N"])) for r in rows if float(r["t_s"]) > t_last + 0.55]
-if not after or silent == 0:
-    sys.exit("FAIL: remote killed: no cycles after the slave timeout (%d silent)" % silent)
-mb, ma = sum(before) / len(before), sum(after) / len(after)
-print("remote killed -9: force shown %.2f N before, %.3f N from 0.55 s after its last sample (%d silent cycles)"
-      % (mb, ma, silent))
-if mb < 1.0 or ma > 0.3:
-    sys.exit("FAIL: remote killed: the pen kept showing the wall's force")
-PY
-}
-
-for c in "${CASES[@]}"; do
+  for c in "${CASES[@]}"; do
     case $c in *:0:0) ;; *) echo "FAIL: case $c needs tc netem, which this kernel lacks ($(head -c 200 "$WORK/tc.err"));" \
                               "the VM lane (tests/vm/teleop_test.sh) runs those"; exit 1 ;; esac
   done
@@ -154,8 +115,14 @@ remote_killed() {
   PIDS+=($m)
   sleep $((SECS * 6 / 10))  # in the hold phase (the device's 3 s on), also on the VM lane's slow clock
   kill -9 $r
-  wait $m || { cat "$WORK/kill.m.err"; echo "FAIL: the master failed after the remote was killed"; exit 1; }
+  local mrc=0
+  wait $m || mrc=$?
   wait $d || true
+  if grep -q '"faults_seen": "[^"]*command-timeout' "$WORK/kill.d.json"; then
+    echo "(remote killed: the device latched command-timeout: a stalled machine; the case runs again)"
+    return 2
+  fi
+  [ $mrc -eq 0 ] || { cat "$WORK/kill.m.err"; echo "FAIL: the master failed (exit $mrc) after the remote was killed"; exit 1; }
   python3 - "$WORK/kill.m.csv" "$WORK/kill.m.json" <<'PY'
 import csv, json, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
@@ -179,7 +146,13 @@ for c in "${CASES[@]}"; do
   run_case3 "$scheme" "$delay" "$loss"
 done
 netem 0 0
-remote_killed
+for attempt in 1 2 3; do
+  rc=0
+  remote_killed || rc=$?
+  [ $rc -eq 2 ] || break
+done
+[ $rc -ne 2 ] || { echo "FAIL: remote killed: the device latched command-timeout in all 3 attempts"; exit 1; }
+[ $rc -eq 0 ] || exit 1
 echo "== teleoperation across the namespaces (tc netem each way), hold phase =="
 cat "$WORK/table.txt"
 echo "PASS"
