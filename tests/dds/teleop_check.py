@@ -17,7 +17,9 @@ produced (50 ms: 0.90 -> 2.59 mm; 10 ms, 5 %: 1.86 -> 2.42 mm). Both halves are 
 The passive scheme must be stable and keep the channel's energy bounded (net output <= 0.05 J over the run, the
 bound kept to within 0.02 J). The plain scheme must be unstable under a network delay (a forced-off client or a
 device fault counts as unstable); without one it is reported only. Appends one row to --table. Exit 2: the device
-latched command-timeout (a stalled machine): run the case again.
+latched command-timeout (a stalled machine): run the case again. --stability-printed-only (the VM lane: its
+emulated device clock keeps 0.4-0.65 of real time, varying with the host's load, so the pen's dynamics against the
+network's real-time delay vary from run to run) prints the verdicts and gates only on the energy.
 """
 import argparse
 import csv
@@ -64,6 +66,8 @@ def main():
     ap.add_argument("--master-rc", type=int, required=True)
     ap.add_argument("--daemon-rc", type=int, required=True)
     ap.add_argument("--table", required=True)
+    ap.add_argument("--stability-printed-only", action="store_true",
+                    help="print the stable/unstable verdicts without gating on them (an emulated machine)")
     a = ap.parse_args()
     p = a.prefix
     faults = json.load(open(p + ".d.json")).get("faults_seen", "none").split("|")
@@ -123,12 +127,12 @@ def main():
     if rejected:
         sys.exit("FAIL: %s: %d samples were refused between two well-behaved sides" % (case, rejected))
     if a.scheme == "passive":
-        if not stable:
+        if not stable and not a.stability_printed_only:
             sys.exit("FAIL: %s: the passive scheme did not hold the wall" % case)
         if net > 0.05 or excess > 0.02:
             sys.exit("FAIL: %s: the passive channel produced energy (net %.3f J, bound excess %.3f J)"
                      % (case, net, excess))
-    elif a.delay_ms > 0 and stable:
+    elif a.delay_ms > 0 and stable and not a.stability_printed_only:
         sys.exit("FAIL: %s: the plain scheme held the wall under delay: the case shows nothing" % case)
 
 

@@ -82,7 +82,7 @@ run_case() {  # scheme delay_ms loss_pct
   wait $r || { cat "$WORK/$name.r.err"; echo "FAIL: the remote side failed"; exit 1; }
   wait $d || drc=$?
   python3 "$HERE/teleop_check.py" --scheme "$scheme" --delay-ms "$delay" --loss-pct "$loss" --prefix "$WORK/$name" \
-    --master-rc $mrc --daemon-rc $drc --table "$WORK/table.txt"
+    --master-rc $mrc --daemon-rc $drc --table "$WORK/table.txt" ${TELEOP_STABILITY_PRINTED_ONLY:+--stability-printed-only}
 }
 # A case whose check exits 2 (the device's command watchdog fired: a stalled machine) runs again, at most 3 times.
 run_case3() {
