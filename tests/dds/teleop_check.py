@@ -124,8 +124,12 @@ def main():
     with open(a.table, "a") as f:
         f.write(row + "\n")
     print(row)
-    if rejected:
+    if rejected and a.scheme == "passive":
+        # (The plain scheme under delay throws the pen across its workspace: a pen velocity beyond the 10 m/s a
+        # sample may carry is refused there, rightly; it is printed, not gated.)
         sys.exit("FAIL: %s: %d samples were refused between two well-behaved sides" % (case, rejected))
+    if rejected:
+        print("(%s: %d samples refused: the runaway's values beyond a sample's range)" % (case, rejected))
     if a.scheme == "passive":
         if not stable and not a.stability_printed_only:
             sys.exit("FAIL: %s: the passive scheme did not hold the wall" % case)
