@@ -26,6 +26,7 @@
 
 #include "cyclone_domain.h"
 #include "phalanx/client.hpp"
+#include "phalanx/host/stats.h"
 #include "phalanx/host/teleop/passivity.h"
 #include "ros2_msgs.h"
 
@@ -177,14 +178,14 @@ class Link {
   double last_energy_ = 0;
 };
 
-/// Ages of the samples used (sender's stamp to this side's use), ms; meaningful when both run on one host.
+/// Ages of the samples used (sender's stamp to this side's use), meaningful when both run on one host: the host's
+/// fixed-size µs histogram (no allocation per cycle, bounded memory however long the pair runs; 1 µs bins to 2 s).
 struct Ages {
-  std::vector<double> ms;
-  void add(uint64_t stamp_ns) { ms.push_back(static_cast<double>(monoNs() - stamp_ns) * 1e-6); }
-  nlohmann::json json() {
-    if (ms.empty()) return nullptr;
-    std::sort(ms.begin(), ms.end());
-    return {{"p50_ms", ms[ms.size() / 2]}, {"p99_ms", ms[ms.size() * 99 / 100]}, {"count", ms.size()}};
+  host::Histogram us{2000000};
+  void add(uint64_t stamp_ns) { us.add(static_cast<double>(monoNs() - stamp_ns) * 1e-3); }
+  nlohmann::json json() const {
+    if (us.count() == 0) return nullptr;
+    return {{"p50_ms", us.percentile(0.5) * 1e-3}, {"p99_ms", us.percentile(0.99) * 1e-3}, {"count", us.count()}};
   }
 };
 
