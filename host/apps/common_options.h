@@ -60,6 +60,12 @@ inline void addRunOptions(CLI::App& app, RunOptions& opt, std::string& config_pa
   app.add_option("--firmware-sim", opt.firmware_sim, "path of the firmware-sim executable");
   app.add_option("--sim-truth", opt.sim_truth,
                  "sim: devices: the simulated plant's ground truth, one CSV row per device tick (docs/sdk.md \"Plant truth\")");
+  app.add_option("--sim-settings", opt.sim_settings,
+                 "sim: devices: the simulated board's settings flash file, kept between runs as a board keeps them "
+                 "(phalanx param --sim-settings writes the same file; docs/params.md)");
+  app.add_option("--sim-settings-layout", opt.sim_settings_layout,
+                 "sim: devices: play the firmware that writes this settings layout version (0: the newest)")
+      ->check(cli::inRange(0u, 255u));
   app.add_option("--estop", opt.gpio.estop,
                  "e-stop input CHIP:LINE[:active-low] (a press, a lost line or a read error stops the daemon until a reset)");
   app.add_option("--enable", opt.gpio.enable, "drive-enable output CHIP:LINE[:active-low] (dropped on an e-stop)");

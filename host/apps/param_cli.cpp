@@ -183,12 +183,6 @@ ParamCommands::ParamCommands(CLI::App& parent) {
 
 int ParamCommands::run() {
   if (const std::string err = validate(opt); !err.empty()) return fail(cli::kExitBadArguments, err);
-  if (!opt.sim_settings.empty() && opt.device.rfind("sim:", 0) != 0) {
-    return fail(cli::kExitBadArguments, "--sim-settings: for sim: devices only, not '" + opt.device + "'");
-  }
-  if (opt.sim_settings.empty() && opt.sim_settings_layout != 0) {
-    return fail(cli::kExitBadArguments, "--sim-settings-layout needs --sim-settings");
-  }
   float v = 0.0f;
   if (set->parsed() && !parseValue(value, v)) {
     return fail(cli::kExitBadArguments, "value '" + value + "' is not a finite number");

@@ -226,6 +226,10 @@ std::string validate(const RunOptions& opt) {
   if (!opt.sim_truth.empty() && opt.device.rfind("sim:", 0) != 0) {
     return "--sim-truth: the plant's truth exists for sim: devices only, not '" + opt.device + "'";
   }
+  if (!opt.sim_settings.empty() && opt.device.rfind("sim:", 0) != 0) {
+    return "--sim-settings: for sim: devices only, not '" + opt.device + "'";
+  }
+  if (opt.sim_settings.empty() && opt.sim_settings_layout != 0) return "--sim-settings-layout needs --sim-settings";
   if (!opt.sim_args.empty() && opt.device.rfind("sim:", 0) != 0) {
     return "sim_args: firmware-sim arguments are for sim: devices only, not '" + opt.device + "'";
   }

@@ -80,7 +80,16 @@ LinkRecovery::Step LinkRecovery::step(uint64_t now_ns) {
         error_ = "after reconnect: " + session_.handshakeError();
         return Step::kFailed;
       } else if (now_ns - phase_ns_ > opt_.handshake_timeout_ns) {
-        sendHello(now_ns);  // a board that rebooted may have missed it: ask again (a new session id)
+        // Nothing answered on the port reopened by name: it may not be the device (another tty took the freed
+        // name for a moment, a board still enumerating), or a board that rebooted missed the Hello. Either way
+        // close it and open the name again, which sends a new Hello.
+        std::snprintf(msg, sizeof msg,
+                      "no answer to the handshake within %.1f s on the reopened link (%s): closing it and reopening",
+                      since(now_ns, phase_ns_), link_.describe().c_str());
+        log_(msg);
+        link_.drop();
+        phase_ = Phase::kDown;
+        next_reopen_ns_ = now_ns;
       }
       break;
     case Phase::kParams:

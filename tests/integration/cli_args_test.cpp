@@ -70,7 +70,7 @@ TEST(CliArgs, PhalanxdRefusesAnEmptyPathOrAddressNamingTheOption) {
   std::vector<Case> cases;
   for (const char* opt : {"--api", "--records-dir", "--profiles-dir", "--dashboard", "--record", "--config",
                           "--session-record", "--profile", "--report", "--previous-record", "--device",
-                          "--pen-geometry", "--sea-subject", "--firmware-sim", "--sim-truth", "--estop", "--exercise-params"}) {
+                          "--pen-geometry", "--sea-subject", "--firmware-sim", "--sim-truth", "--sim-settings", "--estop", "--exercise-params"}) {
     cases.push_back({with({opt, ""}, kShort), std::string(opt) + ": must not be empty"});
   }
   expectRefused("phalanxd", cases);

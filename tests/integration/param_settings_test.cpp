@@ -159,6 +159,35 @@ TEST_F(ParamSettings, BadBackupsAndValuesAreRefusedNamingTheProblemAndNothingIsW
   EXPECT_EQ(get("force_kp"), 0.75);
 }
 
+TEST_F(ParamSettings, ADaemonSessionRunsTheSimulatedBoardOnItsKeptSettings) {
+  // Saved with phalanx param; then phalanxd and phalanx run start their firmware-sim on the same file (a power
+  // cycle): the board reports what it loaded, the session does not write the flash, and the value is still kept.
+  ASSERT_EQ(param({"set", "force_kp", "0.75", "--save"}).rc, 0);
+  const std::string before = flashBytes();
+  for (const std::vector<std::string>& prog : {std::vector<std::string>{binPath("phalanxd")},
+                                              std::vector<std::string>{binPath("phalanx"), "run"}}) {
+    std::vector<std::string> argv = prog;
+    argv.insert(argv.end(), {"--device", "sim:glove5", "--firmware-sim", binPath("firmware-sim"), "--seconds", "0.5",
+                             "--no-realtime", "--sim-settings", flash_});
+    Process p(argv);
+    ASSERT_EQ(p.wait(30000), 0) << p.stderrText();
+    EXPECT_NE(p.stderrText().find("settings layout v2: loaded (record v2"), std::string::npos) << p.stderrText();
+    EXPECT_EQ(flashBytes(), before) << "a session does not write the settings";
+  }
+  EXPECT_EQ(get("force_kp"), 0.75);
+
+  // Refused before anything is opened, naming the option.
+  for (const std::vector<std::string>& bad :
+       {std::vector<std::string>{"--device", "serial:/dev/null", "--sim-settings", flash_},
+        std::vector<std::string>{"--device", "sim:glove5", "--sim-settings-layout", "1"}}) {
+    std::vector<std::string> argv{binPath("phalanxd"), "--seconds", "0.5", "--no-realtime"};
+    argv.insert(argv.end(), bad.begin(), bad.end());
+    Process p(argv);
+    EXPECT_EQ(p.wait(10000), 2) << bad[1];
+    EXPECT_NE(p.stderrText().find("--sim-settings"), std::string::npos) << p.stderrText();
+  }
+}
+
 TEST_F(ParamSettings, ABoardWithoutASettingsStoreRefusesASaveBeforeSettingAnything) {
   with_store_ = false;
   Outcome o = param({"set", "force_kp", "0.5", "--save"});

@@ -35,6 +35,8 @@ struct Msg {
 // Two PacketLink ends joined by a cable; pulled, it carries nothing.
 struct Cable {
   bool plugged = true;
+  bool wrong_port = false;              ///< the host end is open on another tty: nothing crosses either way
+  bool next_reopen_wrong_port = false;  ///< the next reopen by name lands on another tty (it took the freed name)
   struct End final : hal::PacketLink {
     Cable* cable = nullptr;
     std::deque<Msg> rx;
@@ -42,6 +44,7 @@ struct Cable {
     uint64_t sent = 0;
     bool send(uint8_t id, const uint8_t* p, size_t n) override {
       if (!cable->plugged) return false;
+      if (cable->wrong_port) return true;  // written, to a port where no device listens
       peer->rx.push_back(Msg{id, std::vector<uint8_t>(p, p + n)});
       ++sent;
       return true;
@@ -79,11 +82,14 @@ struct CableLink final : host::RecoveryLink {
   void drop() override {
     ++drops;
     open = false;
+    cable.wrong_port = false;
   }
   std::string reopen() override {
     ++reopen_calls;
     if (!cable.plugged) return "no device";
     open = true;
+    cable.wrong_port = cable.next_reopen_wrong_port;
+    cable.next_reopen_wrong_port = false;
     return {};
   }
   void flush() override {}
@@ -226,6 +232,24 @@ TEST(LinkRecovery, LossDuringTheHandshakeGoesBackToReconnecting) {
   int n = 0;
   while (r.cycle() != LinkRecovery::Step::kControl) ASSERT_LT(++n, 300);
   EXPECT_EQ(r.rec->stats().outages, 1u);  // one outage, resumed once
+  EXPECT_EQ(r.rec->stats().reconnects, 1u);
+}
+
+TEST(LinkRecovery, AReopenedPortThatNeverAnswersIsClosedAndOpenedAgain) {
+  // The soak's link_replug once reopened the device's name while another tty held the freed pty number: the
+  // daemon said Hello to a port where no device listened, for the rest of the session.
+  Rig r;
+  r.cycle();
+  r.cable.pull();
+  for (int i = 0; i < 50; ++i) r.cycle();
+  r.cable.next_reopen_wrong_port = true;
+  r.cable.plugged = true;
+  int n = 0;
+  while (r.cycle() != LinkRecovery::Step::kControl) ASSERT_LT(++n, 3000) << "stuck on the wrong port";
+  EXPECT_GT(n, 2000) << "the first port was given the whole handshake timeout";
+  EXPECT_TRUE(r.logged("no answer to the handshake within 2.0 s on the reopened link")) << r.log.back();
+  EXPECT_EQ(r.link.drops, 2);  // the unplug, then the silent port
+  EXPECT_EQ(r.rec->stats().outages, 1u);
   EXPECT_EQ(r.rec->stats().reconnects, 1u);
 }
 

@@ -3,6 +3,8 @@
 /// comes back (docs/usb.md "phalanxd: unplug, safe state, reconnect"):
 ///   kUp --link lost--> kDown: report; send nothing (the device's own command timeout takes it to its safe state)
 ///   kDown --every reopen period--> reopen(); on success a new Hello (new session id) --> kHandshake
+///   kHandshake --no answer within the handshake timeout--> drop() and back to kDown, reopening at once (what was
+///     opened by the device's name may not be the device: another tty briefly took the freed name)
 ///   kHandshake --HelloAck ok, same device type--> kParams (start-up parameters again: a re-plugged board may have
 ///     rebooted) --all acknowledged--> kFirstTelemetry --telemetry of the new session--> faults latched during the
 ///     outage cleared (logged), control resumed --> kUp
@@ -40,7 +42,9 @@ class RecoveryLink {
 
 struct LinkRecoveryOptions {
   uint64_t reopen_period_ns = 100000000ull;  ///< 100 ms (docs/usb.md)
-  uint64_t handshake_timeout_ns = 2000000000ull;  ///< resend Hello / a parameter after this long without an answer
+  /// A reopened link that does not answer the Hello this long is closed and opened again; a start-up parameter
+  /// unanswered this long is sent again.
+  uint64_t handshake_timeout_ns = 2000000000ull;
   bool clear_faults = true;                   ///< clear faults latched during the outage (logged)
 };
 
