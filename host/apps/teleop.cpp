@@ -52,6 +52,7 @@ struct Options {
   std::string ns = "phalanx/teleop";
   std::string scheme = "passive";
   double seconds = 0;
+  double until_device_s = 0;  // master: stop once the device's clock has passed this (0: not used)
   std::string csv;
   std::string socket;       // master
   unsigned deadline_ms = 50;
@@ -234,6 +235,7 @@ int runMaster(const Options& o, teleop::Scheme scheme) {
   const double dt = 1.0 / cl.device().rate_hz;
   const int rc = cl.runServo([&](const State& s, Command& cmd) {
     if (g_stop || (o.seconds > 0 && static_cast<double>(monoNs() - t0) * 1e-9 >= o.seconds)) return false;
+    if (o.until_device_s > 0 && static_cast<double>(s.device_time_us) * 1e-6 >= o.until_device_s) return false;
     const Vec3 centre = vec(s.pen.centre_m);
     if (!started) origin = centre;
     started = true;
@@ -367,6 +369,10 @@ int main(int argc, char** argv) {
   CLI::App* m = app.add_subcommand("master", "the operator's side: a client of the local phalanxd (pantograph)");
   common(m);
   m->add_option("--socket", o.socket, "phalanxd's client socket (--client-socket)")->required();
+  m->add_option("--until-device-s", o.until_device_s,
+                "also stop once the device's own clock has passed this many seconds (a scripted run on a machine "
+                "whose device clock runs slow, as an emulated one)")
+      ->check(CLI::Range(0.0, 86400.0));
   m->add_option("--max-damping", o.master.max_damping_N_s_per_m,
                 "the passivity controller's largest damper on the device, N·s/m (passivity.h says why it is bounded)")
       ->check(CLI::Range(1.0, 5000.0))->capture_default_str();

@@ -51,9 +51,11 @@ if [ $NETEM = 0 ]; then
   echo "(no tc netem in this kernel: the cases without delay or loss run on the veth as it is)"
 fi
 DOMAIN=19
-# The master's run, s (the daemon runs 2 s longer, the remote 1 s): the hold phase is the device's 4.5-7.5 s, so an
-# emulated machine whose device clock runs slow needs more (TELEOP_SECONDS).
-SECS=${TELEOP_SECONDS:-9}
+# A case runs until the device's own clock has passed the hold phase (the device's 4.5-7.5 s: the master's
+# --until-device-s 7.7), then the daemon and the remote are stopped with SIGINT; SECS (TELEOP_SECONDS) only caps the
+# master's run in wall time (the daemon runs 2 s longer, the remote 1 s), for a machine whose device clock runs slow
+# (the VM lane's emulated one: 0.3-0.65 of real time).
+SECS=${TELEOP_SECONDS:-12}
 
 netem() {  # delay_ms loss_pct: the same each way (a one-way delay of delay_ms)
   [ $NETEM = 1 ] || return 0
@@ -77,8 +79,9 @@ run_case() {  # scheme delay_ms loss_pct
   PIDS+=($r)
   local mrc=0 drc=0
   ip netns exec "$NA" "$BIN/phalanx-teleop" master --scheme "$scheme" --domain $DOMAIN --interface "$VA" \
-    --ns lab/teleop --socket "$SOCK" --seconds $SECS ${TELEOP_MASTER_ARGS:-} --csv "$WORK/$name.m.csv" >"$WORK/$name.m.json" \
-    2>"$WORK/$name.m.err" || mrc=$?
+    --ns lab/teleop --socket "$SOCK" --seconds $SECS --until-device-s 7.7 ${TELEOP_MASTER_ARGS:-} --csv "$WORK/$name.m.csv" \
+    >"$WORK/$name.m.json" 2>"$WORK/$name.m.err" || mrc=$?
+  kill -INT $r $d 2>/dev/null || true  # the hold phase is over: both end cleanly (exit 0, their summaries written)
   wait $r || { cat "$WORK/$name.r.err"; echo "FAIL: the remote side failed"; exit 1; }
   wait $d || drc=$?
   python3 "$HERE/teleop_check.py" --scheme "$scheme" --delay-ms "$delay" --loss-pct "$loss" --prefix "$WORK/$name" \
@@ -99,8 +102,9 @@ run_case3() {
 # The remote killed -9 mid-press (0 ms, no netem needed): within --slave-timeout-ms (500) of its last sample the
 # pen shows no wall force any more; its last force is not held.
 remote_killed() {
+  local secs=$((SECS * 3 / 4))  # its times are wall times: 9 s here, 30 s under the VM lane's cap
   rm -f "$SOCK"
-  ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --scenario press --scene none --seconds $((SECS + 2)) \
+  ip netns exec "$NA" "$BIN/phalanxd" --device sim:pantograph --scenario press --scene none --seconds $((secs + 2)) \
     ${TELEOP_DAEMON_ARGS:-} --client-socket "$SOCK" --json >"$WORK/kill.d.json" 2>"$WORK/kill.d.err" &
   local d=$!
   PIDS+=($d)
@@ -110,10 +114,10 @@ remote_killed() {
   local r=$!
   PIDS+=($r)
   ip netns exec "$NA" "$BIN/phalanx-teleop" master --domain $DOMAIN --interface "$VA" --ns lab/teleop \
-    --socket "$SOCK" --seconds $((SECS * 9 / 10)) --csv "$WORK/kill.m.csv" >"$WORK/kill.m.json" 2>"$WORK/kill.m.err" &
+    --socket "$SOCK" --seconds $((secs * 9 / 10)) --csv "$WORK/kill.m.csv" >"$WORK/kill.m.json" 2>"$WORK/kill.m.err" &
   local m=$!
   PIDS+=($m)
-  sleep $((SECS * 6 / 10))  # in the hold phase (the device's 3 s on), also on the VM lane's slow clock
+  sleep $((secs * 6 / 10))  # in the hold phase (the device's 3 s on), also on the VM lane's slow clock
   kill -9 $r
   local mrc=0
   wait $m || mrc=$?
