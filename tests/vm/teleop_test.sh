@@ -8,6 +8,6 @@
 # so the pen's dynamics against the real-time network delay differ from run to run (a loaded CI run lost the contact
 # for 7 % of a passive 10 ms hold that an unloaded run held throughout). Gated: the channel's energy bound, no sample
 # refused, the pen's force gone after the remote is killed.
-# Its 12 cases and the remote-killed case take 5-9 min under TCG, so it boots on its own (tools/vm/ci.sh):
-# vm-lane: own boot, timeout 900
+# Its 12 cases and the remote-killed case take 9-12 min under TCG (a case whose device stalled runs again), so it boots on its own (tools/vm/ci.sh):
+# vm-lane: own boot, timeout 1200
 TELEOP_STABILITY_PRINTED_ONLY=1 TELEOP_SECONDS=${TELEOP_SECONDS:-40} TELEOP_DAEMON_ARGS=${TELEOP_DAEMON_ARGS:---no-realtime} exec bash tests/dds/teleop_netns_test.sh build/host/bin ${TELEOP_CASES:-}
