@@ -155,6 +155,12 @@ struct Rig {
     device->tick();
     return st;
   }
+  // One cycle connected, then the cable pulled for `cycles` cycles (the device goes safe by its command timeout).
+  void pulledFor(int cycles) {
+    cycle();
+    cable.pull();
+    for (int i = 0; i < cycles; ++i) cycle();
+  }
   bool logged(const std::string& what) const {
     for (const auto& l : log) {
       if (l.find(what) != std::string::npos) return true;
@@ -212,9 +218,7 @@ TEST(LinkRecovery, UnplugGoesSafeReconnectsAndResumesWithNewCommandsOnly) {
 
 TEST(LinkRecovery, LossDuringTheHandshakeGoesBackToReconnecting) {
   Rig r;
-  r.cycle();
-  r.cable.pull();
-  for (int i = 0; i < 150; ++i) r.cycle();
+  r.pulledFor(150);
   r.cable.plugged = true;
   // Plug and pull again before the device can answer the new Hello.
   while (r.rec->phase() == LinkRecovery::Phase::kDown) {
@@ -239,9 +243,7 @@ TEST(LinkRecovery, AReopenedPortThatNeverAnswersIsClosedAndOpenedAgain) {
   // The soak's link_replug once reopened the device's name while another tty held the freed pty number: the
   // daemon said Hello to a port where no device listened, for the rest of the session.
   Rig r;
-  r.cycle();
-  r.cable.pull();
-  for (int i = 0; i < 50; ++i) r.cycle();
+  r.pulledFor(50);
   r.cable.next_reopen_wrong_port = true;
   r.cable.plugged = true;
   int n = 0;
@@ -255,9 +257,7 @@ TEST(LinkRecovery, AReopenedPortThatNeverAnswersIsClosedAndOpenedAgain) {
 
 TEST(LinkRecovery, ADifferentDeviceAfterReplugEndsTheSession) {
   Rig r;
-  r.cycle();
-  r.cable.pull();
-  for (int i = 0; i < 50; ++i) r.cycle();
+  r.pulledFor(50);
   r.device = std::make_unique<Device>("pantograph", r.cable);  // another board on the same port
   r.cable.plugged = true;
   LinkRecovery::Step st = LinkRecovery::Step::kOffline;
@@ -270,9 +270,7 @@ TEST(LinkRecovery, ADifferentDeviceAfterReplugEndsTheSession) {
 
 TEST(LinkRecovery, ARefusedStartupParameterEndsTheSession) {
   Rig r({{0x7777, 1.0f}});  // no such parameter
-  r.cycle();
-  r.cable.pull();
-  for (int i = 0; i < 50; ++i) r.cycle();
+  r.pulledFor(50);
   r.cable.plugged = true;
   LinkRecovery::Step st = LinkRecovery::Step::kOffline;
   for (int i = 0; i < 300 && st == LinkRecovery::Step::kOffline; ++i) st = r.cycle();

@@ -50,5 +50,6 @@ t_built=$(awk '/\[[0-9]+\/[0-9]+\] Linking/ {t = $1} END {print t}' "$out/run.lo
 t_session=$(t_of 'firmware-sim:|"session"')
 printf 'first-run: set up and configured at %s s, built at %s s, first session output at %s s; whole command %.1f s, exit %s\n' \
   "${t_build0:-?}" "${t_built:-?}" "${t_session:-?}" "$(echo "$end - $start" | bc)" "$rc"
-grep -c '^ *[0-9.]* \[[0-9]*/' "$out/run.log" | sed 's/^/first-run: build steps: /'
+awk 'match($2, /^\[[0-9]+\/[0-9]+\]$/) {n = substr($2, index($2, "/") + 1); sub(/\]/, "", n)} END {print "first-run: build steps: " n}' \
+  "$out/run.log"
 exit "$rc"
