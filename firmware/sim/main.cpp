@@ -282,10 +282,11 @@ void printLinkStats(const phalanx::linux_hal::FfsLink* ffs, const phalanx::linux
     const auto& r = ffs->rxStats();
     std::fprintf(stderr,
                  "firmware-sim: usb tx_submitted=%llu tx_completed=%llu tx_dropped_full=%llu tx_dropped_offline=%llu "
-                 "tx_failed=%llu rx_transfers=%llu rx_overflow=%llu enables=%llu disables=%llu rx_bad_id=%u "
+                 "tx_dropped_host_idle=%llu tx_cancelled=%llu tx_failed=%llu rx_transfers=%llu rx_overflow=%llu enables=%llu disables=%llu rx_bad_id=%u "
                  "rx_bad_length=%u rx_crc=%u\n",
                  static_cast<unsigned long long>(f.tx_submitted), static_cast<unsigned long long>(f.tx_completed),
                  static_cast<unsigned long long>(f.tx_dropped_full), static_cast<unsigned long long>(f.tx_dropped_offline),
+                 static_cast<unsigned long long>(f.tx_dropped_host_idle), static_cast<unsigned long long>(f.tx_cancelled),
                  static_cast<unsigned long long>(f.tx_failed), static_cast<unsigned long long>(f.rx_transfers),
                  static_cast<unsigned long long>(f.rx_overflow), static_cast<unsigned long long>(f.enables),
                  static_cast<unsigned long long>(f.disables), r.bad_id, r.bad_length, r.crc);

@@ -146,6 +146,7 @@ void FfsLink::handleEp0() {
       switch (ev[i].type) {
         case FUNCTIONFS_ENABLE:
           online_ = true;
+          host_idle_ = true;  // (re)configured: nothing is sent before the host has written
           ++stats_.enables;
           break;
         case FUNCTIONFS_DISABLE:
@@ -177,6 +178,7 @@ void FfsLink::handleEp0() {
 
 void FfsLink::service() {
   if (aio_ == nullptr) return;
+  if (services_since_rx_ < kHostAbsentServices) ++services_since_rx_;
   handleEp0();
   io_event ev[kOutRequests + kInRequests];
   timespec zero{0, 0};
@@ -188,13 +190,18 @@ void FfsLink::service() {
     if (r.is_in) {
       if (res > 0) {
         ++stats_.tx_completed;
+      } else if (r.cancelled) {
+        ++stats_.tx_cancelled;
       } else {
         ++stats_.tx_failed;
       }
+      r.cancelled = false;
       continue;
     }
     if (res <= 0) continue;  // ESHUTDOWN on disable: resubmitted once enabled again
     ++stats_.rx_transfers;
+    host_idle_ = false;
+    services_since_rx_ = 0;
     if (ring_len_ == kRxRing) {
       ++stats_.rx_overflow;
       ring_head_ = (ring_head_ + 1) % kRxRing;
@@ -221,8 +228,13 @@ bool FfsLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
       break;
     }
   }
+  if (host_idle_) {
+    ++stats_.tx_dropped_host_idle;
+    return false;
+  }
   if (slot == nullptr) {
     ++stats_.tx_dropped_full;
+    if (services_since_rx_ >= kHostAbsentServices) withdrawQueuedSends();
     return false;
   }
   slot->buf[0] = msg_id;
@@ -240,6 +252,24 @@ bool FfsLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
   slot->in_flight = true;
   ++stats_.tx_submitted;
   return true;
+}
+
+void FfsLink::withdrawQueuedSends() {
+  // Every IN request queued and nothing written by the host for kHostAbsentServices: the host has gone. What the
+  // pool holds is stale by the time a host reads again, and would hold the next session's HelloAck behind it;
+  // withdraw it (FunctionFS dequeues the request; its completion, an error, may come through io_getevents) and
+  // refuse sends until the host writes.
+  host_idle_ = true;
+  for (auto& r : in_) {
+    if (!r.in_flight || r.cancelled) continue;
+    io_event ev{};
+    r.cancelled = true;
+    if (io_cancel(aio_, &r.cb, &ev) == 0) {  // completed here rather than through io_getevents
+      r.in_flight = false;
+      r.cancelled = false;
+      ++stats_.tx_cancelled;
+    }
+  }
 }
 
 bool FfsLink::receive(uint8_t& msg_id, uint8_t* payload, size_t& len) {

@@ -5,6 +5,10 @@
 /// AIO (libaio) so that several requests stay queued on each endpoint and the firmware tick never blocks; ep0
 /// events (enable, disable, unbind, suspend) follow the USB connection: while not enabled, send() refuses and the
 /// firmware's own command timeout takes the outputs to their safe state.
+/// A host that has gone (its process ended with the device still configured) neither writes nor reads: once the
+/// IN pool is full and nothing came from the host for kHostAbsentServices services, the pool's messages are
+/// withdrawn and sends refused until the host writes again (the next session's Hello). So the next session's first
+/// answers go out at once, not behind a pool of stale telemetry and into a pool without room (docs/usb.md).
 #include <libaio.h>
 
 #include <cstddef>
@@ -21,6 +25,8 @@ struct FfsLinkStats {
   uint64_t tx_dropped_full = 0;    ///< messages refused: every IN request of the pool queued
   uint64_t tx_dropped_offline = 0; ///< messages refused: USB function not enabled (unplugged, unconfigured)
   uint64_t tx_failed = 0;          ///< IN requests that ended in an error (unplug mid-transfer)
+  uint64_t tx_dropped_host_idle = 0;  ///< messages refused: the host stopped reading (full pool) and has not spoken since
+  uint64_t tx_cancelled = 0;       ///< queued IN requests withdrawn when the host stopped reading (stale by then)
   uint64_t rx_transfers = 0;       ///< OUT requests completed with data
   uint64_t rx_overflow = 0;        ///< bodies dropped: receive ring full
   uint64_t enables = 0;            ///< FUNCTIONFS_ENABLE events (host configured the device)
@@ -53,22 +59,27 @@ class FfsLink : public hal::PacketLink {
   static constexpr size_t kInRequests = 64;   ///< IN request pool (see docs/usb.md)
   static constexpr size_t kBufferBytes = 512; ///< a high-speed max packet; OUT reads are rounded up to it
   static constexpr size_t kRxRing = 128;
+  static constexpr uint32_t kHostAbsentServices = 250;  ///< 0.25 s at 1 kHz; a session writes every host cycle
 
  private:
   struct Req {
     iocb cb{};
     bool in_flight = false;
     bool is_in = false;
+    bool cancelled = false;
     uint8_t buf[kBufferBytes] = {};
   };
   void submitReads();
   void handleEp0();
+  void withdrawQueuedSends();
 
   int ep0_ = -1;
   int ep_out_ = -1;
   int ep_in_ = -1;
   io_context_t aio_ = nullptr;
   bool online_ = false;
+  bool host_idle_ = true;  ///< no OUT data since the function was enabled or since the host was found gone
+  uint32_t services_since_rx_ = 0;
   Req out_[kOutRequests];
   Req in_[kInRequests];
   struct Body {
