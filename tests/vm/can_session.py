@@ -408,12 +408,7 @@ def inject_compact():
 
 
 def bench(mode="fd"):
-    """A bench plan (docs/bench-runner.md "Real time") over CAN: `phalanx bench run` drives the sea_rig firmware on
-    vcan while firmware-sim serves the rig's load cell over Modbus TCP, as a lab's board and amplifier. Checked: the
-    plan ran through the session runner on the CAN link (the session ended cleanly) and its instrument was read; the
-    limits' verdict, the alignment, any step error and what the link kept (telemetry rate, ticks unseen, the device
-    clock's rate) are printed, not gated: the emulated VM keeps neither 1 kHz nor a steady delay (measured:
-    the instrument's delay wandered 8-24 ms within one 6 s step, so the alignment refused it)."""
+    """A bench plan over CAN (vmlib.sea_rig_bench): the sea_rig firmware on vcan, its load cell over Modbus TCP."""
     bus = "vcan0"
     vcan(bus, mode != "classic")
     sh(IP, "link", "set", "lo", "up")  # the amplifier is on 127.0.0.1; the VM's init leaves lo down
@@ -425,57 +420,12 @@ def bench(mode="fd"):
     inst = fw.stdout.readline()
     m = re.search(r"tcp 127\.0\.0\.1:(\d+)", inst)
     check(m is not None, "firmware-sim did not report its instrument: %r" % inst)
-    plan_path, report = "/tmp/bench-can.yaml", "/tmp/bench-can.html"
-    with open(plan_path, "w") as f:
-        f.write("""version: 1
-device: can:%s:%d@%s
-device_type: sea_rig
-instrument: {transport: tcp, host: 127.0.0.1, port: %s, type: int32, scale: 1.0e-5, unit: N*m, poll_hz: 500,
-             timeout_ms: 50, stale_ms: 50}
-max_stale_percent: 5
-safety: {effort_max: 0.4, instrument_silence_ms: 200, disagreement_max: 0.05, disagreement_ms: 100}
-steps:
-  - name: sine 0.3 N*m over CAN
-    kind: sea-rig-sine
-    peak_Nm: 0.3
-    hz: 0.5
-    seconds: 6
-    settle_s: 2
-    limits:
-      setpoint_vs_instrument: {nrmse_percent_max: 11.59, fidelity_percent_min: 97.7}
-      estimate_vs_instrument: {nrmse_percent_max: 6.0}
-""" % (bus, NODE, mode, m.group(1)))
-    # SCHED_FIFO from chrt, without the runner's mlockall (slow over 9p in the VM, see session()).
-    r = subprocess.run(["chrt", "-f", "80", BIN + "/phalanx", "bench", "run", plan_path, "--report", report,
-                        "--no-realtime"], capture_output=True, text=True, timeout=240)
-    fw.terminate()
-    fw.wait(timeout=10)
-    with open(os.path.join(OUT, "bench-%s.stderr.log" % mode), "w") as f:
-        f.write(r.stderr)
     try:
-        res = json.loads(r.stdout)
-    except ValueError:
-        fail("bench-%s: no JSON summary (rc %d): %s" % (mode, r.returncode, r.stderr[-800:]))
-    with open(os.path.join(OUT, "bench-%s.json" % mode), "w") as f:
-        json.dump(res, f, indent=2)
-    check(r.returncode in (0, 1), "bench-%s: exit %d: %s" % (mode, r.returncode, r.stderr[-800:]))
-    check(res.get("mode") == "realtime" and res["session"].get("exit_code") == 0, "bench-%s: session %s" % (mode, res.get("session")))
-    step = res["steps"][0]
-    a, link = step.get("alignment", {}), step.get("link", {})
-    check(link.get("device") == "can:%s:%d@%s" % (bus, NODE, mode) and link.get("frames", 0) > 0,
-          "bench-%s: the step did not run over the link: %s" % (mode, step))
-    check(step["instrument"].get("polls_ok", 0) > 0, "bench-%s: the instrument was never read: %s" % (mode, step["instrument"]))
-    # What the emulated VM's erratic timing causes is reported, not gated: an alignment it does not allow, stale
-    # instrument samples, a command-timeout the firmware latched when the host's commands came late.
-    error = step.get("error", "")
-    aligned = ("instrument delay %.2f +- %.2f ms (correlation %.4f), estimate vs load cell RMSE %.2f mN*m"
-               % (a["delay_ms"], a["uncertainty_ms"], a["correlation"], step["estimate_vs_instrument"]["rmse"] * 1e3)
-               if a.get("ok") and not error else "not scored (%s)" % error)
-    print("RESULT can-bench-%s: plan over %s, %s; device kept %.0f Hz telemetry (%d of %d ticks unseen, its clock "
-          "%.0f ppm off the host's), %d instrument polls; %s"
-          % (mode, link["device"], "limits PASS" if step["pass"] else "not passed", link["telemetry_hz"],
-             link["ticks_unseen"], link["device_ticks"], a.get("clock_drift_ppm", 0), step["instrument"]["polls_ok"],
-             aligned), flush=True)
+        line = vmlib.sea_rig_bench("bench-" + mode, "can:%s:%d@%s" % (bus, NODE, mode), m.group(1), BIN, OUT, check, fail)
+    finally:
+        fw.terminate()
+        fw.wait(timeout=10)
+    print("RESULT can-bench-%s: %s" % (mode, line), flush=True)
 
 
 def test_image(path, build_id, size, device_type=2):

@@ -12,6 +12,9 @@ Scenarios:
   usb-replug,         the UDC unbound (echo "" > UDC) mid-session and bound again: phalanxd reports the outage,
   acm-replug          the device goes safe by its own command timeout, phalanxd reconnects, re-handshakes (a new
                       session: nothing from before is resent) and control resumes; no loss inside either session.
+  usb-bench           a bench plan (`phalanx bench run`, docs/bench-runner.md "Real time") over usb: against the
+                      FunctionFS device restarted as the sea_rig firmware, its load cell served by firmware-sim over
+                      Modbus TCP (vmlib.sea_rig_bench: what is gated and what is only printed).
 Prints RESULT lines; exits non-zero on the first failed expectation.
 Usage (inside the VM, from the repository root): python3 tests/vm/usb_session.py [scenario...]
 """
@@ -332,8 +335,32 @@ def paused_ffs_device(fn):
     return run
 
 
+def bench():
+    """The FunctionFS device becomes the sea_rig firmware (the gadget unbound meanwhile, as a board re-flashed with
+    another app) with its load cell on Modbus TCP, and a bench plan runs over usb: against it. Runs last: the
+    device is no longer the DEVICE of the other scenarios."""
+    global FFS_SIM
+    unplug()
+    print("usb device (%s): %s" % (DEVICE, stop_sim(*FFS_SIM).strip().splitlines()[-1]), flush=True)
+    subprocess.run(["/usr/sbin/ip", "link", "set", "lo", "up"], check=True)  # the amplifier is on 127.0.0.1
+    log = open(os.path.join(OUT, "usb-bench.firmware.log"), "w+")
+    p = subprocess.Popen(CHRT(70) + [BIN + "/firmware-sim", "--device", "sea_rig", "--substeps", "2", "--tick-hz",
+                          str(RATE), "--ffs", FFS, "--instrument", "tcp:0"], stdout=subprocess.PIPE, stderr=log, text=True)
+    FFS_SIM = (p, log)
+    check(p.stdout.readline().startswith("USB " + FFS), "firmware-sim --ffs (sea_rig) did not report its link")
+    inst = p.stdout.readline()
+    m = re.search(r"tcp 127\.0\.0\.1:(\d+)", inst)
+    check(m is not None, "firmware-sim did not report its instrument: %r" % inst)
+    plug()
+    wait_for(lambda: subprocess.run(["lsusb", "-d", "%s:%s" % (VID, PID)], capture_output=True).returncode == 0,
+             "%s:%s to enumerate again" % (VID, PID))
+    line = vmlib.sea_rig_bench("usb-bench", device_spec("usb"), m.group(1), BIN, OUT, check, fail)
+    print("RESULT usb-bench: " + line, flush=True)
+
+
 SCENARIOS = {"usb": lambda: quiet("usb"), "acm": paused_ffs_device(lambda: quiet("acm")),
-             "usb-replug": lambda: replug("usb"), "acm-replug": paused_ffs_device(lambda: replug("acm"))}
+             "usb-replug": lambda: replug("usb"), "acm-replug": paused_ffs_device(lambda: replug("acm")),
+             "usb-bench": bench}
 
 if __name__ == "__main__":
     os.makedirs(OUT, exist_ok=True)
