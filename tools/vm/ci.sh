@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The VM lane of CI: boot Debian's kernel under QEMU and run every tests/vm/*_test.sh inside it against real kernel
 # interfaces (vcan/SocketCAN, ...), with the host build tree (build/host) shared in. One boot runs the short tests
-# (420 s for all of them); a test whose script has a line `# vm-lane: own boot, timeout SECONDS` runs in a boot of
+# (480 s for all of them); a test whose script has a line `# vm-lane: own boot, timeout SECONDS` runs in a boot of
 # its own with that timeout (the teleoperation sweep: 10 cases of half a minute), so that neither budget is shared
 # with a long test.
 # Skipped, with a message, only when QEMU itself cannot run on this machine.
@@ -44,7 +44,7 @@ boot() {  # name timeout tests...
   echo "vm lane: boot '$name' ($*) exit $rc in $(( $(date +%s) - t0 )) s of its $timeout s"
   [ $rc -eq 0 ] || failed=$((failed + 1))
 }
-[ ${#shared[@]} -eq 0 ] || boot vm-tests 420 "${shared[@]}"
+[ ${#shared[@]} -eq 0 ] || boot vm-tests 480 "${shared[@]}"
 for t in "${own[@]}"; do boot "vm-$t" "$(own_boot_timeout "$t")" "$t"; done
 echo "vm lane: finished in $(( $(date +%s) - start )) s"
 [ $failed -eq 0 ]
