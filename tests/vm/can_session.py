@@ -22,7 +22,6 @@ import struct
 import subprocess
 import sys
 import time
-import zlib
 
 import vmlib
 
@@ -91,14 +90,15 @@ class DumpCounter:
 
 
 def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_load=False, device=DEVICE,
-            extra_host=(), expect_exit=0, tail_commands=0):
+            extra_host=(), expect_exit=0, tail_commands=0, end_when=None):
     """Run firmware-sim and phalanxd on bus; actions = [(t_s, callable)] run while the session runs.
     tail_commands > 0: the session is not bounded by `seconds` but ends (SIGINT, a clean stop) once the host has
     sent that many commands after the last action returned - so what an action sent is always inside the
     session, however slowly the emulated VM runs this script or cansend (a fixed-length session ended before the
-    injected frames on a loaded machine: the host then counted none of them).
+    injected frames on a loaded machine: the host then counted none of them). end_when: likewise, the session ends
+    (SIGINT) 0.5 s after end_when() first holds, once the actions have run.
     Returns (summary dict, firmware-sim stderr text, candump log path, canbusload output)."""
-    if tail_commands > 0:
+    if tail_commands > 0 or end_when is not None:
         seconds = 600  # an upper bound only: the session is ended by the script
     vcan(bus, mode != "classic")
     # The log goes to the VM's tmpfs: 2000 lines/s written over 9p would cost the VM more than the session.
@@ -141,6 +141,14 @@ def session(name, bus, mode, seconds, actions=(), extra_dev=(), monitor_classic_
             check(time.monotonic() < deadline, "%s: the host sent %d of %d commands after the last action in 300 s"
                   % (name, commands.count - target + tail_commands, tail_commands))
             time.sleep(0.05)
+        d.send_signal(signal.SIGINT)
+    elif end_when is not None:
+        deadline = time.monotonic() + 300
+        while not end_when():
+            check(d.poll() is None, "%s: phalanxd ended before the session was stopped" % name)
+            check(time.monotonic() < deadline, "%s: the session's end condition did not hold within 300 s" % name)
+            time.sleep(0.05)
+        time.sleep(0.5)
         d.send_signal(signal.SIGINT)
     # phalanxd runs seconds × RATE cycles: at the few hundred Hz a loaded VM keeps, that takes several times longer.
     out, _ = d.communicate(timeout=seconds + 180)
@@ -372,7 +380,12 @@ def busoff():
 def linkdown():
     bus = "vcan0"
     acts = [(1.5, lambda: sh(IP, "link", "set", bus, "down")), (2.0, lambda: sh(IP, "link", "set", bus, "up"))]
-    s, fw, dump, _ = session("linkdown-fd", bus, "fd", 3.5, actions=acts)
+    # Ended once the daemon has reported the link back, not after a fixed length: on a loaded machine the fixed
+    # 3.5 s session ended before the script's "up" (the daemon logged the link down at t=3.44 s and never saw it
+    # return). candump exits when its interface goes down, so the commands after "up" cannot be counted there.
+    log_path = os.path.join(OUT, "linkdown-fd.phalanxd.log")
+    back = lambda: "CAN bus down -> error-active" in open(log_path).read()
+    s, fw, dump, _ = session("linkdown-fd", bus, "fd", 3.5, actions=acts, end_when=back)
     c = s["can"]
     print("linkdown: host can %s; faults %s; telemetry %d" % (json.dumps(c), s["faults_seen"],
                                                               s["telemetry"]["received"]), flush=True)
@@ -428,18 +441,6 @@ def bench(mode="fd"):
     print("RESULT can-bench-%s: %s" % (mode, line), flush=True)
 
 
-def test_image(path, build_id, size, device_type=2):
-    """A firmware image for the update (docs/firmware-update.md): random bytes with a valid image-info block
-    (common/include/phalanx/image_info.h) for the stm32g474 board, its CRC-32 over the image with the CRC field 0."""
-    import random
-    rnd = random.Random(build_id)
-    b = bytearray(rnd.getrandbits(8) for _ in range(size))
-    b[0x200:0x220] = struct.pack("<IHHBBHIIIII", 0x49584850, 1, 32, device_type, 1, 0, build_id, 0x08000000, size, 0, 0)
-    b[0x218:0x21C] = struct.pack("<I", zlib.crc32(bytes(b)))
-    with open(path, "wb") as f:
-        f.write(b)
-
-
 def update():
     """`phalanx update` over SocketCAN (docs/firmware-update.md): firmware-sim (sea_finger) with a code flash file on
     vcan0, updated over CAN-FD, then over the compact mapping back to the first image; once the power is lost
@@ -449,8 +450,8 @@ def update():
     bus = "vcan0"
     vcan(bus, True)
     old, new, flash = "/tmp/update-old.bin", "/tmp/update-new.bin", "/tmp/update-code.flash"
-    test_image(old, 0x0a11ce01, 30011)
-    test_image(new, 0x0b0b0b02, 45007)
+    vmlib.test_image(old, 0x0a11ce01, 30011)
+    vmlib.test_image(new, 0x0b0b0b02, 45007)
     if os.path.exists(flash):
         os.remove(flash)
 

@@ -4,8 +4,11 @@ Why the VM can miss 1 kHz, and what each setting here is for: docs/vm-lane.md ("
 """
 import json
 import os
+import random
 import re
+import struct
 import subprocess
+import zlib
 
 # Socket receive buffers of the guest (bytes). The emulated machine sometimes stops for a few hundred ms as a whole
 # (the host descheduled QEMU); the default 208 KB holds about 240 CAN-FD frames, and a 0.3 s stall at 1 kHz
@@ -111,3 +114,14 @@ steps:
             % (link["device"], "limits PASS" if step["pass"] else "not passed", link["telemetry_hz"],
                link["ticks_unseen"], link["device_ticks"], a.get("clock_drift_ppm", 0), step["instrument"]["polls_ok"],
                aligned))
+
+
+def test_image(path, build_id, size, device_type=2):
+    """A firmware image for the update (docs/firmware-update.md): random bytes with a valid image-info block
+    (common/include/phalanx/image_info.h) for the stm32g474 board, its CRC-32 over the image with the CRC field 0."""
+    rnd = random.Random(build_id)
+    b = bytearray(rnd.getrandbits(8) for _ in range(size))
+    b[0x200:0x220] = struct.pack("<IHHBBHIIIII", 0x49584850, 1, 32, device_type, 1, 0, build_id, 0x08000000, size, 0, 0)
+    b[0x218:0x21C] = struct.pack("<I", zlib.crc32(bytes(b)))
+    with open(path, "wb") as f:
+        f.write(b)
