@@ -221,16 +221,16 @@ bool FfsLink::send(uint8_t msg_id, const uint8_t* payload, size_t len) {
     return false;
   }
   if (len > protocol::kMaxPayload || len + 3 == 64) return false;
+  if (host_idle_) {
+    ++stats_.tx_dropped_host_idle;
+    return false;
+  }
   Req* slot = nullptr;
   for (auto& r : in_) {
     if (!r.in_flight) {
       slot = &r;
       break;
     }
-  }
-  if (host_idle_) {
-    ++stats_.tx_dropped_host_idle;
-    return false;
   }
   if (slot == nullptr) {
     ++stats_.tx_dropped_full;

@@ -25,7 +25,7 @@ struct FfsLinkStats {
   uint64_t tx_dropped_full = 0;    ///< messages refused: every IN request of the pool queued
   uint64_t tx_dropped_offline = 0; ///< messages refused: USB function not enabled (unplugged, unconfigured)
   uint64_t tx_failed = 0;          ///< IN requests that ended in an error (unplug mid-transfer)
-  uint64_t tx_dropped_host_idle = 0;  ///< messages refused: the host stopped reading (full pool) and has not spoken since
+  uint64_t tx_dropped_host_idle = 0;  ///< messages refused: no host write since an enable or since the host was found gone
   uint64_t tx_cancelled = 0;       ///< queued IN requests withdrawn when the host stopped reading (stale by then)
   uint64_t rx_transfers = 0;       ///< OUT requests completed with data
   uint64_t rx_overflow = 0;        ///< bodies dropped: receive ring full
