@@ -151,6 +151,7 @@ def stop_sim(p, log):
 
 
 FFS_SIM = None
+FFS_ROLE = DEVICE  # what the FunctionFS device's firmware-sim is now (restart_device changes it)
 
 
 def setup():
@@ -341,18 +342,19 @@ def restart_device(name, args):
     """The FunctionFS device restarted as another firmware-sim (ARGS after --ffs), the gadget unbound meanwhile (a
     board re-flashed, or power-cycled): writing the new descriptors makes the function ready, then the UDC is bound
     again and the test waits for the device to enumerate. Returns the new process's first stdout line after USB's."""
-    global FFS_SIM
+    global FFS_SIM, FFS_ROLE
     try:
         unplug()
     except OSError:
         pass  # already unbound: a firmware-sim that ended (power lost) closed its function, which unbinds the gadget
     if FFS_SIM[0].poll() is None:
         out = stop_sim(*FFS_SIM).strip()
-        print("usb device before %s: %s" % (name, out.splitlines()[-1] if out else "(no log)"), flush=True)
-    log = open(os.path.join(OUT, "%s.firmware.log" % name), "a+")
+        print("usb device (%s, stopped for %s): %s" % (FFS_ROLE, name, out.splitlines()[-1] if out else "(no log)"),
+              flush=True)
+    log = open(os.path.join(OUT, "%s.firmware.log" % name), "w+")
     p = subprocess.Popen(CHRT(70) + [BIN + "/firmware-sim", "--ffs", FFS] + args, stdout=subprocess.PIPE, stderr=log,
                          text=True)
-    FFS_SIM = (p, log)
+    FFS_SIM, FFS_ROLE = (p, log), name
     check(p.stdout.readline().startswith("USB " + FFS), "%s: firmware-sim --ffs did not report its link" % name)
     plug()
     wait_for(lambda: subprocess.run(["lsusb", "-d", "%s:%s" % (VID, PID)], capture_output=True).returncode == 0,
@@ -386,9 +388,9 @@ def update():
     if os.path.exists(flash):
         os.remove(flash)
 
-    def board(cut=None):
+    def board(name, cut=None):
         args = ["--device", "sea_finger", "--flash", flash, "--flash-provision", old, "--seconds", "300"]
-        return restart_device("usb-update", args + (["--flash-power-cut-after", str(cut)] if cut is not None else []))
+        return restart_device(name, args + (["--flash-power-cut-after", str(cut)] if cut is not None else []))
 
     def run_update(image):
         t0 = time.monotonic()
@@ -398,7 +400,7 @@ def update():
             f.write(r.stdout + r.stderr)
         return r, time.monotonic() - t0
 
-    board()
+    board("usb-update")
     r, secs = run_update(new)
     check(r.returncode == 0 and "from build 0a11ce01 to build 0b0b0b02" in r.stdout,
           "update over usb: exit %d: %s %s" % (r.returncode, r.stdout, r.stderr[-600:]))
@@ -406,11 +408,11 @@ def update():
     print("RESULT usb-update: %d bytes over USB bulk in %.2f s wall, %s chunks resent, the board came back as build "
           "0b0b0b02" % (os.path.getsize(new), secs, resent.group(1) if resent else "?"), flush=True)
     os.remove(flash)
-    p = board(cut=15000)
+    p = board("usb-update-power-cut", cut=15000)
     r, _ = run_update(new)
     check(r.returncode != 0, "an update over usb whose power was cut reported success")
     check(p.wait(timeout=20) == 75, "firmware-sim did not end as a board losing power")
-    board()
+    board("usb-update-retry")
     r, _ = run_update(new)
     check(r.returncode == 0 and "from build 0a11ce01 to build 0b0b0b02" in r.stdout,
           "after the power loss: exit %d: %s %s" % (r.returncode, r.stdout, r.stderr[-600:]))
@@ -433,9 +435,9 @@ if __name__ == "__main__":
             SCENARIOS[n]()
     finally:
         fw = stop_sim(*FFS_SIM)
-        print("usb device: " + (fw.strip().splitlines()[-1] if fw.strip() else "(no log)"), flush=True)
+        print("usb device (%s): %s" % (FFS_ROLE, fw.strip().splitlines()[-1] if fw.strip() else "(no log)"), flush=True)
         dev = vmlib.device_timing(fw, RATE)
         if dev:
-            print("TIMING usb device (firmware-sim --ffs, whole run incl. set-up): kept %.0f Hz of %d, own work per tick "
-                  "p50 %s us p99 %s us, wake late p50 %s us p99 %s us" % (dev["kept_hz"], RATE, dev.get("work_p50"),
+            print("TIMING usb device (firmware-sim --ffs as %s, its whole run incl. set-up): kept %.0f Hz of %d, own work per tick "
+                  "p50 %s us p99 %s us, wake late p50 %s us p99 %s us" % (FFS_ROLE, dev["kept_hz"], RATE, dev.get("work_p50"),
                   dev.get("work_p99"), dev.get("late_p50"), dev.get("late_p99")), flush=True)
