@@ -449,11 +449,7 @@ def update():
     old build and the retry completes. Printed: the transfer time and the resends."""
     bus = "vcan0"
     vcan(bus, True)
-    old, new, flash = "/tmp/update-old.bin", "/tmp/update-new.bin", "/tmp/update-code.flash"
-    vmlib.test_image(old, 0x0a11ce01, 30011)
-    vmlib.test_image(new, 0x0b0b0b02, 45007)
-    if os.path.exists(flash):
-        os.remove(flash)
+    old, new, flash = vmlib.update_images("update")
 
     def board(mode, cut=None):
         args = [BIN + "/firmware-sim", "--device", "sea_finger", "--can", bus, "--node", str(NODE), "--can-mode", mode,
@@ -466,13 +462,8 @@ def update():
         return fw
 
     def run_update(image, mode):
-        t0 = time.monotonic()
-        r = subprocess.run(["chrt", "-f", "80", BIN + "/phalanx", "update", image, "--device",
-                            "can:%s:%d@%s" % (bus, NODE, mode), "--timeout", "5", "--reconnects", "0"],
-                           capture_output=True, text=True, timeout=240)
-        with open(os.path.join(OUT, "update-%s.log" % mode), "a") as f:
-            f.write(r.stdout + r.stderr)
-        return r, time.monotonic() - t0
+        return vmlib.run_update(["chrt", "-f", "80"], BIN, image, "can:%s:%d@%s" % (bus, NODE, mode),
+                                os.path.join(OUT, "update-%s.log" % mode))
 
     for image, build, mode in ((new, "0b0b0b02", "fd"), (old, "0a11ce01", "fd-compact")):
         fw = board(mode)

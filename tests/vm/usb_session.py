@@ -382,23 +382,14 @@ def update():
     board reports the image's build id after its reset (firmware-sim resets in place; a board would re-enumerate,
     which the update's reconnect handles: not exercised here); after the power loss, the old build and a completed
     retry. Printed: the transfer time and the resends."""
-    old, new, flash = "/tmp/usb-update-old.bin", "/tmp/usb-update-new.bin", "/tmp/usb-update-code.flash"
-    vmlib.test_image(old, 0x0a11ce01, 30011)
-    vmlib.test_image(new, 0x0b0b0b02, 45007)
-    if os.path.exists(flash):
-        os.remove(flash)
+    old, new, flash = vmlib.update_images("usb-update")
 
     def board(name, cut=None):
         args = ["--device", "sea_finger", "--flash", flash, "--flash-provision", old, "--seconds", "300"]
         return restart_device(name, args + (["--flash-power-cut-after", str(cut)] if cut is not None else []))
 
     def run_update(image):
-        t0 = time.monotonic()
-        r = subprocess.run(CHRT(80) + [BIN + "/phalanx", "update", image, "--device", device_spec("usb"), "--timeout",
-                           "5", "--reconnects", "0"], capture_output=True, text=True, timeout=240)
-        with open(os.path.join(OUT, "usb-update.log"), "a") as f:
-            f.write(r.stdout + r.stderr)
-        return r, time.monotonic() - t0
+        return vmlib.run_update(CHRT(80), BIN, image, device_spec("usb"), os.path.join(OUT, "usb-update.log"))
 
     board("usb-update")
     r, secs = run_update(new)

@@ -8,6 +8,7 @@ import random
 import re
 import struct
 import subprocess
+import time
 import zlib
 
 # Socket receive buffers of the guest (bytes). The emulated machine sometimes stops for a few hundred ms as a whole
@@ -125,3 +126,25 @@ def test_image(path, build_id, size, device_type=2):
     b[0x218:0x21C] = struct.pack("<I", zlib.crc32(bytes(b)))
     with open(path, "wb") as f:
         f.write(b)
+
+
+def update_images(prefix):
+    """The update scenarios' files: an old image (the board's factory image, build 0a11ce01), a new one
+    (0b0b0b02) and the path of a code flash file that does not exist yet. Returns (old, new, flash)."""
+    old, new, flash = "/tmp/%s-old.bin" % prefix, "/tmp/%s-new.bin" % prefix, "/tmp/%s-code.flash" % prefix
+    test_image(old, 0x0a11ce01, 30011)
+    test_image(new, 0x0b0b0b02, 45007)
+    if os.path.exists(flash):
+        os.remove(flash)
+    return old, new, flash
+
+
+def run_update(launch, bin_dir, image, device, log_path):
+    """`phalanx update IMAGE --device DEVICE` without reconnects, its output appended to LOG_PATH; LAUNCH prefixes
+    the command (chrt). Returns (CompletedProcess, wall seconds)."""
+    t0 = time.monotonic()
+    r = subprocess.run(list(launch) + [bin_dir + "/phalanx", "update", image, "--device", device, "--timeout", "5",
+                       "--reconnects", "0"], capture_output=True, text=True, timeout=240)
+    with open(log_path, "a") as f:
+        f.write(r.stdout + r.stderr)
+    return r, time.monotonic() - t0
