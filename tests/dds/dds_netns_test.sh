@@ -17,6 +17,7 @@ python3 -c "import cyclonedds" || { echo "FAIL: the cyclonedds Python binding is
 PY010=${PHALANX_DDS_PY010:-/opt/phalanx/dds-py010}/bin/python
 "$PY010" -c "import cyclonedds" || { echo "FAIL: $PY010 has no cyclonedds 0.10.2 (tools/setup.sh --test)"; exit 1; }
 [ -x "$BIN/glove_press" ] || { echo "FAIL: $BIN/glove_press missing (the SDK example; build the examples)"; exit 1; }
+[ -x "$BIN/remote_press" ] || { echo "FAIL: $BIN/remote_press missing (the SDK's network example; build the examples)"; exit 1; }
 
 TAG=$$
 NA=phxddsA$TAG NB=phxddsB$TAG VA=vdA$TAG VB=vdB$TAG
@@ -142,13 +143,44 @@ rel_session() {  # attempt
 }
 retry3 rel_session
 
+# A client of libphalanx's network part (phalanx::RemoteDevice, the example remote_press) in B addresses the
+# glove in A by the name its daemon announces, presses the index pad for 1 s and releases (docs/sdk.md §"Devices
+# on the network"); the same check as the Python commander's hand-back.
+echo "== sim:glove5 addressed by name from B: libphalanx's RemoteDevice (remote_press) =="
+name_session() {  # attempt
+  [ "$1" = 1 ] || echo "(attempt $1)"
+  ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 7 --mode transparent \
+    --scene none --scenario still --record "$WORK/name.csv" --json >"$WORK/name.json" 2>"$WORK/name.err" &
+  local d=$!
+  PIDS+=($d)
+  sleep 0.5
+  ip netns exec "$NB" "$BIN/remote_press" --device lab/glove_cmd --domain $DOMAIN --interface "$VB" --finger 1 \
+    --force 0.75 --seconds 1 >"$WORK/name.out" 2>&1 || { cat "$WORK/name.out"; echo "FAIL: remote_press"; exit 1; }
+  wait $d || { cat "$WORK/name.err"; echo "FAIL: phalanxd (by-name session)"; exit 1; }
+  cat "$WORK/name.out"
+  python3 - "$WORK/name.out" "$WORK/name.json" <<'PY'
+import json, sys
+out, s = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+c = s["dds"]["commands"]
+if c["received"] != out["commands_sent"] or c["passed_to_client_path"] != out["commands_sent"]:
+    sys.exit("FAIL: remote_press sent %d commands, the daemon received %d and passed %d" %
+             (out["commands_sent"], c["received"], c["passed_to_client_path"]))
+if out["joint_states"] < 5:
+    sys.exit("FAIL: remote_press received %d joint_states samples in 1 s at 10 Hz" % out["joint_states"])
+print("by name: %d commands sent, %d received by the daemon, %d joint_states samples back" %
+      (out["commands_sent"], c["received"], out["joint_states"]))
+PY
+  python3 "$HERE/command_peer.py" check-release --csv "$WORK/name.csv" --summary "$WORK/name.json"
+}
+retry3 name_session
+
 # Several devices on several "machines" (docs/dds.md §"Devices on the network"): two daemons in A, one in B; from
 # each namespace `phalanx devices` lists all three from their announcements on rt/phalanx/devices.
 echo "== phalanx devices: glove5 and pantograph in A, sea_finger in B =="
 DEVP=()
 for spec in "$NA $VA glove5 lab/glove_a" "$NA $VA pantograph lab/pen1" "$NB $VB sea_finger lab/sea1"; do
   set -- $spec
-  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 8 --dds --dds-domain $DOMAIN --dds-interface "$2" \
+  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 11 --dds --dds-domain $DOMAIN --dds-interface "$2" \
     --dds-namespace "$4" --dds-state-rate 10 --json >"$WORK/dev_$3.json" 2>"$WORK/dev_$3.err" &
   DEVP+=($!)
   PIDS+=($!)
@@ -156,6 +188,16 @@ done
 sleep 3
 ip netns exec "$NB" "$BIN/phalanx" devices --domain $DOMAIN --interface "$VB" --seconds 2 --json >"$WORK/devices_B.json"
 ip netns exec "$NA" "$BIN/phalanx" devices --domain $DOMAIN --interface "$VA" --seconds 2 >"$WORK/devices_A.txt"
+# Addressing by name what cannot be commanded: a name nobody announced, a device whose commands are off.
+for bad in "lab/nobody:no daemon announced" "lab/pen1:does not take commands"; do
+  rc=0
+  ip netns exec "$NB" "$BIN/remote_press" --device "${bad%%:*}" --domain $DOMAIN --interface "$VB" --discovery-s 1 \
+    >"$WORK/bad.out" 2>&1 || rc=$?
+  if [ $rc -ne 3 ] || ! grep -q "${bad#*:}" "$WORK/bad.out"; then
+    cat "$WORK/bad.out"; echo "FAIL: remote_press --device ${bad%%:*}: exit $rc, expected 3 and '${bad#*:}'"; exit 1
+  fi
+  echo "remote_press --device ${bad%%:*}: refused: $(cat "$WORK/bad.out")"
+done
 for p in "${DEVP[@]}"; do wait "$p" || { cat "$WORK"/dev_*.err; echo "FAIL: a daemon of the devices session failed"; exit 1; }; done
 cat "$WORK/devices_A.txt"
 python3 - "$WORK/devices_B.json" "$WORK/devices_A.txt" "$WORK" <<'PY'
