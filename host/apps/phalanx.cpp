@@ -23,13 +23,15 @@
 #include "param_cli.h"
 #include "phalanx/host/can_budget.h"
 #include "phalanx/host/config.h"
-#include "phalanx/host/dds/dds_options.h"
 #include "phalanx/host/mcu_diag.h"
 #include "phalanx/host/program_name.h"
 #include "phalanx/host/sea/sea_calibrate.h"
 #include "phalanx/protocol/messages.h"
 #include "therapy_cli.h"
 #include "update_cli.h"
+#ifdef PHALANX_NETWORK
+#include "phalanx/network.hpp"
+#endif
 
 namespace {
 
@@ -82,7 +84,7 @@ struct RunCommand {
 // ---- phalanx version --------------------------------------------------------------------------------------------
 
 int runVersion() {
-  std::printf("phalanx %s, wire protocol v%u\n", PHALANX_VERSION, phalanx::protocol::kProtocolVersion);
+  std::printf("phalanx %s, wire protocol v%u\n", PHALANX_PROJECT_VERSION, phalanx::protocol::kProtocolVersion);
   return 0;
 }
 
@@ -135,28 +137,40 @@ struct DevicesCommand {
   }
 
   int run() const {
-    std::vector<dds::DeviceSeen> seen;
-    if (const std::string err = dds::listDevices(domain, interface, seconds, seen); !err.empty()) {
-      std::fprintf(stderr, "phalanx devices: %s\n", err.c_str());
+#ifdef PHALANX_NETWORK
+    std::vector<::phalanx::NetworkDevice> seen;
+    try {
+      ::phalanx::NetworkOptions o;
+      o.domain = domain;
+      o.interface = interface;
+      o.discovery_s = seconds;
+      seen = ::phalanx::listNetworkDevices(o);  // libphalanx's network part (docs/sdk.md)
+    } catch (const ::phalanx::Error& e) {
+      std::fprintf(stderr, "phalanx devices: %s\n", e.what());
       return 3;
     }
     if (json) {
       nlohmann::json a = nlohmann::json::array();
       for (const auto& d : seen) {
-        a.push_back({{"host", d.host}, {"name", d.name}, {"type", d.device_type}, {"device", d.device_spec},
-                     {"state", d.state}, {"rate_hz", d.rate_hz}, {"firmware_build_id", d.firmware_build_id},
-                     {"commands", d.commands}, {"age_s", d.age_s}});
+        a.push_back({{"host", d.host}, {"name", d.name}, {"type", d.type}, {"device", d.spec}, {"state", d.state},
+                     {"rate_hz", d.rate_hz}, {"firmware_build_id", d.firmware_build_id}, {"commands", d.commands},
+                     {"age_s", d.age_s}});
       }
       std::printf("%s\n", a.dump(2).c_str());
       return 0;
     }
     std::printf("%-16s %-24s %-11s %-8s %-9s %s\n", "HOST", "NAME", "TYPE", "RATE_HZ", "COMMANDS", "STATE");
     for (const auto& d : seen) {
-      std::printf("%-16s %-24s %-11s %-8.0f %-9s %s\n", d.host.c_str(), d.name.c_str(), d.device_type.c_str(),
-                  d.rate_hz, d.commands ? "on" : "off", d.state.c_str());
+      std::printf("%-16s %-24s %-11s %-8.0f %-9s %s\n", d.host.c_str(), d.name.c_str(), d.type.c_str(), d.rate_hz,
+                  d.commands ? "on" : "off", d.state.c_str());
     }
     if (seen.empty()) std::fprintf(stderr, "phalanx devices: none announced on domain %u within %.1f s\n", domain, seconds);
     return 0;
+#else
+    std::fprintf(stderr, "phalanx devices: this phalanx was built without Cyclone DDS (install cyclonedds-dev and "
+                         "rebuild; docs/dds.md)\n");
+    return 3;
+#endif
   }
 };
 

@@ -11,8 +11,4 @@ std::unique_ptr<Bridge> startBridge(const DdsOptions&, const BridgeDevice&, Loop
   return nullptr;
 }
 
-std::string listDevices(uint32_t, const std::string&, double, std::vector<DeviceSeen>&) {
-  return "dds: this phalanx was built without Cyclone DDS (install cyclonedds-dev and rebuild; docs/dds.md)";
-}
-
 }  // namespace phalanx::host::dds

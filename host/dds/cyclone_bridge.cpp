@@ -458,50 +458,6 @@ class CycloneBridge final : public Bridge {
 
 bool bridgeAvailable() { return true; }
 
-std::string listDevices(uint32_t domain_id, const std::string& interface, double seconds, std::vector<DeviceSeen>& out) {
-  out.clear();
-  dds_entity_t domain = 0;
-  if (std::string err = createDomain(domain_id, interface, domain); !err.empty()) return err;
-  const dds_entity_t dp = dds_create_participant(domain_id, nullptr, nullptr);
-  if (dp < 0) return std::string("dds: cannot create the participant: ") + dds_strretcode(dp);
-  dds_qos_t* q = announceQos(true);
-  const dds_entity_t t = dds_create_topic(dp, &phalanx_msgs_msg_dds__DeviceAnnouncement__desc, kDevicesTopic, q, nullptr);
-  const dds_entity_t r = t < 0 ? t : dds_create_reader(dp, t, q, nullptr);
-  dds_delete_qos(q);
-  if (r < 0) {
-    dds_delete(domain > 0 ? domain : dp);
-    return std::string("dds: cannot read ") + kDevicesTopic + ": " + dds_strretcode(r);
-  }
-  const int64_t end = static_cast<int64_t>(clockNs(CLOCK_MONOTONIC)) + static_cast<int64_t>(seconds * 1e9);
-  constexpr int kBatch = 32;
-  void* samples[kBatch] = {};
-  dds_sample_info_t infos[kBatch];
-  while (static_cast<int64_t>(clockNs(CLOCK_MONOTONIC)) < end) {
-    const dds_return_t n = dds_take(r, samples, infos, kBatch, kBatch);
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!infos[i].valid_data) continue;
-      const auto& m = *static_cast<const phalanx_msgs_msg_dds__DeviceAnnouncement_*>(samples[i]);
-      DeviceSeen d{m.host, m.name, m.device_type, m.device_spec, m.state, m.rate_hz, m.firmware_build_id, m.commands};
-      const double stamp_s = static_cast<double>(m.stamp.sec) + 1e-9 * static_cast<double>(m.stamp.nanosec);
-      d.age_s = stamp_s;  // the stamp until the listing ends (then the age)
-      bool replaced = false;
-      for (auto& e : out) {
-        if (e.host == d.host && e.name == d.name) {
-          if (stamp_s >= e.age_s) e = d;
-          replaced = true;
-        }
-      }
-      if (!replaced) out.push_back(d);
-    }
-    if (n > 0) dds_return_loan(r, samples, n);
-    if (n <= 0) dds_sleepfor(DDS_MSECS(20));
-  }
-  const double now_s = static_cast<double>(clockNs(CLOCK_REALTIME)) * 1e-9;
-  for (auto& e : out) e.age_s = now_s - e.age_s;  // age_s held the stamp until here
-  dds_delete(domain > 0 ? domain : dp);
-  return {};
-}
-
 std::unique_ptr<Bridge> startBridge(const DdsOptions& o, const BridgeDevice& dev, LoopPort& port, std::string& error) {
   auto b = std::make_unique<CycloneBridge>(o, dev, port);
   error = b->start();

@@ -8,6 +8,10 @@ numpy arrays (``pen_centre``, ``pen_force``, ``glove_fingertip``, ``sea_flexion`
 
 try:
     from ._phalanx import VERSION, Client, Error, State  # noqa: F401
+    try:  # libphalanx's network part, when built with Cyclone DDS (docs/sdk.md "Devices on the network")
+        from ._phalanx import RemoteDevice, network_devices  # noqa: F401
+    except ImportError:
+        pass
 except ImportError as _e:  # the extension is not built: the rest of the package still imports
     _client_import_error = _e
 

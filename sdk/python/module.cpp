@@ -10,6 +10,9 @@
 #include <vector>
 
 #include "phalanx/client.hpp"
+#ifdef PHALANX_NETWORK
+#include "phalanx/network.hpp"
+#endif
 
 namespace py = pybind11;
 
@@ -67,6 +70,93 @@ std::array<double, 3> vec3(const py::object& o, const char* what) {
   if (v.size() != 3) throw py::value_error(std::string(what) + ": 3 values expected");
   return {v[0], v[1], v[2]};
 }
+
+#ifdef PHALANX_NETWORK
+py::dict deviceDict(const phalanx::NetworkDevice& d) {
+  py::dict o;
+  o["host"] = d.host;
+  o["name"] = d.name;
+  o["type"] = d.type;
+  o["device"] = d.spec;
+  o["state"] = d.state;
+  o["rate_hz"] = d.rate_hz;
+  o["firmware_build_id"] = d.firmware_build_id;
+  o["commands"] = d.commands;
+  o["age_s"] = d.age_s;
+  return o;
+}
+
+void sendOrRaise(phalanx::RemoteDevice& r, const phalanx::Command& cmd) {
+  if (!r.send(cmd)) throw std::runtime_error("RemoteDevice: " + r.lastError());
+}
+
+/// libphalanx's network part (docs/sdk.md "Devices on the network").
+void bindNetwork(py::module_& m) {
+  m.def("network_devices", [](unsigned domain, const std::string& interface, double seconds) {
+    phalanx::NetworkOptions o;
+    o.domain = domain;
+    o.interface = interface;
+    o.discovery_s = seconds;
+    std::vector<phalanx::NetworkDevice> seen;
+    {
+      py::gil_scoped_release nogil;
+      seen = phalanx::listNetworkDevices(o);
+    }
+    py::list out;
+    for (const auto& d : seen) out.append(deviceDict(d));
+    return out;
+  }, py::arg("domain") = 0, py::arg("interface") = "", py::arg("seconds") = 2.0,
+     "Every device the daemons announce over DDS within `seconds` (as `phalanx devices`).");
+  py::class_<phalanx::RemoteDevice>(m, "RemoteDevice")
+      .def(py::init([](const std::string& name, unsigned domain, const std::string& interface, double discovery_s,
+                       const std::string& host) {
+             phalanx::NetworkOptions o;
+             o.domain = domain;
+             o.interface = interface;
+             o.discovery_s = discovery_s;
+             o.host = host;
+             py::gil_scoped_release nogil;
+             return std::make_unique<phalanx::RemoteDevice>(name, o);
+           }),
+           py::arg("name"), py::arg("domain") = 0, py::arg("interface") = "", py::arg("discovery_s") = 2.0,
+           py::arg("host") = "")
+      .def_property_readonly("device", [](const phalanx::RemoteDevice& r) { return deviceDict(r.device()); })
+      .def("set_setpoints", [](phalanx::RemoteDevice& r, const std::vector<double>& sp, const std::string& mode) {
+        if (sp.size() > PHALANX_MAX_SETPOINTS) throw py::value_error("setpoints: too many values");
+        phalanx::Command cmd;
+        cmd.mode = mode == "transparent" ? phalanx::Mode::kTransparent : phalanx::Mode::kSetpoint;
+        for (size_t i = 0; i < sp.size(); ++i) cmd.setpoint[i] = static_cast<float>(sp[i]);
+        sendOrRaise(r, cmd);
+      }, py::arg("setpoints"), py::arg("mode") = "setpoint", "Raw per-channel setpoints (SI), the device's count.")
+      .def("set_pen_wrench", [](phalanx::RemoteDevice& r, const py::object& force, const py::object& torque) {
+        phalanx::Command cmd;
+        cmd.penWrench(vec3(force, "force"), torque.is_none() ? std::array<double, 3>{} : vec3(torque, "torque"));
+        sendOrRaise(r, cmd);
+      }, py::arg("force"), py::arg("torque") = py::none())
+      .def("set_finger_torques", [](phalanx::RemoteDevice& r, double mcp, double pip) {
+        phalanx::Command cmd;
+        cmd.fingerTorques(mcp, pip);
+        sendOrRaise(r, cmd);
+      }, py::arg("mcp"), py::arg("pip"))
+      .def("wait_joints", [](phalanx::RemoteDevice& r, int timeout_ms) -> py::object {
+        phalanx::RemoteJoints j;
+        bool ok = false;
+        {
+          py::gil_scoped_release nogil;
+          ok = r.waitJoints(j, timeout_ms);
+        }
+        if (!ok) return py::none();
+        py::dict o;
+        o["name"] = j.name;
+        o["position"] = j.position;
+        o["velocity"] = j.velocity;
+        o["effort"] = j.effort;
+        o["stamp_ns"] = j.stamp_ns;
+        return o;
+      }, py::arg("timeout_ms") = 100, "The next joint_states sample as a dict (None on timeout).")
+      .def("release", &phalanx::RemoteDevice::release);
+}
+#endif
 
 }  // namespace
 
@@ -212,4 +302,7 @@ PYBIND11_MODULE(_phalanx, m) {
          "glove5: force (fx, fy) on each fingertip in its base frame, N. fallback: [((x, y), k, b)] per finger.")
       .def("achieved_rate_hz", &phalanx::Client::achievedRateHz)
       .def("release", &phalanx::Client::release);
+#ifdef PHALANX_NETWORK
+  bindNetwork(m);
+#endif
 }

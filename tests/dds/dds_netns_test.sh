@@ -180,7 +180,7 @@ echo "== phalanx devices: glove5 and pantograph in A, sea_finger in B =="
 DEVP=()
 for spec in "$NA $VA glove5 lab/glove_a" "$NA $VA pantograph lab/pen1" "$NB $VB sea_finger lab/sea1"; do
   set -- $spec
-  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 11 --dds --dds-domain $DOMAIN --dds-interface "$2" \
+  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 14 --dds --dds-domain $DOMAIN --dds-interface "$2" \
     --dds-namespace "$4" --dds-state-rate 10 --json >"$WORK/dev_$3.json" 2>"$WORK/dev_$3.err" &
   DEVP+=($!)
   PIDS+=($!)
@@ -198,6 +198,23 @@ for bad in "lab/nobody:no daemon announced" "lab/pen1:does not take commands"; d
   fi
   echo "remote_press --device ${bad%%:*}: refused: $(cat "$WORK/bad.out")"
 done
+# The same from Python (the bindings of libphalanx's network part): the list, and a refusal naming its reason.
+ip netns exec "$NB" env PYTHONPATH="$HERE/../../python" python3 - $DOMAIN "$VB" <<'PY' || { echo "FAIL: Python's network_devices / RemoteDevice"; exit 1; }
+import sys
+import phalanx
+domain, iface = int(sys.argv[1]), sys.argv[2]
+names = sorted(d["name"] for d in phalanx.network_devices(domain=domain, interface=iface, seconds=1))
+if names != ["lab/glove_a", "lab/pen1", "lab/sea1"]:
+    sys.exit("FAIL: phalanx.network_devices listed %s" % names)
+try:
+    phalanx.RemoteDevice("lab/sea1", domain=domain, interface=iface, discovery_s=1)
+    sys.exit("FAIL: RemoteDevice('lab/sea1') accepted a device whose commands are off")
+except phalanx.Error as e:
+    reason = str(e)
+if "does not take commands" not in reason:
+    sys.exit("FAIL: RemoteDevice('lab/sea1') refused for another reason: %s" % reason)
+print("python: network_devices lists %s; RemoteDevice('lab/sea1') refused: %s" % (", ".join(names), reason))
+PY
 for p in "${DEVP[@]}"; do wait "$p" || { cat "$WORK"/dev_*.err; echo "FAIL: a daemon of the devices session failed"; exit 1; }; done
 cat "$WORK/devices_A.txt"
 python3 - "$WORK/devices_B.json" "$WORK/devices_A.txt" "$WORK" <<'PY'

@@ -335,6 +335,9 @@ TEST(ClientSdk, TheInstalledLibraryBuildsTheExamples) {
   Process make({PHALANX_CMAKE, "--build", build});
   ASSERT_EQ(make.wait(300000), 0) << make.stdoutText() << make.stderrText();
   EXPECT_EQ(access((build + "/glove_spring").c_str(), X_OK), 0);
+#ifdef PHALANX_NETWORK  // the installed package says it has the network part (phalanx_NETWORK): its example builds
+  EXPECT_EQ(access((build + "/remote_press").c_str(), X_OK), 0);
+#endif
   Process pc({"/bin/sh", "-c",
               "PKG_CONFIG_PATH=$(dirname $(find " + prefix + " -name phalanx.pc)) && export PKG_CONFIG_PATH && cc -o " +
                   build + "/glove_press_pc " + PHALANX_SOURCE_DIR + "/examples/glove_press.c $(pkg-config --cflags --libs phalanx)"});

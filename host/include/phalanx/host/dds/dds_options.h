@@ -35,16 +35,4 @@ std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o);
 /// Ranges (rate against the session's rate_hz). "" or the first problem, naming the key.
 std::string validateDdsOptions(const DdsOptions& o, unsigned rate_hz);
 
-/// One device announced on the network (rt/phalanx/devices), as `phalanx devices` lists it.
-struct DeviceSeen {
-  std::string host, name, device_type, device_spec, state;
-  double rate_hz = 0.0;
-  uint32_t firmware_build_id = 0;
-  bool commands = false;
-  double age_s = 0.0;  ///< since its latest announcement's stamp (the announcer's clock)
-};
-/// Listen on domain_id (interface: as dds.interface) for `seconds` and return the latest announcement of every
-/// device (host + name). "" or the problem (built without Cyclone DDS: says so).
-std::string listDevices(uint32_t domain_id, const std::string& interface, double seconds, std::vector<DeviceSeen>& out);
-
 }  // namespace phalanx::host::dds
