@@ -5,6 +5,7 @@
 #include <arpa/inet.h>
 
 #include <cctype>
+#include <cstdio>
 #include <ctime>
 
 #include <dds/dds.h>
@@ -28,7 +29,7 @@ int64_t wallNs() {
 struct Participant {
   dds_entity_t root = 0, participant = 0;
 
-  Participant(const NetworkOptions& o) {
+  explicit Participant(const NetworkOptions& o) {
     if (o.domain > 232) throw Error(PHALANX_EARG, "network: domain " + std::to_string(o.domain) + " is beyond 232");
     if (!o.interface.empty()) {
       in_addr a{};
@@ -110,6 +111,12 @@ std::vector<NetworkDevice> listen(const Participant& p, double seconds) {
   return out;
 }
 
+std::string seconds(double s) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f s", s);
+  return b;
+}
+
 /// A device name is a topic namespace: letters, digits, '_' and '/' between non-empty parts (docs/dds.md).
 bool validName(const std::string& n) {
   if (n.empty() || n.front() == '/' || n.back() == '/' || n.find("//") != std::string::npos) return false;
@@ -168,7 +175,7 @@ RemoteDevice::RemoteDevice(const std::string& name, const NetworkOptions& o) {
   const std::string where = " on domain " + std::to_string(o.domain) + (o.host.empty() ? "" : " from host " + o.host);
   if (found.empty()) {
     throw Error(PHALANX_ECONNECT, "network: no daemon announced a device '" + name + "'" + where + " within " +
-                                      std::to_string(o.discovery_s).substr(0, 4) + " s (phalanx devices lists them)");
+                                      seconds(o.discovery_s) + " (phalanx devices lists them)");
   }
   if (found.size() > 1) throw Error(PHALANX_EREFUSED, "network: '" + name + "' is announced by several hosts (" + hosts + "): name one");
   const NetworkDevice& d = found.front();
@@ -192,7 +199,7 @@ RemoteDevice::RemoteDevice(const std::string& name, const NetworkOptions& o) {
   }
   if (st.current_count == 0) {
     throw Error(PHALANX_ECONNECT, "network: the command reader of '" + name + "' on " + d.host + " did not match within " +
-                                      std::to_string(o.discovery_s).substr(0, 4) + " s");
+                                      seconds(o.discovery_s));
   }
   impl->joints_r = impl->p.open(&sensor_msgs_msg_dds__JointState__desc, "rt/" + name + "/joint_states",
                                 qos(DDS_RELIABILITY_BEST_EFFORT, DDS_DURABILITY_VOLATILE, DDS_HISTORY_KEEP_LAST, 1), true);

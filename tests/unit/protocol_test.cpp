@@ -304,3 +304,28 @@ TEST(Layouts, FitTheMessageArraysAndNameTheirDevices) {
   }
   EXPECT_EQ(layoutFor(DeviceType::kAny), nullptr);
 }
+
+// encodeSample rounds without std::lround (roundHalfAway): the same integer as lround for every half of the
+// sample range and the floats either side of it, for random values, and the encoded samples likewise.
+TEST(SampleEncoding, RoundsExactlyAsLround) {
+  size_t checked = 0;
+  for (int n = -70000; n <= 70000; ++n) {
+    const float half = static_cast<float>(n) + 0.5f;
+    for (const float x : {std::nextafter(half, -1e9f), half, std::nextafter(half, 1e9f), static_cast<float>(n)}) {
+      ASSERT_EQ(roundHalfAway(x), std::lround(x)) << x;
+      ++checked;
+    }
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> any(-40.0f, 40.0f);
+  for (int i = 0; i < 200000; ++i) {
+    const float v = any(rng);
+    for (const SampleKind k : {SampleKind::kAngle, SampleKind::kForce, SampleKind::kDuty}) {
+      const float lsb = v / sampleScale(k);
+      const long want = lsb >= 32767.0f ? 32767 : lsb <= -32767.0f ? -32767 : std::lround(lsb);
+      ASSERT_EQ(encodeSample(v, k), want) << v;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 4u * 140001u + 600000u);
+}

@@ -2,6 +2,7 @@
 
 #include "phalanx/geometry_fingerprint.h"
 
+#include "phalanx/control/sincos.h"
 #include "phalanx/glove/tendon.h"
 
 #include <cmath>
@@ -21,6 +22,22 @@ float interpolate(const HallTable& t, float counts) {
     }
   }
   return t.angle_rad[t.points - 1];
+}
+
+/// The chained sines and cosines of α1, α1+α2, α1+α2+α3 with one reduction each (control::sinCos): the C
+/// library's sinf and cosf cost most of the glove's control step on the MCU.
+glove::ThetaTrig<float> alphaTrig(const float (&alpha)[kGloveJoints]) {
+  glove::ThetaTrig<float> tr;
+  const float a12 = alpha[0] + alpha[1];
+  tr.t123 = a12 + alpha[2];
+  const control::SinCos t1 = control::sinCos(alpha[0]), t12 = control::sinCos(a12), t123 = control::sinCos(tr.t123);
+  tr.s1 = t1.s;
+  tr.c1 = t1.c;
+  tr.s12 = t12.s;
+  tr.c12 = t12.c;
+  tr.s123 = t123.s;
+  tr.c123 = t123.c;
+  return tr;
 }
 
 float clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }
@@ -132,14 +149,13 @@ uint16_t Glove5App::control(const protocol::Command& cmd, float dt_s) {
     const float desired_N = cmd.mode == protocol::Mode::kSetpoint
                                 ? clampf(cmd.setpoint[f], -cfg_.active_force_limit_N, cfg_.active_force_limit_N)
                                 : 0.0f;  // transparent: zero force, the glove follows the finger
-    const glove::Vec3<float> alpha = {s.alpha_rad[0], s.alpha_rad[1], s.alpha_rad[2]};
-    const glove::Vec3<float> r = glove::tendonMomentArms(cal_.mech[f], alpha, cal_.pad_transmission);
+    const glove::Vec3<float> r = glove::tendonMomentArms(cal_.mech[f], alphaTrig(s.alpha_rad), cal_.pad_transmission);
     float v_ff = 0.0f;
     for (int j = 0; j < kGloveJoints; ++j) v_ff += r[static_cast<size_t>(j)] * s.alpha_rate_rad_per_s[j];
     v_ff *= cfg_.ff_scale;
     const float commanded_gain = static_cast<float>(cmd.gain_scale_permille[f]) * 1e-3f;
     s.gain_scale = commanded_gain < s.gain_scale ? commanded_gain
-                                                 : std::fmin(commanded_gain, s.gain_scale + cfg_.gain_scale_rise_per_s * dt_s);
+                                                 : control::minNum(commanded_gain, s.gain_scale + cfg_.gain_scale_rise_per_s * dt_s);
     const float gain = s.gain_scale;
     const float sign = cal_.force_per_duty_sign;
     const float v_fb = sign * control::pidStep(cfg_.force_pid, s.pid, sign * s.force_N, sign * desired_N, dt_s, 0.0f, gain);

@@ -409,21 +409,22 @@ inline Mat3<T> jacobianThetaU(const FingerGeometry<T>& f, const Vec3<T>& theta_r
 /// a22 = l2 c12 + l3 c123 − l_p s123 − l_p s123 counts the l_p term twice (typo): the correct
 /// a22 = l2 c_α12 + l3 c_α123 − l_p s_α123 is implemented here.
 template <class T>
-inline Mat3<T> jacobianAlphaU(const MechanismGeometry<T>& m, const Vec3<T>& alpha_rad) {
-  const T a1 = alpha_rad[0];
-  const T a12 = a1 + alpha_rad[1];
-  const T a123 = a12 + alpha_rad[2];
-  const T c123 = std::cos(a123);
-  const T s123 = std::sin(a123);
-  const T s1 = m.l1_m * std::sin(a1), s2 = m.l2_m * std::sin(a12);
-  const T c1 = m.l1_m * std::cos(a1), c2 = m.l2_m * std::cos(a12);
-  const T x3 = -m.l3_m * s123 - m.l_p_m * c123;  // a13
-  const T y3 = m.l3_m * c123 - m.l_p_m * s123;   // a23
+inline Mat3<T> jacobianAlphaU(const MechanismGeometry<T>& m, const ThetaTrig<T>& tr) {
+  const T s1 = m.l1_m * tr.s1, s2 = m.l2_m * tr.s12;
+  const T c1 = m.l1_m * tr.c1, c2 = m.l2_m * tr.c12;
+  const T x3 = -m.l3_m * tr.s123 - m.l_p_m * tr.c123;  // a13
+  const T y3 = m.l3_m * tr.c123 - m.l_p_m * tr.s123;   // a23
   Mat3<T> J{};
   J[0] = {-s1 - s2 + x3, -s2 + x3, x3};
   J[1] = {c1 + c2 + y3, c2 + y3, y3};
   J[2] = {T(1), T(1), T(1)};
   return J;
+}
+
+/// J_α^u at α; the chained sines and cosines are thetaTrig's (the same sums α1, α1+α2, α1+α2+α3).
+template <class T>
+inline Mat3<T> jacobianAlphaU(const MechanismGeometry<T>& m, const Vec3<T>& alpha_rad) {
+  return jacobianAlphaU(m, thetaTrig(alpha_rad));
 }
 
 /// det J_α^u = l1·l2·sin α2 (m²), eq 24. Zero at α2 = 0 or ±180° (mechanism singular).

@@ -17,12 +17,18 @@ struct TendonDesign {
 };
 
 /// Effective moment arms r(α) (m): tendon path rate per mechanism joint rate at pose α.
+/// From the chained sines and cosines of α (thetaTrig(α), or the firmware's own, control/sincos.h).
 template <class T>
-inline Vec3<T> tendonMomentArms(const MechanismGeometry<T>& mech, const Vec3<T>& alpha_rad, T pad_transmission) {
-  const Vec3<T> n = padNormal(alpha_rad[0] + alpha_rad[1] + alpha_rad[2]);
-  Vec3<T> r = mulTransposed(jacobianAlphaU(mech, alpha_rad), n);
+inline Vec3<T> tendonMomentArms(const MechanismGeometry<T>& mech, const ThetaTrig<T>& alpha_trig, T pad_transmission) {
+  const Vec3<T> n = {-alpha_trig.s123, alpha_trig.c123, T(0)};  // padNormal(φ), φ = α1 + α2 + α3
+  Vec3<T> r = mulTransposed(jacobianAlphaU(mech, alpha_trig), n);
   for (T& v : r) v *= pad_transmission;
   return r;
+}
+
+template <class T>
+inline Vec3<T> tendonMomentArms(const MechanismGeometry<T>& mech, const Vec3<T>& alpha_rad, T pad_transmission) {
+  return tendonMomentArms(mech, thetaTrig(alpha_rad), pad_transmission);
 }
 
 }  // namespace phalanx::glove

@@ -28,13 +28,23 @@ constexpr float sampleScale(SampleKind kind) {
   return 1.0f;
 }
 
+/// std::lround for |x| < 2^31 without the library call (on the MCU a soft routine; a glove5 telemetry frame
+/// rounds 25 samples): truncate toward zero, then the remainder, which is exact, decides - half away from zero.
+inline int32_t roundHalfAway(float x) {
+  int32_t i = static_cast<int32_t>(x);
+  const float frac = x - static_cast<float>(i);
+  if (frac >= 0.5f) ++i;
+  else if (frac <= -0.5f) --i;
+  return i;
+}
+
 /// SI value → int16 sample, rounded to nearest and saturated; NaN encodes as 0.
 inline int16_t encodeSample(float value, SampleKind kind) {
   if (!(value == value)) return 0;
   const float lsb = value / sampleScale(kind);
   if (lsb >= 32767.0f) return 32767;
   if (lsb <= -32767.0f) return -32767;
-  return static_cast<int16_t>(std::lround(lsb));
+  return static_cast<int16_t>(roundHalfAway(lsb));
 }
 
 inline float decodeSample(int16_t raw, SampleKind kind) { return static_cast<float>(raw) * sampleScale(kind); }
