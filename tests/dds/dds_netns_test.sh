@@ -149,13 +149,14 @@ retry3 rel_session
 echo "== sim:glove5 addressed by name from B: libphalanx's RemoteDevice (remote_press) =="
 name_session() {  # attempt
   [ "$1" = 1 ] || echo "(attempt $1)"
-  ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 7 --mode transparent \
+  ip netns exec "$NA" "$BIN/phalanxd" --config "$WORK/cmd.yaml" --device sim:glove5 --seconds 9 --mode transparent \
     --scene none --scenario still --record "$WORK/name.csv" --json >"$WORK/name.json" 2>"$WORK/name.err" &
   local d=$!
   PIDS+=($d)
   sleep 0.5
+  # Discovery 4 s: a daemon starting on a loaded machine announces late; the press then lasts 1 s.
   ip netns exec "$NB" "$BIN/remote_press" --device lab/glove_cmd --domain $DOMAIN --interface "$VB" --finger 1 \
-    --force 0.75 --seconds 1 >"$WORK/name.out" 2>&1 || { cat "$WORK/name.out"; echo "FAIL: remote_press"; exit 1; }
+    --force 0.75 --seconds 1 --discovery-s 4 >"$WORK/name.out" 2>&1 || { cat "$WORK/name.out"; echo "FAIL: remote_press"; exit 1; }
   wait $d || { cat "$WORK/name.err"; echo "FAIL: phalanxd (by-name session)"; exit 1; }
   cat "$WORK/name.out"
   python3 - "$WORK/name.out" "$WORK/name.json" <<'PY'
@@ -180,7 +181,7 @@ echo "== phalanx devices: glove5 and pantograph in A, sea_finger in B =="
 DEVP=()
 for spec in "$NA $VA glove5 lab/glove_a" "$NA $VA pantograph lab/pen1" "$NB $VB sea_finger lab/sea1"; do
   set -- $spec
-  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 14 --dds --dds-domain $DOMAIN --dds-interface "$2" \
+  ip netns exec "$1" "$BIN/phalanxd" --device "sim:$3" --seconds 17 --dds --dds-domain $DOMAIN --dds-interface "$2" \
     --dds-namespace "$4" --dds-state-rate 10 --json >"$WORK/dev_$3.json" 2>"$WORK/dev_$3.err" &
   DEVP+=($!)
   PIDS+=($!)
