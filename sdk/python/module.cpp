@@ -122,7 +122,9 @@ void bindNetwork(py::module_& m) {
            py::arg("host") = "")
       .def_property_readonly("device", [](const phalanx::RemoteDevice& r) { return deviceDict(r.device()); })
       .def("set_setpoints", [](phalanx::RemoteDevice& r, const std::vector<double>& sp, const std::string& mode) {
-        if (sp.size() > PHALANX_MAX_SETPOINTS) throw py::value_error("setpoints: too many values");
+        if (sp.size() != r.setpointCount()) {
+          throw py::value_error("setpoints: " + std::to_string(r.setpointCount()) + " values for a " + r.device().type);
+        }
         phalanx::Command cmd;
         cmd.mode = mode == "transparent" ? phalanx::Mode::kTransparent : phalanx::Mode::kSetpoint;
         for (size_t i = 0; i < sp.size(); ++i) cmd.setpoint[i] = static_cast<float>(sp[i]);

@@ -56,6 +56,8 @@ class RemoteDevice {
   RemoteDevice& operator=(const RemoteDevice&) = delete;
 
   const NetworkDevice& device() const;
+  /// The device type's number of raw setpoints (glove5 5, sea_finger 2, pantograph 6).
+  size_t setpointCount() const;
   /// Send a command: kind kRaw carries setpoint[0 .. the device's setpoint count), a model-level kind its
   /// values in model[] (docs/dds.md's Command table). false, nothing sent: a kind that is not this device's,
   /// a mode other than transparent or setpoint, or a DDS write error (lastError()). Keep sending within the
