@@ -245,6 +245,7 @@ void controlTick() {
   g_board.get().clock().advanceUs(1000000u / kTickHz);
   const bool was_active = io.pwm_enabled;
   const bool was_open = core.sessionOpen();
+  const uint32_t session_before = core.sessionId();
   const uint16_t faults_before = core.faultBits();
   const uint64_t deadline_us = core.commandDeadlineUs();
 
@@ -269,7 +270,12 @@ void controlTick() {
   cm4::reg(cm4::kScbIcsr) = 1u << 28;  // PENDSVSET: let the plant catch up after the tick
 
   // Device-side reports, observing the simulated power stage itself (as firmware-sim does).
-  if (!was_open && core.sessionOpen()) g_console.str("SESSION opened t_us=").u64(g_board.get().clock().nowUs()).end();
+  // tx_dropped: frames the core could not queue since boot (its transmit ring was full: the host or the emulator's
+  // UART did not keep up); the session test accounts every telemetry gap the host saw against it.
+  if (core.sessionOpen() && (!was_open || core.sessionId() != session_before))
+    g_console.str("SESSION opened t_us=").u64(g_board.get().clock().nowUs())
+        .str(" tx_dropped=").u32(core.counters().tx_dropped)
+        .end();
   if (!was_active && io.pwm_enabled) g_console.str("ACTIVE t_us=").u64(g_board.get().clock().nowUs()).end();
   if (was_active && !io.pwm_enabled) {
     g_console.str("SAFE t_us=").u64(g_board.get().clock().nowUs())
@@ -279,6 +285,7 @@ void controlTick() {
         .str(" ms=").u32(g_ms)
         .str(" plant_ms=").u32(g_plant_ms)
         .str(" plant_steps=").u32(g_plant_steps)
+        .str(" tx_dropped=").u32(core.counters().tx_dropped)
         .end();
   }
   if (core.faultBits() != faults_before) g_console.str("FAULTS ").hex16(core.faultBits()).end();

@@ -62,6 +62,7 @@ class FirmwareCore {
   uint16_t faultBits() const { return faults_; }
   bool outputsActive() const { return outputs_active_; }
   bool sessionOpen() const { return session_open_; }
+  uint32_t sessionId() const { return session_id_; }
   /// Absolute time (µs) after which the current command expires; 0 when there is none.
   uint64_t commandDeadlineUs() const { return have_command_ ? deadline_us_ : 0; }
   const CoreCounters& counters() const { return counters_; }
