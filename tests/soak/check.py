@@ -318,7 +318,7 @@ def episode_result(ep_dir, limits):
 
 # Ticks from an injected input fault to the outputs off: the e-stop and a sensor's plausibility are read every
 # tick (detected in the tick after the injection, outputs off in that tick); a frozen glove sensor needs
-# hall_stuck_ticks (250, firmware/apps/include/phalanx/apps/glove5.h) unchanged ticks first.
+# FrozenSensorLimits::stuck_ticks (250, firmware/apps/include/phalanx/apps/frozen_sensor.h) unchanged ticks first.
 INJECT_TICKS = {"sensor-range": 2, "estop": 2, "sensor-stuck": 250 + 2}
 
 

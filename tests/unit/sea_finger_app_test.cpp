@@ -115,6 +115,50 @@ TEST(SeaFingerApp, OpenOrShortedJointSensorIsARangeFault) {
   EXPECT_NE(r.sense() & protocol::fault::kSensorRange, 0);
 }
 
+// A frozen SEA joint sensor (a stuck ADC channel) while the finger moves: the redundant and DIP sensors change
+// every tick, the MCP sensor's count does not. sensor-stuck on the 250th unchanged tick, not before.
+TEST(SeaFingerApp, FrozenJointSensorWhileTheFingerMovesIsASensorStuckFault) {
+  for (int sea = 0; sea < 2; ++sea) {
+    AppRig r;
+    r.zero();
+    auto& adc = r.sim.io().adc;
+    uint16_t faults = 0;
+    int tick = 0;
+    while (tick < 400 && (faults & protocol::fault::kSensorStuck) == 0) {
+      ++tick;
+      adc[board::kAdcFirstJoint + 2] = board::kAdcMidCounts + tick % 50;        // the finger flexes
+      adc[board::kAdcFirstJoint + 3] = board::kAdcMidCounts - tick % 30;
+      adc[board::kAdcFirstJoint + 1 - sea] = board::kAdcMidCounts + tick % 20;  // the other SEA's joint too
+      faults = r.sense();
+    }
+    // The watch starts on the first tick after zeroing (the differentiators restart there): unchanged from the
+    // second tick on, the 250th unchanged tick is tick 251.
+    EXPECT_EQ(tick, 251) << "SEA " << sea;
+    EXPECT_EQ(faults & ~protocol::fault::kSensorStuck, 0);
+  }
+}
+
+// What must not trip it: a still finger on a noise-free board (every count steady), the §7.1 rig (one clamped SEA
+// joint driven, the other still, the redundant and DIP sensors on an unmoving fixture), and a live sensor whose
+// count changes even rarely while the finger moves.
+TEST(SeaFingerApp, StillFingerRigAndLiveSensorAreNotStuck) {
+  AppRig r;
+  r.zero();
+  auto& adc = r.sim.io().adc;
+  EXPECT_EQ(r.sense(1000) & protocol::fault::kSensorStuck, 0);  // everything still
+  for (int i = 0; i < 1000; ++i) {                                // the rig: MCP joint loaded, PIP still
+    adc[board::kAdcFirstJoint] = board::kAdcMidCounts + (i / 5) % 40;
+    EXPECT_EQ(r.sense() & protocol::fault::kSensorStuck, 0) << i;
+  }
+  for (int i = 0; i < 2000; ++i) {  // the finger moves; the SEA sensors change with it, but only every 200 ticks
+    adc[board::kAdcFirstJoint + 2] = board::kAdcMidCounts + i % 50;
+    adc[board::kAdcFirstJoint + 3] = board::kAdcMidCounts - i % 30;
+    adc[board::kAdcFirstJoint + 0] = board::kAdcMidCounts + (i / 200 + 1) % 2;
+    adc[board::kAdcFirstJoint + 1] = board::kAdcMidCounts - (i / 200 + 1) % 2;
+    EXPECT_EQ(r.sense() & protocol::fault::kSensorStuck, 0) << i;
+  }
+}
+
 TEST(SeaFingerApp, SetpointsAreClampedToTheTorqueLimitsAndTheMotorCommandToItsWindow) {
   AppRig r;
   r.zero();

@@ -69,21 +69,14 @@ uint16_t Glove5App::sense(float dt_s) {
       s.alpha_rate_rad_per_s[j] = rate_lp_[ch].step(rate, cfg_.velocity_filter_hz, dt_s);
 
       // Stuck sensor: its raw value froze while the finger's other two sensors kept moving.
-      if (primed_ && raw[ch] == last_raw_[ch]) {
-        if (unchanged_ticks_[ch] < 0xFFFF) ++unchanged_ticks_[ch];
-      } else {
-        unchanged_ticks_[ch] = 0;
-        motion_since_[ch] = 0;
+      const bool unchanged = primed_ && raw[ch] == last_raw_[ch];
+      int32_t related_motion = 0;
+      for (int k = 0; unchanged && k < kGloveJoints; ++k) {
+        const int other = f * kGloveJoints + k;
+        const int32_t d = raw[other] - last_raw_[other];
+        if (other != ch) related_motion += d < 0 ? -d : d;
       }
-      if (primed_ && unchanged_ticks_[ch] > 0) {
-        for (int k = 0; k < kGloveJoints; ++k) {
-          const int other = f * kGloveJoints + k;
-          if (other == ch) continue;
-          const int32_t d = raw[other] - last_raw_[other];
-          motion_since_[ch] += d < 0 ? -d : d;
-        }
-      }
-      if (unchanged_ticks_[ch] >= cfg_.hall_stuck_ticks && motion_since_[ch] >= cfg_.hall_motion_counts) {
+      if (hall_frozen_[ch].update(unchanged, related_motion, cfg_.hall_stuck)) {
         faults |= protocol::fault::kSensorStuck;
       }
     }

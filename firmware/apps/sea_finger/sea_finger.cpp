@@ -34,6 +34,27 @@ float SeaFingerApp::playWidth(int sea, float tau_abs) const {
   return cfg_.backlash_compensation * (cal_.backlash_base_m[sea] + cal_.backlash_per_Nm_m[sea] * tau_abs);
 }
 
+/// An SEA joint's sensor whose raw count froze while the finger moved (frozen_sensor.h): its torque estimate
+/// would take a moving joint for a still one, and the SEA would resist the finger unseen. "The finger moved" is
+/// read on the chain's redundant and DIP sensors, which move whenever the finger flexes; not on the other SEA's
+/// sensor: on the §7.1 rig the two SEA joints are clamped and loaded independently (one still, noise-free in
+/// simulation, while the other is driven), and the redundant and DIP sensors sit on an unmoving fixture.
+uint16_t SeaFingerApp::frozenJointSensors(const int32_t (&raw)[kSeaJointSensors]) {
+  uint16_t faults = 0;
+  for (int i = 0; i < kSeaCount; ++i) {
+    const int s = cal_.joint_sensor_of_sea[i];
+    const bool unchanged = primed_ && raw[s] == joint_raw_[s];
+    int32_t related_motion = 0;
+    for (int o = kSeaChainSensorsFirst; unchanged && o <= kSeaChainSensorsLast; ++o) {
+      const int32_t d = raw[o] - joint_raw_[o];
+      related_motion += d < 0 ? -d : d;
+    }
+    if (joint_frozen_[i].update(unchanged, related_motion, cfg_.joint_stuck)) faults |= protocol::fault::kSensorStuck;
+  }
+  for (int s = 0; s < kSeaJointSensors; ++s) joint_raw_[s] = raw[s];
+  return faults;
+}
+
 uint16_t SeaFingerApp::sense(float dt_s) {
   uint16_t faults = 0;
   const hal::AdcInputs& adc = *board_->adc;
@@ -42,12 +63,14 @@ uint16_t SeaFingerApp::sense(float dt_s) {
   // Joint sensors: plausibility on the raw counts, then the moving average of the last n samples (§7.5).
   const uint8_t n = cfg_.joint_ma_samples;
   if (ma_pos_ >= n) ma_pos_ = 0;
+  int32_t raw[kSeaJointSensors];
   for (int s = 0; s < kSeaJointSensors; ++s) {
-    const int32_t raw = adc.read(static_cast<uint8_t>(board::kAdcFirstJoint + s));
-    if (raw < cal_.joint_valid_min || raw > cal_.joint_valid_max) faults |= protocol::fault::kSensorRange;
-    ma_sum_[s] += raw - ma_buf_[s][ma_pos_];
-    ma_buf_[s][ma_pos_] = raw;
+    raw[s] = adc.read(static_cast<uint8_t>(board::kAdcFirstJoint + s));
+    if (raw[s] < cal_.joint_valid_min || raw[s] > cal_.joint_valid_max) faults |= protocol::fault::kSensorRange;
+    ma_sum_[s] += raw[s] - ma_buf_[s][ma_pos_];
+    ma_buf_[s][ma_pos_] = raw[s];
   }
+  faults |= frozenJointSensors(raw);
   ma_pos_ = static_cast<uint8_t>((ma_pos_ + 1) % n);
   if (ma_fill_ < n) ++ma_fill_;
   for (int s = 0; s < kSeaJointSensors; ++s) {

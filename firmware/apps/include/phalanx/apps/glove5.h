@@ -13,6 +13,7 @@
 #include <cstdint>
 
 #include "phalanx/control/pid.h"
+#include "phalanx/apps/frozen_sensor.h"
 #include "phalanx/fw/app.h"
 #include "phalanx/glove/kinematics.h"
 
@@ -84,8 +85,9 @@ struct Glove5Config {
   /// margin; each span ≤ 150°, eq 22), checked while driving.
   float joint_min_rad[kGloveFingers][kGloveJoints] = {};
   float joint_max_rad[kGloveFingers][kGloveJoints] = {};
-  uint16_t hall_stuck_ticks = 250;  ///< unchanged raw count this long while the finger's other sensors moved
-  int32_t hall_motion_counts = 40;  ///< "moved": total raw change of the other two sensors of the finger
+  /// `sensor-stuck`: a Hall count unchanged for 250 ticks while the finger's other two sensors changed ≥ 40
+  /// counts in total (frozen_sensor.h).
+  FrozenSensorLimits hall_stuck{};
 };
 
 /// Device parameters (ParamGet/ParamSet, only settable while outputs are safe).
@@ -152,8 +154,7 @@ class Glove5App : public fw::DeviceApp {
   float last_alpha_[kGloveHallChannels] = {};
   bool primed_ = false;
   int32_t last_raw_[kGloveHallChannels] = {};
-  uint16_t unchanged_ticks_[kGloveHallChannels] = {};
-  int32_t motion_since_[kGloveHallChannels] = {};
+  FrozenSensor hall_frozen_[kGloveHallChannels];
   uint16_t overcurrent_ticks_[kGloveFingers] = {};
   uint16_t tare_ticks_left_ = 0;
   float tare_sum_[kGloveFingers] = {};

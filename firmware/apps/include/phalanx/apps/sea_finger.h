@@ -22,12 +22,17 @@
 /// Freestanding: no heap, no exceptions, single precision, bounded loops.
 #include <cstdint>
 
+#include "phalanx/apps/frozen_sensor.h"
 #include "phalanx/fw/app.h"
 
 namespace phalanx::apps {
 
 constexpr int kSeaCount = 2;         ///< 0: exoskeleton MCP joint, 1: exoskeleton PIP joint
 constexpr int kSeaJointSensors = 5;  ///< five joint angle sensors, one redundant
+/// The joint sensors of the finger's planar chain that no SEA uses (sea/kinematics.h SensorIndex: 2 the redundant
+/// θ7r, 3 the DIP chain; 0 and 1 are the SEA joints, 4 the passive abduction).
+constexpr int kSeaChainSensorsFirst = 2;
+constexpr int kSeaChainSensorsLast = 3;
 constexpr int kSeaMaxMovingAverage = 32;
 
 enum class SeaControllerKind : uint8_t {
@@ -108,6 +113,9 @@ struct SeaFingerConfig {
   float max_duty = 0.95f;
   float current_limit_A = 2.5f;                     ///< sustained |I| beyond this → kCurrentLimit
   uint16_t current_limit_ticks = 200;
+  /// `sensor-stuck`: an SEA joint's sensor (joint_sensor_of_sea) unchanged for 250 ticks while the chain's
+  /// redundant and DIP sensors changed ≥ 40 counts in total (frozen_sensor.h).
+  FrozenSensorLimits joint_stuck{};
 };
 
 /// Device parameters (ParamGet/ParamSet; settable only while the outputs are safe).
@@ -176,6 +184,7 @@ class SeaFingerApp : public fw::DeviceApp {
  private:
   void resetControllers();
   float playWidth(int sea, float tau_abs) const;
+  uint16_t frozenJointSensors(const int32_t (&raw)[kSeaJointSensors]);
 
   SeaFingerCalibration cal_;
   SeaFingerConfig cfg_;
@@ -187,6 +196,8 @@ class SeaFingerApp : public fw::DeviceApp {
   uint8_t ma_pos_ = 0;
   uint8_t ma_fill_ = 0;
   float joint_rad_[kSeaJointSensors] = {};  ///< filtered sensor angles (sensor frame)
+  int32_t joint_raw_[kSeaJointSensors] = {};  ///< the previous tick's raw counts (frozen-sensor watch)
+  FrozenSensor joint_frozen_[kSeaCount];
   // Zeroing (θ_j0, encoder zero, load-cell zero).
   uint16_t zero_ticks_left_ = 0;
   float zero_joint_sum_[kSeaCount] = {};
