@@ -162,10 +162,10 @@ void bindNetwork(py::module_& m) {
 
 }  // namespace
 
-PYBIND11_MODULE(_phalanx, m) {
-  m.doc() = "libphalanx bindings: connect to phalanxd's client channel, read state, command (docs/sdk.md)";
-  m.attr("VERSION") = PHALANX_VERSION;
+namespace {
 
+/// State: what the daemon publishes each cycle (docs/sdk.md "State").
+void bindState(py::module_& m) {
   py::class_<phalanx::State>(m, "State")
       .def_readonly("cycle", &phalanx::State::cycle)
       .def_readonly("daemon_time_ns", &phalanx::State::daemon_time_ns)
@@ -219,9 +219,10 @@ PYBIND11_MODULE(_phalanx, m) {
       .def_property_readonly("pen_velocity", [](const phalanx::State& s) { return asArray(s.pen.velocity_m_s, 3, {}); })
       .def_property_readonly("pen_force", [](const phalanx::State& s) { return asArray(s.pen.force_N, 3, {}); })
       .def_property_readonly("pen_torque", [](const phalanx::State& s) { return asArray(s.pen.torque_Nm, 3, {}); });
+}
 
-  py::register_exception<phalanx::Error>(m, "Error", PyExc_RuntimeError);
-
+/// Client: the local client channel (connect, read state, command).
+void bindClient(py::module_& m) {
   py::class_<phalanx::Client>(m, "Client")
       .def(py::init([](const std::string& socket, unsigned deadline_ms, const std::string& fallback) {
              if (fallback != "safe" && fallback != "transparent") {
@@ -304,6 +305,17 @@ PYBIND11_MODULE(_phalanx, m) {
          "glove5: force (fx, fy) on each fingertip in its base frame, N. fallback: [((x, y), k, b)] per finger.")
       .def("achieved_rate_hz", &phalanx::Client::achievedRateHz)
       .def("release", &phalanx::Client::release);
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_phalanx, m) {
+  m.doc() = "libphalanx bindings: connect to phalanxd's client channel, read state, command (docs/sdk.md)";
+  m.attr("VERSION") = PHALANX_VERSION;
+
+  bindState(m);
+  py::register_exception<phalanx::Error>(m, "Error", PyExc_RuntimeError);
+  bindClient(m);
 #ifdef PHALANX_NETWORK
   bindNetwork(m);
 #endif

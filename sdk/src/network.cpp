@@ -4,12 +4,12 @@
 
 #include <arpa/inet.h>
 
-#include <cctype>
 #include <cstdio>
 #include <ctime>
 
 #include <dds/dds.h>
 
+#include "phalanx/dds_namespace.h"
 #include "phalanx/protocol/devices.h"
 #include "ros2_msgs.h"
 
@@ -119,15 +119,6 @@ std::string seconds(double s) {
   return b;
 }
 
-/// A device name is a topic namespace: letters, digits, '_' and '/' between non-empty parts (docs/dds.md).
-bool validName(const std::string& n) {
-  if (n.empty() || n.front() == '/' || n.back() == '/' || n.find("//") != std::string::npos) return false;
-  for (const char c : n) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/')) return false;
-  }
-  return true;
-}
-
 /// Values a command of `kind` carries to a device of `type`; 0: not this device's kind.
 size_t valueCount(CommandKind kind, const std::string& type) {
   for (const protocol::DeviceLayout* l : {&protocol::kGlove5Layout, &protocol::kSeaFingerLayout, &protocol::kPantographLayout}) {
@@ -162,8 +153,8 @@ struct RemoteDevice::Impl {
 };
 
 RemoteDevice::RemoteDevice(const std::string& name, const NetworkOptions& o) {
-  if (!validName(name)) {
-    throw Error(PHALANX_EARG, "network: '" + name + "' is not a device name (letters, digits, _ and / between parts)");
+  if (!validDdsNamespace(name)) {
+    throw Error(PHALANX_EARG, "network: '" + name + "' is not a device name (letters, digits, _ and / between parts, not starting with a digit)");
   }
   if (!(o.discovery_s > 0.0 && o.discovery_s <= 60.0)) throw Error(PHALANX_EARG, "network: discovery_s must be in (0, 60] s");
   auto impl = std::make_unique<Impl>(o);

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <set>
 
+#include "phalanx/dds_namespace.h"
+
 namespace phalanx::host::dds {
 namespace {
 
@@ -21,15 +23,6 @@ T scalar(const YAML::Node& n, const std::string& key, const char* type_name) {
   } catch (const YAML::Exception&) {
     throw Bad{"dds." + key + ": expected a " + type_name + ", got '" + n.Scalar() + "'"};
   }
-}
-
-bool validNamespace(const std::string& ns) {
-  if (ns.empty() || ns.front() == '/' || ns.back() == '/' || ns.find("//") != std::string::npos) return false;
-  if (std::isdigit(static_cast<unsigned char>(ns.front()))) return false;
-  for (const char c : ns) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/')) return false;
-  }
-  return true;
 }
 
 }  // namespace
@@ -106,7 +99,7 @@ std::string loadDdsOptions(const YAML::Node& node, DdsOptions& o) {
 std::string validateDdsOptions(const DdsOptions& o, unsigned rate_hz) {
   if (!o.enabled) return {};
   if (o.domain_id > 232) return "dds.domain_id: must be in [0, 232]";
-  if (!o.ns.empty() && !validNamespace(o.ns)) {
+  if (!o.ns.empty() && !validDdsNamespace(o.ns)) {
     return "dds.namespace: '" + o.ns + "' is not a ROS name (letters, digits, _ and inner /; no leading digit or /)";
   }
   if (!std::isfinite(o.state_rate_hz) || o.state_rate_hz < 1.0 || o.state_rate_hz > rate_hz) {
