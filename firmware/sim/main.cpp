@@ -327,10 +327,10 @@ class CodeFlash {
     layout_.board = static_cast<uint8_t>(phalanx::image::BoardId::kStm32g474);
     layout_.device_type = device_type;
     if (std::string err = flash_.open(path); !err.empty()) return "--flash " + err;
-    boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+    boot_ = phalanx::fw::bootStage(flash_, layout_);
     if (!boot_.valid && !provision.empty()) {
       if (std::string err = provisionSlot0(provision); !err.empty()) return "--flash-provision " + provision + ": " + err;
-      boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+      boot_ = phalanx::fw::bootStage(flash_, layout_);
     }
     if (!boot_.valid) {
       return "--flash " + path + ": neither slot holds a valid " + std::string(phalanx::protocol::layoutFor(
@@ -342,13 +342,15 @@ class CodeFlash {
   }
   /// The board resets (after a committed update): the boot stage chooses again, the updater starts afresh.
   void reboot() {
-    boot_ = phalanx::fw::chooseBoot(flash_, layout_);
+    boot_ = phalanx::fw::bootStage(flash_, layout_);
     updater_.emplace(flash_, layout_, boot_);
   }
   void report(const char* when) const {
-    std::fprintf(stderr, "firmware-sim: %s: slot %u build %08x (boot record seq %u)%s\n", when, boot_.slot,
+    std::fprintf(stderr, "firmware-sim: %s: slot %u build %08x (boot record seq %u)%s%s%s\n", when, boot_.slot,
                  static_cast<unsigned>(boot_.build_id), static_cast<unsigned>(boot_.record_sequence),
-                 boot_.fell_back ? ", fell back: the record's slot did not verify" : "");
+                 boot_.fell_back ? ", fell back: the record's slot did not verify" : "",
+                 boot_.trial ? ", on trial: not yet confirmed" : "",
+                 boot_.trial_failed ? ", back from a trial that was not confirmed" : "");
   }
   phalanx::fw::FirmwareUpdate* updater() { return updater_ ? &*updater_ : nullptr; }
   const phalanx::fw::BootChoice& boot() const { return boot_; }

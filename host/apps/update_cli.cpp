@@ -24,6 +24,9 @@ UpdateCommand::UpdateCommand(CLI::App& parent) {
   app->add_option("--window", req.window, "chunks in flight")->check(cli::inRange(1u, 64u));
   app->add_flag("--force", req.force, "update even when the board already runs the image's build");
   app->add_flag("--dry-run", req.dry_run, "check the image and handshake with the board; write nothing");
+  app->add_flag("--no-confirm", req.no_confirm,
+                "leave the new image on trial: the board's next reset goes back to the previous one unless it is "
+                "confirmed (phalanx param set update_trial 1)");
   app->add_option("--firmware-sim", req.link.firmware_sim, "sim: devices: path of the firmware-sim executable");
   app->add_option("--sim-flash", sim_flash,
                   "sim: devices: the simulated board's code flash file (kept between runs); required for sim:");

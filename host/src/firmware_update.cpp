@@ -96,9 +96,18 @@ class Updater {
                                          ", not the image's " + hex32(info_.build_id) +
                                          " (its boot stage did not accept the new image: it kept the old one)");
     }
-    std::printf("updated %s on %s from build %s to build %s: %u bytes in %.2f s (resent %u chunks, %u reconnects, "
+    // The boot stage runs a new image on trial (docs/firmware-update.md "Trial boot"): it answered, so confirm it.
+    std::string trial = "confirmed";
+    if (r_.no_confirm) {
+      trial = "on trial: not confirmed (--no-confirm): the board's next reset goes back to build " + hex32(running);
+    } else if (std::string err = confirm(); !err.empty()) {
+      return fail(kExitVerifyFailed, "build " + hex32(now_running) + " runs but is not confirmed (" + err +
+                                         "): the board's next reset goes back to build " + hex32(running));
+    }
+    std::printf("updated %s on %s from build %s to build %s, %s: %u bytes in %.2f s (resent %u chunks, %u reconnects, "
                 "%u restarts%s)\n",
-                device, link_->where().c_str(), hex32(running).c_str(), hex32(now_running).c_str(), info_.image_size,
+                device, link_->where().c_str(), hex32(running).c_str(), hex32(now_running).c_str(), trial.c_str(),
+                info_.image_size,
                 seconds, resent_, reconnects, restarts,
                 resumed_from_ > 0 ? (", resumed at byte " + std::to_string(resumed_from_)).c_str() : "");
     link_->close();
@@ -142,6 +151,25 @@ class Updater {
       usleep(500);
     }
     return false;
+  }
+
+  /// Confirms the image the board runs on trial (core_param::kUpdateTrial = 1). "" when confirmed, or when the
+  /// firmware has no trial boot (the parameter is unknown to it: nothing to confirm).
+  std::string confirm() {
+    const uint16_t id = protocol::core_param::kUpdateTrial;
+    if (!session_->sendParamSet(id, 1.0f) || !link_->push()) return "the confirm could not be sent";
+    const uint64_t t0 = linux_hal::monotonicNs();
+    while (linux_hal::monotonicNs() - t0 < static_cast<uint64_t>(r_.timeout_s * 1e9)) {
+      session_->poll(linux_hal::monotonicNs());
+      if (session_->lastParamValid() && session_->lastParam().param_id == id) {
+        const protocol::ParamStatus st = session_->lastParam().status;
+        if (st == protocol::ParamStatus::kOk || st == protocol::ParamStatus::kUnknownParam) return {};
+        return "the device answered the confirm with status " + std::to_string(static_cast<int>(st));
+      }
+      if (!link_->deviceGone().empty()) return "the link was lost before the confirm was answered";
+      usleep(500);
+    }
+    return "no answer to the confirm within " + std::to_string(r_.timeout_s) + " s";
   }
 
   Outcome lost(const std::string& what) {
@@ -272,6 +300,9 @@ std::string resultName(UpdateResult r, uint8_t detail) {
     case UpdateResult::kFlashError: return "flash erase/program failed on the device";
     case UpdateResult::kVerifyFailed: return "the received image did not verify (CRC or image-info block)";
     case UpdateResult::kNoUpdater: return "this board cannot be updated over its link";
+    case UpdateResult::kUnconfirmed:
+      return "the board runs an image on trial, not yet confirmed: confirm it (phalanx param set update_trial 1) or "
+             "reset the board to go back to its previous image, then update";
   }
   return "unknown result";
 }

@@ -44,6 +44,8 @@ void addCore(std::vector<ParamInfo>& t) {
   t.push_back({c::kSettingsLoad, "settings_load", Access::kReadOnly, false});
   t.push_back({c::kSettingsLayout, "settings_layout", Access::kReadOnly, false});
   t.push_back({c::kSettingsRefused, "settings_refused", Access::kReadOnly, false});
+  // 1 while the running image is on trial after an update; writing 1 confirms it (docs/firmware-update.md).
+  t.push_back({c::kUpdateTrial, "update_trial", Access::kAction, false});
 }
 
 void addGlove(std::vector<ParamInfo>& t, uint16_t version) {

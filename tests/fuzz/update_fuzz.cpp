@@ -1,7 +1,8 @@
-// libFuzzer target: arbitrary bytes as a sequence of firmware update requests (docs/firmware-update.md) and power
-// cuts, against a board whose slot 0 holds a valid image. Whatever arrives: no crash or out-of-bounds access, the
-// slot the board runs from is never written, and after every request and every cut the boot stage finds a valid
-// image (the running one, or one that verified at a commit).
+// libFuzzer target: arbitrary bytes as a sequence of firmware update requests (docs/firmware-update.md), power
+// cuts, resets (the boot stage, trial boot included) and confirms, against a board whose slot 0 holds a valid
+// image. Whatever arrives: no crash or out-of-bounds access, the slot the board runs from is never written, and
+// after every request and every cut the boot stage finds a valid image (the running one, or one that verified at
+// a commit).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -62,7 +63,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // Each request: 1 byte kind, then its payload's bytes (as many as the kind takes).
   size_t at = 0;
   while (at < size) {
-    const uint8_t kind = data[at++] % 5;
+    const uint8_t kind = data[at++] % 6;
     uint8_t payload[protocol::kMaxPayload] = {};
     const size_t want = kind == 0 ? protocol::UpdateBegin::kWireSize
                         : kind == 1 ? protocol::UpdateData::kWireSize
@@ -82,10 +83,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (protocol::decodePayload(payload, want, m)) u->commit(m);
     } else if (kind == 3) {
       flash.cutPowerAfter(static_cast<size_t>(payload[0] | payload[1] << 8));
+    } else if (kind == 5) {
+      u->confirm();  // the running image confirms itself (trial boot)
     }
     if (kind == 4 || u->rebootRequested()) {  // a reset (asked for, or after a commit): the boot stage chooses again
       flash.restorePower();
-      boot = fw::chooseBoot(flash, layout());
+      boot = fw::bootStage(flash, layout());
       if (!boot.valid) std::abort();
       delete u;
       u = new fw::FirmwareUpdate(flash, layout(), boot);

@@ -97,13 +97,37 @@ TEST_F(FirmwareUpdateLink, AnUpdateBootsTheNewImageAndARepeatIsNothingToDo) {
   ASSERT_EQ(powerUp(), hex(kOld));
   const Outcome o = update(new_);
   ASSERT_EQ(o.rc, 0) << o.err << "\nfirmware-sim:\n" << sim_->stderrText();
-  EXPECT_NE(o.out.find("to build " + hex(kNew)), std::string::npos) << o.out;
+  EXPECT_NE(o.out.find("to build " + hex(kNew) + ", confirmed"), std::string::npos) << o.out;
   EXPECT_NE(sim_->stderrText().find("reset after the update, boot: slot 1 build " + hex(kNew)), std::string::npos);
   const Outcome again = update(new_);
   EXPECT_EQ(again.rc, 0);
   EXPECT_NE(again.out.find("already runs build " + hex(kNew)), std::string::npos) << again.out;
   // A power cycle keeps it.
   EXPECT_EQ(powerUp(), hex(kNew));
+}
+
+// Trial boot (docs/firmware-update.md): an image left unconfirmed is replaced by the previous one at the next
+// power-up; one confirmed afterwards with `phalanx param set update_trial 1` stays.
+TEST_F(FirmwareUpdateLink, AnImageLeftOnTrialGoesBackAtThePowerUpAndAConfirmedOneStays) {
+  ASSERT_EQ(powerUp(), hex(kOld));
+  const Outcome o = update(new_, {"--no-confirm"});
+  ASSERT_EQ(o.rc, 0) << o.err;
+  EXPECT_NE(o.out.find("to build " + hex(kNew) + ", on trial"), std::string::npos) << o.out;
+  EXPECT_NE(sim_->stderrText().find("on trial: not yet confirmed"), std::string::npos) << sim_->stderrText();
+  // No update over the image the trial would go back to.
+  const Outcome refused = update(old_, {"--force"});
+  EXPECT_EQ(refused.rc, 4);
+  EXPECT_NE(refused.err.find("runs an image on trial, not yet confirmed"), std::string::npos) << refused.err;
+  EXPECT_EQ(powerUp(), hex(kOld)) << "the unconfirmed image is left at the next power-up";
+  EXPECT_NE(sim_->stderrText().find("back from a trial that was not confirmed"), std::string::npos);
+
+  ASSERT_EQ(update(new_, {"--no-confirm"}).rc, 0);
+  Process get({binPath("phalanx"), "param", "get", "update_trial", "--device", "serial:" + pty_});
+  EXPECT_EQ(get.wait(20000), 0) << get.stderrText();
+  EXPECT_NE(get.stdoutText().find("update_trial = 1\n"), std::string::npos) << get.stdoutText();
+  Process set({binPath("phalanx"), "param", "set", "update_trial", "1", "--device", "serial:" + pty_});
+  EXPECT_EQ(set.wait(20000), 0) << set.stderrText();
+  EXPECT_EQ(powerUp(), hex(kNew)) << "confirmed, the new image stays";
 }
 
 TEST_F(FirmwareUpdateLink, PowerLostAtRandomPointsAlwaysLeavesABootableImageAndTheRetryCompletes) {

@@ -627,6 +627,49 @@ TEST_F(CoreTest, AnUpdateBeginsOnlyWithTheOutputsOffAndThenNoCommandDrivesThem) 
   EXPECT_EQ(h.lastEvent().detail, static_cast<uint8_t>(protocol::RejectReason::kUpdateInProgress));
 }
 
+// core_param::kUpdateTrial (docs/firmware-update.md "Trial boot"): read 0 when the running image is confirmed; a
+// confirm is 1 only, never while the outputs are driven; unknown to a board without an updater.
+TEST_F(CoreTest, TheUpdateTrialParameterConfirmsOnlyWithTheOutputsOff) {
+  UpdaterBoard u;
+  auto [update, a, b, c, h] = u.parts();
+  auto step = [&]() { u.step(); };
+  const uint16_t id = protocol::core_param::kUpdateTrial;
+  auto answer = [&](bool set, float value) {
+    if (set) {
+      h.sendParamSet(id, value);
+    } else {
+      h.sendParamGet(id);
+    }
+    step();
+    EXPECT_TRUE(h.lastParamValid());
+    return h.lastParam();
+  };
+  EXPECT_EQ(answer(false, 0).status, protocol::ParamStatus::kOk);
+  EXPECT_EQ(answer(false, 0).value, 0.0f);
+  h.sendHello(3, protocol::DeviceType::kAny);
+  step();
+  protocol::Command cmd = command(0.5f, 50);
+  h.sendCommand(cmd, 0);
+  step();
+  ASSERT_TRUE(c.outputsActive());
+  EXPECT_EQ(answer(true, 1.0f).status, protocol::ParamStatus::kBusy);
+  EXPECT_EQ(answer(true, 2.0f).status, protocol::ParamStatus::kOutOfRange);
+  protocol::Command safe = command(0.0f, 50);
+  safe.mode = Mode::kSafe;
+  h.sendCommand(safe, 0);
+  step();
+  ASSERT_FALSE(c.outputsActive());
+  EXPECT_EQ(answer(true, 1.0f).status, protocol::ParamStatus::kOk);  // confirmed already: nothing to write
+  EXPECT_FALSE(update.onTrial());
+}
+
+TEST_F(CoreTest, ABoardWithoutAnUpdaterDoesNotKnowTheUpdateTrialParameter) {
+  host.sendParamGet(protocol::core_param::kUpdateTrial);
+  tick();
+  ASSERT_TRUE(host.lastParamValid());
+  EXPECT_EQ(host.lastParam().status, protocol::ParamStatus::kUnknownParam);
+}
+
 TEST_F(CoreTest, NothingReceivedAfterACommittedUpdateIsHandledBeforeTheReset) {
   // A board with an updater and an image of 5000 bytes streamed into slot 1; the commit and a Hello arrive in the
   // same tick: the board resets after the commit, so the Hello must wait for the new image (the host's handshake

@@ -146,6 +146,105 @@ TEST_F(FirmwareUpdateTest, APowerCutAfterAnyProgrammedByteLeavesABootableImageAn
   EXPECT_EQ(booted_new, 1u);  // only a budget that covers the whole update, record included, commits
 }
 
+// Trial boot: the committed image boots once on trial; confirmed, it stays; reset unconfirmed, the board goes back
+// to the previous image (confirmed) and stays there.
+TEST_F(FirmwareUpdateTest, TheNewImageBootsOnTrialAndAResetWithoutItsConfirmGoesBackToThePreviousImage) {
+  fw::FirmwareUpdate u(flash, layout(), fw::bootStage(flash, layout()));
+  ASSERT_EQ(runUpdate(u, new_img), UpdateResult::kCommitted);
+  const fw::BootChoice trial = fw::bootStage(flash, layout());  // the reset after the commit
+  EXPECT_EQ(trial.build_id, kNew);
+  EXPECT_TRUE(trial.trial);
+  fw::FirmwareUpdate on_trial(flash, layout(), trial);
+  EXPECT_TRUE(on_trial.onTrial());
+  // No second update over the image a failed trial goes back to.
+  EXPECT_EQ(on_trial.begin(beginFor(old_img), 0).result, UpdateResult::kUnconfirmed);
+  // The new image hung: reset without a confirm.
+  const fw::BootChoice back = fw::bootStage(flash, layout());
+  EXPECT_EQ(back.build_id, kOld);
+  EXPECT_EQ(back.slot, 0);
+  EXPECT_TRUE(back.trial_failed);
+  EXPECT_FALSE(back.trial);
+  const fw::BootChoice again = fw::bootStage(flash, layout());  // and stays there, confirmed
+  EXPECT_EQ(again.build_id, kOld);
+  EXPECT_FALSE(again.trial || again.trial_failed);
+}
+
+TEST_F(FirmwareUpdateTest, AConfirmedImageStaysAcrossResets) {
+  fw::FirmwareUpdate u(flash, layout(), fw::bootStage(flash, layout()));
+  ASSERT_EQ(runUpdate(u, new_img), UpdateResult::kCommitted);
+  fw::FirmwareUpdate running(flash, layout(), fw::bootStage(flash, layout()));
+  ASSERT_TRUE(running.onTrial());
+  EXPECT_TRUE(running.confirm());
+  EXPECT_FALSE(running.onTrial());
+  EXPECT_TRUE(running.confirm());  // nothing left to do
+  for (int reset = 0; reset < 3; ++reset) {
+    const fw::BootChoice c = fw::bootStage(flash, layout());
+    EXPECT_EQ(c.build_id, kNew) << reset;
+    EXPECT_FALSE(c.trial || c.trial_failed) << reset;
+  }
+  // The image the update replaced was booted before trial boot existed (provision's record, state 0): confirmed.
+  fw::BootRecord rec;
+  ASSERT_GE(fw::readNewestBootRecord(flash, layout(), rec), 0);
+  EXPECT_EQ(rec.state, fw::BootState::kConfirmed);
+}
+
+// A power cut after every programmed byte of each record the trial writes: the boot stage's "trial booted", the
+// confirm, the way back. The board always boots kOld or kNew, and the trial's outcome is never reversed: a cut
+// before the confirm's record is whole leaves it unconfirmed (the next reset goes back), after it confirmed.
+TEST_F(FirmwareUpdateTest, APowerCutWhileATrialRecordIsWrittenNeverLosesABootableImage) {
+  {
+    fw::FirmwareUpdate u(flash, layout(), fw::bootStage(flash, layout()));
+    ASSERT_EQ(runUpdate(u, new_img), UpdateResult::kCommitted);
+  }
+  const std::vector<uint8_t> committed = flash.bytes();
+  for (size_t cut = 0; cut <= fw::kBootRecordBytes; ++cut) {
+    // The reset after the commit, cut while the boot stage records the trial.
+    sim::RamFlash f(64, 2048);
+    f.loadImage(committed.data(), committed.size());
+    f.cutPowerAfter(cut);
+    fw::bootStage(f, layout());
+    f.restorePower();
+    const fw::BootChoice c = fw::bootStage(f, layout());
+    ASSERT_TRUE(c.valid) << cut;
+    if (cut < fw::kBootRecordBytes) {  // the record never became whole: the trial starts now
+      EXPECT_TRUE(c.trial && c.build_id == kNew) << cut;
+    } else {  // it did, and the image was not confirmed: back
+      EXPECT_TRUE(c.trial_failed && c.build_id == kOld) << cut;
+    }
+  }
+  for (size_t cut = 0; cut <= fw::kBootRecordBytes; ++cut) {
+    // The new image runs on trial and confirms; the power goes while the confirm's record is written.
+    sim::RamFlash f(64, 2048);
+    f.loadImage(committed.data(), committed.size());
+    fw::FirmwareUpdate running(f, layout(), fw::bootStage(f, layout()));
+    ASSERT_TRUE(running.onTrial());
+    f.cutPowerAfter(cut);
+    const bool confirmed = running.confirm();
+    f.restorePower();
+    const fw::BootChoice c = fw::bootStage(f, layout());
+    ASSERT_TRUE(c.valid) << cut;
+    EXPECT_EQ(confirmed, cut >= fw::kBootRecordBytes) << cut;
+    EXPECT_EQ(c.build_id, confirmed ? kNew : kOld) << cut;
+  }
+  {
+    sim::RamFlash f(64, 2048);
+    f.loadImage(committed.data(), committed.size());
+    ASSERT_TRUE(fw::bootStage(f, layout()).trial);  // the trial ran and was not confirmed
+    const std::vector<uint8_t> trial_used = f.bytes();
+    for (size_t cut = 0; cut <= fw::kBootRecordBytes; ++cut) {
+      // The reset that goes back, cut while it writes the old image's confirmed record: the next one goes back too.
+      sim::RamFlash g(64, 2048);
+      g.loadImage(trial_used.data(), trial_used.size());
+      g.cutPowerAfter(cut);
+      EXPECT_EQ(fw::bootStage(g, layout()).build_id, kOld) << cut;
+      g.restorePower();
+      const fw::BootChoice c = fw::bootStage(g, layout());
+      EXPECT_EQ(c.build_id, kOld) << cut;
+      EXPECT_EQ(c.trial_failed, cut < fw::kBootRecordBytes) << cut;  // taken again only when not yet recorded
+    }
+  }
+}
+
 TEST_F(FirmwareUpdateTest, ABeginOfTheSameImageResumesAndAnotherImageStartsAgain) {
   fw::FirmwareUpdate u(flash, layout(), fw::chooseBoot(flash, layout()));
   const protocol::UpdateBegin b = beginFor(new_img);

@@ -256,6 +256,10 @@ bool FirmwareCore::coreParam(uint16_t id, float& value) const {
     case protocol::core_param::kBuildIdLow: value = static_cast<float>(config_.firmware_build_id & 0xFFFFu); return true;
     case protocol::core_param::kBuildIdHigh: value = static_cast<float>(config_.firmware_build_id >> 16); return true;
     case protocol::core_param::kDeviceVariant: value = static_cast<float>(config_.device_variant); return true;
+    case protocol::core_param::kUpdateTrial:
+      if (config_.update == nullptr) return false;
+      value = config_.update->onTrial() ? 1.0f : 0.0f;
+      return true;
     default: return settingsParam(id, value);
   }
 }
@@ -337,6 +341,17 @@ void FirmwareCore::handleParamSet(const protocol::Frame& frame) {
   float core_value = 0.0f;
   if (set.param_id == protocol::core_param::kSettingsSave && config_.settings != nullptr) {
     if (!saveSettings(set.value, answer)) return;  // answered when the save ends
+  } else if (set.param_id == protocol::core_param::kUpdateTrial && config_.update != nullptr) {
+    // Confirm the running image: a boot record, written at once (a blocking flash write: outputs off, one flash
+    // writer at a time, as for a save).
+    if (set.value != 1.0f) {
+      answer.status = protocol::ParamStatus::kOutOfRange;
+    } else if (outputs_active_ || saving() || updating()) {
+      answer.status = protocol::ParamStatus::kBusy;
+    } else {
+      answer.status = config_.update->confirm() ? protocol::ParamStatus::kOk : protocol::ParamStatus::kFailed;
+      answer.value = config_.update->onTrial() ? 1.0f : 0.0f;
+    }
   } else if (coreParam(set.param_id, core_value)) {
     answer.status = protocol::ParamStatus::kReadOnly;
   } else if (outputs_active_) {

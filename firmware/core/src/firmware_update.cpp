@@ -58,7 +58,7 @@ void encodeBootRecord(const BootRecord& rec, uint8_t* out) {
   put32(out, kBootRecordMagic);
   out[4] = kBootRecordFormat;
   out[5] = rec.slot;
-  out[6] = 0;
+  out[6] = static_cast<uint8_t>(rec.state);
   out[7] = 0;
   put32(out + 8, rec.sequence);
   put32(out + 12, rec.image_size);
@@ -69,10 +69,12 @@ void encodeBootRecord(const BootRecord& rec, uint8_t* out) {
 }
 
 bool decodeBootRecord(const uint8_t* in, BootRecord& rec) {
-  if (get32(in) != kBootRecordMagic || in[4] != kBootRecordFormat || in[5] > 1 || get32(in + 28) != crc32(in, 28)) {
+  if (get32(in) != kBootRecordMagic || in[4] != kBootRecordFormat || in[5] > 1 ||
+      in[6] > static_cast<uint8_t>(BootState::kTrialBooted) || get32(in + 28) != crc32(in, 28)) {
     return false;
   }
   rec.slot = in[5];
+  rec.state = static_cast<BootState>(in[6]);
   rec.sequence = get32(in + 8);
   rec.image_size = get32(in + 12);
   rec.image_crc32 = get32(in + 16);
@@ -139,8 +141,57 @@ BootChoice chooseBoot(hal::FlashPages& flash, const UpdateLayout& layout) {
     c.slot = slot;
     c.build_id = info.build_id;
     c.image_size = info.image_size;
+    c.image_crc32 = info.image_crc32;
     c.fell_back = have_record && slot != rec.slot;
     return c;
+  }
+  return c;
+}
+
+namespace {
+BootRecord recordFor(const BootChoice& c, BootState state) {
+  BootRecord r;
+  r.slot = c.slot;
+  r.state = state;
+  r.image_size = c.image_size;
+  r.image_crc32 = c.image_crc32;
+  r.build_id = c.build_id;
+  return r;
+}
+}  // namespace
+
+BootChoice bootStage(hal::FlashPages& flash, const UpdateLayout& layout) {
+  BootChoice c = chooseBoot(flash, layout);
+  BootRecord rec;
+  if (!c.valid || c.fell_back || readNewestBootRecord(flash, layout, rec) < 0) return c;
+  if (rec.state == BootState::kTrial) {
+    // Booting the trial: say so first. A board that cannot record it boots the image it can go back to.
+    if (writeBootRecord(flash, layout, recordFor(c, BootState::kTrialBooted))) {
+      c.trial = true;
+      return c;
+    }
+    rec.state = BootState::kTrialBooted;  // as if the trial had been used up
+  }
+  if (rec.state == BootState::kTrialBooted) {
+    // The trial image ran, and the board reset without its confirm: back to the other slot's image, confirmed.
+    BootChoice back;
+    image::ImageInfo info;
+    const auto other = static_cast<uint8_t>(1u - c.slot);
+    if (verifySlot(flash, layout, other, &info)) {
+      back.valid = true;
+      back.slot = other;
+      back.build_id = info.build_id;
+      back.image_size = info.image_size;
+      back.image_crc32 = info.image_crc32;
+      back.trial_failed = true;
+      if (writeBootRecord(flash, layout, recordFor(back, BootState::kConfirmed))) {
+        back.record_sequence = rec.sequence + 1u;
+      } else {
+        back.record_sequence = rec.sequence;  // the next reset decides the same again
+      }
+      return back;
+    }
+    c.trial = true;  // nothing to go back to: the trial image runs (still unconfirmed)
   }
   return c;
 }
@@ -154,6 +205,13 @@ bool writeBootRecord(hal::FlashPages& flash, const UpdateLayout& layout, BootRec
   encodeBootRecord(rec, buf);
   return flash.erase(page) && flash.program(page, 0, buf, sizeof buf) && flash.read(page, 0, check, sizeof check) &&
          std::memcmp(buf, check, sizeof buf) == 0;
+}
+
+bool FirmwareUpdate::confirm() {
+  if (!running_.trial) return true;
+  if (!writeBootRecord(flash_, layout_, recordFor(running_, BootState::kConfirmed))) return false;
+  running_.trial = false;
+  return true;
 }
 
 UpdateStatus FirmwareUpdate::status(MsgId answers, UpdateResult r, uint8_t detail) const {
@@ -177,6 +235,8 @@ UpdateStatus FirmwareUpdate::fail(MsgId answers, UpdateResult r) {
 UpdateStatus FirmwareUpdate::begin(const protocol::UpdateBegin& m, uint32_t open_session_id) {
   auto bad = [&](UpdateImageField f) { return status(MsgId::kUpdateBegin, UpdateResult::kBadImage, static_cast<uint8_t>(f)); };
   if (state_ == State::kCommitted) return status(MsgId::kUpdateBegin, UpdateResult::kCommitted);
+  // The other slot holds the image a failed trial goes back to: not overwritten before this one is confirmed.
+  if (running_.trial) return status(MsgId::kUpdateBegin, UpdateResult::kUnconfirmed);
   if (m.reserved != 0) return bad(UpdateImageField::kReserved);
   if (m.session_id != 0 && m.session_id != open_session_id) return bad(UpdateImageField::kSession);
   if (m.device_type != layout_.device_type) return bad(UpdateImageField::kDeviceType);
@@ -255,6 +315,7 @@ UpdateStatus FirmwareUpdate::commit(const protocol::UpdateCommit& m) {
   }
   BootRecord rec;
   rec.slot = targetSlot();
+  rec.state = BootState::kTrial;
   rec.image_size = info.image_size;
   rec.image_crc32 = info.image_crc32;
   rec.build_id = info.build_id;

@@ -170,6 +170,10 @@ constexpr uint16_t kSettingsSave = 0x0010;
 constexpr uint16_t kSettingsLoad = 0x0011;     ///< what the load at start found: fw::SettingsLoad (settings_store.h)
 constexpr uint16_t kSettingsLayout = 0x0012;   ///< the settings layout version this firmware writes
 constexpr uint16_t kSettingsRefused = 0x0013;  ///< stored values not applied at start (refused by the app or dropped)
+/// Trial boot (docs/firmware-update.md "Trial boot"); unknown (kUnknownParam) on firmware without an updater. Read:
+/// 1 while the running image is on trial (booted once after an update, not yet confirmed: the next reset goes back
+/// to the previous image), else 0. Set 1: confirm it (kFailed when the boot record could not be written).
+constexpr uint16_t kUpdateTrial = 0x0014;
 }  // namespace core_param
 
 struct Event {
@@ -266,8 +270,9 @@ enum class UpdateResult : uint8_t {
   kFlashError = 7,    ///< erase/program/read-back failed: begin again (the running image is untouched)
   kVerifyFailed = 8,  ///< at commit: the received image's CRC or image-info block is wrong: begin again
   kNoUpdater = 9,     ///< this board cannot be updated over its link
+  kUnconfirmed = 10,  ///< the running image is on trial: confirm it (core_param::kUpdateTrial) or reset first
 };
-constexpr uint8_t kUpdateResultCount = 10;
+constexpr uint8_t kUpdateResultCount = 11;
 
 /// UpdateStatus.detail for kBadImage: which of UpdateBegin's fields.
 enum class UpdateImageField : uint8_t {

@@ -23,6 +23,7 @@ struct Request {
   unsigned window = 8;        ///< chunks in flight
   bool force = false;         ///< update even when the device already runs the image's build
   bool dry_run = false;       ///< check the image and handshake; write nothing
+  bool no_confirm = false;    ///< leave the new image on trial (the board's next reset goes back to the old one)
 };
 
 /// Exit codes besides 0 and cli::kExitBadArguments (2); the same meanings as `phalanx flash`'s.

@@ -10,9 +10,16 @@
 /// any point therefore leaves a board that boots a valid image: the old one until the record is written, the new
 /// one after.
 ///
+/// Trial boot (bootStage). The commit's record puts the new image on trial. The boot stage boots it once, writing a
+/// record that says so first; the running image confirms itself when told to (core_param::kUpdateTrial, which
+/// `phalanx update` sets once the board answers with the new build). A reset before the confirm — the image hung,
+/// crashed or never answered, the watchdog or the power took the board down — finds the trial used up, and the boot
+/// stage goes back to the other slot's image, confirmed. Every decision is taken again from the records at the next
+/// reset, so a power loss while a record is written repeats it.
+///
 /// A boot record is
-///   magic u32 "PXBT" | format u8 | slot u8 | reserved u16 | sequence u32 | image_size u32 | image_crc32 u32 |
-///   build_id u32 | reserved u32 | CRC-32 of everything before it
+///   magic u32 "PXBT" | format u8 | slot u8 | state u8 | reserved u8 | sequence u32 | image_size u32 |
+///   image_crc32 u32 | build_id u32 | reserved u32 | CRC-32 of everything before it
 /// little-endian, 32 bytes (whole flash program units), the CRC last: a write torn anywhere leaves no valid record.
 ///
 /// No heap, no exceptions; every loop is bounded by the slot's size, the two slots or the two record pages.
@@ -38,9 +45,17 @@ struct UpdateLayout {
   uint8_t device_type = 0;        ///< protocol::DeviceType of this firmware's app
 };
 
+/// A record's trial state. 0 is what records had before trial boot existed (the byte was reserved as zero).
+enum class BootState : uint8_t {
+  kConfirmed = 0,    ///< boot this slot
+  kTrial = 1,        ///< written by the commit: boot this slot once, on trial
+  kTrialBooted = 2,  ///< written by the boot stage as it boots the trial: found at the next reset, the trial failed
+};
+
 struct BootRecord {
   uint32_t sequence = 0;
   uint8_t slot = 0;
+  BootState state = BootState::kConfirmed;
   uint32_t image_size = 0;
   uint32_t image_crc32 = 0;
   uint32_t build_id = 0;
@@ -56,6 +71,9 @@ struct BootChoice {
   uint32_t image_size = 0;
   uint32_t record_sequence = 0;  ///< the newest valid boot record's (0: none)
   bool fell_back = false;      ///< the record named a slot whose image did not verify; the other slot boots
+  uint32_t image_crc32 = 0;    ///< of the image booted
+  bool trial = false;          ///< (bootStage) the image runs on trial: confirm it, or the next reset goes back
+  bool trial_failed = false;   ///< (bootStage) the last trial ended in a reset unconfirmed: the previous image boots
 };
 
 /// The image in `slot` verifies: image-info block (magic, layout), this board and device, a size that fits the
@@ -66,8 +84,11 @@ bool verifySlot(hal::FlashPages& flash, const UpdateLayout& layout, uint8_t slot
 /// The newest valid boot record (highest sequence, CRC good) and which record page holds it (-1: none).
 int readNewestBootRecord(hal::FlashPages& flash, const UpdateLayout& layout, BootRecord& rec);
 
-/// At reset: the slot to boot (see the file comment).
+/// The slot the newest record names if its image verifies, else the other slot's (no writes; trial state aside).
 BootChoice chooseBoot(hal::FlashPages& flash, const UpdateLayout& layout);
+
+/// At reset: chooseBoot, then the trial rules (file comment), writing the record they need before booting.
+BootChoice bootStage(hal::FlashPages& flash, const UpdateLayout& layout);
 
 /// Writes `rec` (its sequence replaced by one past the newest) into the record page that does not hold the newest
 /// record, and reads it back. false: the erase, the program or the read-back failed (the newest record is intact).
@@ -91,6 +112,11 @@ class FirmwareUpdate {
   bool inProgress() const { return state_ == State::kReceiving; }
   /// The new image is marked to boot: the board resets now (the MCU through its reset; firmware-sim restarts).
   bool rebootRequested() const { return state_ == State::kCommitted; }
+  /// The running image is on trial (bootStage) and not yet confirmed.
+  bool onTrial() const { return running_.trial; }
+  /// Confirms the running image (a record naming its slot, confirmed). false: the record could not be written
+  /// (still on trial). Nothing to do when it is not on trial.
+  bool confirm();
   const BootChoice& running() const { return running_; }
   uint8_t targetSlot() const { return static_cast<uint8_t>(running_.valid ? 1u - running_.slot : 0u); }
   size_t slotBytes() const { return layout_.slot_pages * flash_.pageSize(); }
