@@ -25,6 +25,8 @@ import sys
 import tempfile
 import time
 
+import cyclictest_summary
+
 LOOP_PRIORITY = 80  # phalanxd's default realtime.priority
 
 
@@ -74,31 +76,6 @@ def reference_sleeper(work, name, seconds, pin):
     cmd = ["cyclictest", "--default-system", "-m", "-q", "-p", str(LOOP_PRIORITY - 1), "-i", "1000", "-h", "1000",
            "-D", str(seconds)] + (["-a", str(pin)] if pin is not None else [])
     return subprocess.Popen(cmd, stdout=open(os.path.join(work, f"ct-{name}.txt"), "w"), stderr=subprocess.STDOUT)
-
-
-def read_reference(work, name):
-    path = os.path.join(work, f"ct-{name}.txt")
-    if not os.path.exists(path):
-        return None
-    hist, over, mx = {}, 0, None
-    for line in open(path):
-        p = line.split()
-        if len(p) == 2 and p[0].isdigit() and p[1].isdigit():
-            hist[int(p[0])] = int(p[1])
-        elif line.startswith("# Histogram Overflows:"):
-            over = int(p[3])
-        elif line.startswith("# Max Latencies:"):
-            mx = int(p[3])
-    n = sum(hist.values()) + over
-
-    def q(frac):
-        acc = 0
-        for us in sorted(hist):
-            acc += hist[us]
-            if acc >= frac * n:
-                return us
-        return ">1000"
-    return {"wakes": n, "late_over_1ms": over, "p99_us": q(0.99), "p999_us": q(0.999), "max_us": mx}
 
 
 def main():
@@ -177,7 +154,7 @@ def main():
             r = {k: s.get(k) for k in ("cycles", "overruns", "period_jitter", "cycle_time", "round_trip", "realtime",
                                        "exit_code", "faults_seen")}
             r["modbus_requests"] = (s.get("modbus") or {}).get("requests")
-            r["reference_sleeper"] = read_reference(work, name)
+            r["reference_sleeper"] = cyclictest_summary.summary(os.path.join(work, f"ct-{name}.txt"))
             if name == "load" and browser is not None:
                 r["browser_cpu_s"] = round(tree_cpu_s(browser.pid) - cpu0, 2)
                 browser.terminate()
@@ -202,7 +179,8 @@ def main():
             line += f" | browser CPU {r['browser_cpu_s']} s"
         ref = r["reference_sleeper"]
         if ref:
-            line += f" | sleeper p99.9={ref['p999_us']} max={ref['max_us']} µs late>1ms={ref['late_over_1ms']}"
+            line += (f" | sleeper p99.9={ref['latency_p999_us']} max={ref['latency_max_us']} µs "
+                     f"late>1ms={ref['late_over_1ms']}")
         print(line, file=sys.stderr)
     shutil.rmtree(work, ignore_errors=True)
     return 0

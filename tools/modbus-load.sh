@@ -33,9 +33,12 @@ if [ -n "$PIN" ]; then
   CT_PIN=(-a "$PIN")
 fi
 
+# cycle: timer — the analysis below measures each cycle's wake against the loop's absolute 1 kHz grid; the default
+# telemetry-driven cycle starts on frame arrival and has no such grid (tools/jitter-load.py measures either).
 cat > "$WORK/phalanxd.yaml" <<YAML
 version: 1
 device: $DEVICE
+cycle: timer
 seconds: $((3 * PHASE + 8))
 record: $WORK/loop.csv
 modbus:
@@ -88,8 +91,9 @@ T5=$(uptime_ms)
 wait "$DAEMON" || true
 wait || true
 
-python3 - "$WORK" "$T0" "$T1" "$T2" "$T3" "$T4" "$T5" "$CLIENTS" "$DEVICE" "${PIN:--}" <<'PY'
+PYTHONPATH="$(dirname "$0")" python3 - "$WORK" "$T0" "$T1" "$T2" "$T3" "$T4" "$T5" "$CLIENTS" "$DEVICE" "${PIN:--}" <<'PY'
 import csv, json, math, os, sys
+import cyclictest_summary
 work = sys.argv[1]
 t0, t1, t2, t3, t4, t5, clients = map(int, sys.argv[2:9])
 device, pin = sys.argv[9], sys.argv[10]
@@ -114,29 +118,8 @@ def pct(v, p):
     return v[min(len(v) - 1, int(math.ceil(p * len(v))) - 1)] if v else float("nan")
 
 def reference(name):
-    """cyclictest histogram (µs → count) and overflows (wakes later than 1000 µs)."""
-    path = f"{work}/ct-{name}.txt"
-    if not os.path.exists(path):
-        return None
-    hist, over, mx = {}, 0, None
-    for line in open(path):
-        p = line.split()
-        if len(p) == 2 and p[0].isdigit() and p[1].isdigit():
-            hist[int(p[0])] = int(p[1])
-        elif line.startswith("# Histogram Overflows:"):
-            over = int(p[3])
-        elif line.startswith("# Max Latencies:"):
-            mx = int(p[3])
-    n = sum(hist.values()) + over
-    def hp(q):
-        acc = 0
-        for us in sorted(hist):
-            acc += hist[us]
-            if acc >= q * n:
-                return us
-        return ">1000"
-    return {"wakes": n, "late_over_1ms": over, "latency_p50_us": hp(0.5), "latency_p99_us": hp(0.99),
-            "latency_p999_us": hp(0.999), "latency_max_us": mx}
+    """The reference sleeper's histogram of this phase (tools/cyclictest_summary.py)."""
+    return cyclictest_summary.summary(f"{work}/ct-{name}.txt")
 
 def phase(name, a_ms, b_ms):
     sel = [r for r in rows if a_ms / 1e3 <= r[0] < b_ms / 1e3]
