@@ -17,7 +17,9 @@ produced (50 ms: 0.90 -> 2.59 mm; 10 ms, 5 %: 1.86 -> 2.42 mm). Both halves are 
 The passive scheme must be stable and keep the channel's energy bounded (net output <= 0.05 J over the run, the
 bound kept to within 0.02 J). The plain scheme must be unstable under a network delay (a forced-off client or a
 device fault counts as unstable); without one it is reported only. Appends one row to --table. Exit 2: the device
-latched command-timeout (a stalled machine): run the case again. --stability-printed-only (the VM lane: its
+latched command-timeout, the daemon forced the master off for a missed deadline, or the master ran to its
+wall-clock cap before the device's clock got through the hold phase (a stalled machine, each): run the case again.
+A plain case the device's fault or a force-off ended before the hold phase was through is unstable. --stability-printed-only (the VM lane: its
 emulated device clock keeps 0.4-0.65 of real time, varying with the host's load, so the pen's dynamics against the
 network's real-time delay vary from run to run) prints the verdicts and gates only on the energy.
 """
@@ -65,16 +67,25 @@ def main():
     ap.add_argument("--prefix", required=True)
     ap.add_argument("--master-rc", type=int, required=True)
     ap.add_argument("--daemon-rc", type=int, required=True)
+    ap.add_argument("--master-seconds", type=float, required=True, help="the master's wall-clock cap (--seconds)")
     ap.add_argument("--table", required=True)
     ap.add_argument("--stability-printed-only", action="store_true",
                     help="print the stable/unstable verdicts without gating on them (an emulated machine)")
     a = ap.parse_args()
     p = a.prefix
-    faults = json.load(open(p + ".d.json")).get("faults_seen", "none").split("|")
+    d = json.load(open(p + ".d.json"))
+    faults = d.get("faults_seen", "none").split("|")
     if "command-timeout" in faults:
         # The device's command watchdog: the daemon's commands stopped for its timeout (a stalled machine: the VM
         # lane's emulator stops for 0.3 s at times), not anything the teleoperation did. The case is run again.
         print("(%s: the device latched command-timeout: a stalled machine; the case runs again)" % p)
+        sys.exit(2)
+    # The same one level up: the daemon forced the master off because no command came within the master's deadline
+    # (its process stalled). Any other force-off (a device fault, the limits stage) is the teleoperation's doing.
+    forced_off = [r.get("cause") for r in (d.get("client") or {}).get("force_off_records", [])]
+    if "client-timeout" in forced_off:
+        print("(%s: the daemon forced the master off, no command within its deadline: a stalled machine; the case "
+              "runs again)" % p)
         sys.exit(2)
     lo, hi = 4.5e6, 7.5e6
     m = rows(p + ".m.csv")
@@ -89,8 +100,27 @@ def main():
     if mh:
         lo, hi = float(mh[0]["device_time_us"]), float(mh[-1]["device_time_us"])
     if hi - lo < 2e6:
-        sys.exit("FAIL: %s: the master ran only %.1f s of the device's hold phase (a slow device clock: raise "
-                 "TELEOP_SECONDS)" % (p, max(0.0, hi - lo) * 1e-6))
+        case = "%-7s %4.0f ms %2.0f %%" % (a.scheme, a.delay_ms, a.loss_pct)
+        device_faults = [f for f in faults if f != "none"]
+        if a.scheme == "plain" and (forced_off or device_faults):
+            # The plain scheme's runaway ended the teleoperation before the hold phase was through: the device
+            # latched a fault, or the daemon forced the master off. Unstable, which is what it shows under delay.
+            row = "%s  UNSTABLE ended in the hold phase: master forced off (%s), device faults %s" % (
+                case, ", ".join(forced_off) or "no", "|".join(device_faults) or "none")
+            with open(a.table, "a") as f:
+                f.write(row + "\n")
+            print(row)
+            if a.delay_ms == 0 and not a.stability_printed_only:
+                sys.exit("FAIL: %s: the plain scheme ran away without a delay" % case)
+            return
+        if a.master_rc == 0 and m and float(m[-1]["t_s"]) >= a.master_seconds - 0.5:
+            # The master ran to its wall-clock cap and the device's clock had not got through the hold phase: the
+            # emulated machine kept less than 7.7 s of device time in that many seconds.
+            print("(%s: the device's clock reached %.1f s in the master's %.0f s: a stalled machine; the case runs "
+                  "again)" % (p, float(m[-1]["device_time_us"]) * 1e-6, a.master_seconds))
+            sys.exit(2)
+        sys.exit("FAIL: %s: the master ran only %.1f s of the device's hold phase (master exit %d, forced off: %s)"
+                 % (p, max(0.0, hi - lo) * 1e-6, a.master_rc, ", ".join(forced_off) or "no"))
     truth = [r for r in rows(p + ".truth.csv") if lo <= float(r["device_time_us"]) <= hi]
     rh = [x for x in r if seqs and seqs[0] <= int(x["master_seq"]) <= seqs[-1]]
     if not truth or not mh or not rh:

@@ -85,9 +85,11 @@ run_case() {  # scheme delay_ms loss_pct
   wait $r || { cat "$WORK/$name.r.err"; echo "FAIL: the remote side failed"; exit 1; }
   wait $d || drc=$?
   python3 "$HERE/teleop_check.py" --scheme "$scheme" --delay-ms "$delay" --loss-pct "$loss" --prefix "$WORK/$name" \
-    --master-rc $mrc --daemon-rc $drc --table "$WORK/table.txt" ${TELEOP_STABILITY_PRINTED_ONLY:+--stability-printed-only}
+    --master-rc $mrc --daemon-rc $drc --master-seconds $SECS --table "$WORK/table.txt" ${TELEOP_STABILITY_PRINTED_ONLY:+--stability-printed-only}
 }
-# A case whose check exits 2 (the device's command watchdog fired: a stalled machine) runs again, at most 3 times.
+# A case whose check exits 2 (a stalled machine: the device's command watchdog fired, the daemon forced the master
+# off for a missed deadline, or the device's clock did not get through the hold phase in the master's SECS) runs
+# again, at most 3 times.
 run_case3() {
   local attempt rc
   for attempt in 1 2 3; do
@@ -95,7 +97,7 @@ run_case3() {
     run_case "$@" || rc=$?
     [ $rc -eq 2 ] || return $rc
   done
-  echo "FAIL: $*: the device latched command-timeout in all 3 attempts"
+  echo "FAIL: $*: the machine stalled in all 3 attempts (see the lines above)"
   return 1
 }
 
