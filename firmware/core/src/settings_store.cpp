@@ -95,6 +95,11 @@ bool decodeSettingsRecord(const uint8_t* in, size_t n, SettingsRecord& rec) {
   if (count > kMaxSettings || n < recordBytes(count)) return false;
   const size_t body = kSettingsHeaderBytes + 8u * count;
   if (get32(in + body) != settingsCrc32(in, body)) return false;
+  // Reserved fields are written as zero: a record with anything there is not one this firmware wrote (nor reads).
+  if (get16(in + 14) != 0) return false;
+  for (uint16_t i = 0; i < count; ++i) {
+    if (get16(in + kSettingsHeaderBytes + 8u * i + 2u) != 0) return false;
+  }
   rec.device_type = in[5];
   rec.layout_version = get16(in + 6);
   rec.sequence = get32(in + 8);
