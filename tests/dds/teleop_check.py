@@ -73,6 +73,7 @@ def main():
                     help="print the stable/unstable verdicts without gating on them (an emulated machine)")
     a = ap.parse_args()
     p = a.prefix
+    case = "%-7s %4.0f ms %2.0f %%" % (a.scheme, a.delay_ms, a.loss_pct)
     d = json.load(open(p + ".d.json"))
     faults = d.get("faults_seen", "none").split("|")
     if "command-timeout" in faults:
@@ -100,7 +101,6 @@ def main():
     if mh:
         lo, hi = float(mh[0]["device_time_us"]), float(mh[-1]["device_time_us"])
     if hi - lo < 2e6:
-        case = "%-7s %4.0f ms %2.0f %%" % (a.scheme, a.delay_ms, a.loss_pct)
         device_faults = [f for f in faults if f != "none"]
         if a.scheme == "plain" and (forced_off or device_faults):
             # The plain scheme's runaway ended the teleoperation before the hold phase was through: the device
@@ -145,7 +145,6 @@ def main():
         rejected += sum(v for k, v in mj["rx"].items() if k.startswith("rejected"))
     processes_ok = a.master_rc == 0 and a.daemon_rc == 0
     stable = processes_ok and contact >= 0.95 and pen_osc <= 5e-3 and arm_osc <= 5e-3
-    case = "%-7s %4.0f ms %2.0f %%" % (a.scheme, a.delay_ms, a.loss_pct)
     row = ("%s  %-8s contact %5.1f %%  oscillation pen %5.2f -> %5.2f mm arm %5.2f mm  pen creep %5.2f mm  force shown "
            "%5.2f N wall %5.2f N  x_m - x_s %6.2f mm  net energy %+8.3f J  bound excess %.3f J  slave sample age "
            "p50 %5.1f ms  rc %d/%d"
