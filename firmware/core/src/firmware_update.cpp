@@ -127,6 +127,19 @@ int readNewestBootRecord(hal::FlashPages& flash, const UpdateLayout& layout, Boo
   return newest;
 }
 
+namespace {
+/// Booting the verified image `info` in `slot`.
+BootChoice bootOf(uint8_t slot, const image::ImageInfo& info) {
+  BootChoice c;
+  c.valid = true;
+  c.slot = slot;
+  c.build_id = info.build_id;
+  c.image_size = info.image_size;
+  c.image_crc32 = info.image_crc32;
+  return c;
+}
+}  // namespace
+
 BootChoice chooseBoot(hal::FlashPages& flash, const UpdateLayout& layout) {
   BootChoice c;
   BootRecord rec;
@@ -137,11 +150,8 @@ BootChoice chooseBoot(hal::FlashPages& flash, const UpdateLayout& layout) {
     const auto slot = static_cast<uint8_t>(k == 0 ? first : 1u - first);
     image::ImageInfo info;
     if (!verifySlot(flash, layout, slot, &info)) continue;
-    c.valid = true;
-    c.slot = slot;
-    c.build_id = info.build_id;
-    c.image_size = info.image_size;
-    c.image_crc32 = info.image_crc32;
+    c = bootOf(slot, info);
+    c.record_sequence = have_record ? rec.sequence : 0;
     c.fell_back = have_record && slot != rec.slot;
     return c;
   }
@@ -174,15 +184,10 @@ BootChoice bootStage(hal::FlashPages& flash, const UpdateLayout& layout) {
   }
   if (rec.state == BootState::kTrialBooted) {
     // The trial image ran, and the board reset without its confirm: back to the other slot's image, confirmed.
-    BootChoice back;
     image::ImageInfo info;
     const auto other = static_cast<uint8_t>(1u - c.slot);
     if (verifySlot(flash, layout, other, &info)) {
-      back.valid = true;
-      back.slot = other;
-      back.build_id = info.build_id;
-      back.image_size = info.image_size;
-      back.image_crc32 = info.image_crc32;
+      BootChoice back = bootOf(other, info);
       back.trial_failed = true;
       if (writeBootRecord(flash, layout, recordFor(back, BootState::kConfirmed))) {
         back.record_sequence = rec.sequence + 1u;
