@@ -363,6 +363,40 @@ steps:
   EXPECT_FALSE(s.checks[1].pass);
 }
 
+TEST(BenchRun, GloveGraspPlanHoldsTheBallAndScoresTheContactForce) {
+  // The step of `phalanx bench glove-grasp` (issue 26 item 4): the hand squeezes the rigid ball; the last second
+  // of contact is scored. Defaults: 3 s, 2 s settling.
+  const br::Plan p = plan(R"(
+version: 1
+device: sim:glove5
+seed: 1
+instrument: {type: int32, scale: 1.0e-5, unit: N, poll_hz: 500, timeout_ms: 30, stale_ms: 50}
+max_stale_percent: 5
+safety: {effort_max: 10, instrument_silence_ms: 200, disagreement_max: 1.5, disagreement_ms: 100}
+steps:
+  - kind: glove-grasp
+    limits:
+      setpoint_vs_instrument: {nrmse_percent_max: 10}
+      estimate_vs_instrument: {nrmse_percent_max: 10}
+)");
+  ASSERT_EQ(p.steps.size(), 1u);
+  EXPECT_DOUBLE_EQ(p.steps[0].seconds, 3.0);
+  EXPECT_DOUBLE_EQ(p.steps[0].settle_s, 2.0);
+  EXPECT_DOUBLE_EQ(br::stepEffortMax(p.steps[0]), 10.0);
+  const br::PlanResult r = br::runPlan(p, noProgress);
+  ASSERT_EQ(r.steps.size(), 1u);
+  const br::StepResult& s = r.steps[0];
+  EXPECT_TRUE(s.pass) << s.error << "\n" << br::toJson(r).dump(1);
+  EXPECT_EQ(s.faults, 0u);
+  // In contact the whole scored second: the finger feels a few newtons, close to what the ball commanded.
+  ASSERT_GT(s.instrument.size(), 900u);
+  const double inst = meanOf(s.instrument, 0), sp = meanOf(s.setpoint, 0);
+  EXPECT_GT(inst, 2.0);
+  EXPECT_NEAR(inst, sp, 0.1 * sp);
+  // Fidelity (eq 15) is the SEA rig's trajectory metric: not reported for a held force.
+  EXPECT_FALSE(br::toJson(r)["steps"][0]["setpoint_vs_instrument"].contains("fidelity_percent"));
+}
+
 TEST(BenchRun, PlanErrorsNameTheKey) {
   br::Plan p;
   EXPECT_NE(br::loadPlanText("version: 1\nsteps: []\n", "p", p).find("steps: expected a non-empty list"), std::string::npos);
@@ -388,6 +422,14 @@ TEST(BenchRun, PlanErrorsNameTheKey) {
   EXPECT_NE(br::loadPlanText("device: sim:pantograph\nsteps: [{kind: sea-rig-sine}]\n", "p", p).find("does not run on sim:pantograph"),
             std::string::npos);
   EXPECT_NE(br::loadPlanText("device: sim:glove5\nsteps: [{kind: pen-wall}]\n", "p", p).find("does not run on sim:glove5"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: sim:glove5\nsteps: [{kind: glove-grasp, limits: {setpoint_vs_instrument: "
+                             "{fidelity_percent_min: 90}}}]\n", "p", p)
+                .find("steps[0].limits: fidelity_percent_min (eq 15, a torque trajectory's tracking) needs a sea-rig-sine"),
+            std::string::npos);
+  EXPECT_NE(br::loadPlanText("device: sim:glove5\nsafety: {effort_max: 5, instrument_silence_ms: 100, disagreement_max: 1, "
+                             "disagreement_ms: 100}\nsteps: [{kind: glove-grasp}]\n", "p", p)
+                .find("steps[0].kind: commands up to 10, beyond safety.effort_max 5"),
             std::string::npos);
   EXPECT_NE(br::loadPlanText("device: sim:pantograph\nsteps: [{kind: pen-wall, stiffness_N_per_cm: 100}]\n", "p", p)
                 .find("steps[0].stiffness_N_per_cm"),

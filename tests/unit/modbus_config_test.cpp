@@ -53,7 +53,7 @@ TEST(ModbusConfig, ShippedConfigurationLoadsWithModbusOff) {
 }
 
 TEST(ModbusConfig, ShippedBenchPlansLoad) {
-  for (const char* plan : {"bench/sea-rig.yaml", "bench/glove-free-motion.yaml", "bench/pen-wall.yaml"}) {
+  for (const char* plan : {"bench/sea-rig.yaml", "bench/glove-free-motion.yaml", "bench/glove-grasp.yaml", "bench/pen-wall.yaml"}) {
     phalanx::host::benchrun::Plan p;
     EXPECT_EQ(phalanx::host::benchrun::loadPlanFile(repoPath(plan), p), "") << plan;
     EXPECT_FALSE(p.steps.empty()) << plan;

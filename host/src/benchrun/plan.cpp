@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "phalanx/host/benchrun/runner.h"
+#include "phalanx/host/glove/scene.h"
 #include "phalanx/host/pen/pen_bench.h"
 #include "phalanx/host/pen/pen_controller.h"
 #include "phalanx/host/pen/pen_scene.h"
@@ -165,17 +166,22 @@ void apply(const YAML::Node& root, Plan& p) {
                     "stiffness_N_per_cm", "braking", "instrument_hang_at_s", "instrument_lie_at_s", "instrument_lie_gain",
                     "instrument_lie_offset", "limits"});
     Step st;
-    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, pen-wall)"};
+    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp, pen-wall)"};
     st.kind = get<std::string>(s["kind"], w + ".kind", "string");
-    const bool sea = st.kind == "sea-rig-sine" || st.kind == "sea-rig-chirp";
+    const bool sea = isSeaStep(st);
     const bool pen = st.kind == "pen-wall";
-    if (!sea && !pen && st.kind != "glove-free-motion") {
-      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion or pen-wall"};
+    if (!sea && !pen && !isGloveStep(st)) {
+      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp or pen-wall"};
     }
     const std::string runs_on = sea ? "sea_rig" : (pen ? "pantograph" : "glove5");
     if (runs_on != p.device_type) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device + " (" + p.device_type + ")"};
     st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
     if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
+    if (st.kind == "glove-grasp") {
+      // As `phalanx bench glove-grasp`: reach and squeeze for 2 s, scored over the last second's steady contact.
+      st.seconds = 3.0;
+      st.settle_s = 2.0;
+    }
     if (pen) {
       if (s["stiffness_N_per_cm"]) {
         // 64 N/cm: the top of `phalanx bench pen-wall --sweep` (docs/pen-plant.md).
@@ -238,6 +244,10 @@ void apply(const YAML::Node& root, Plan& p) {
         (st.estimate_vs_instrument.bandwidth_hz_min || st.setpoint_vs_instrument.bandwidth_hz_min)) {
       throw Bad{w + ".limits: bandwidth_hz_min needs a sea-rig-chirp step"};
     }
+    if (!sea && (st.estimate_vs_instrument.fidelity_percent_min || st.setpoint_vs_instrument.fidelity_percent_min)) {
+      throw Bad{w + ".limits: fidelity_percent_min (eq 15, a torque trajectory's tracking) needs a sea-rig-sine or "
+                    "sea-rig-chirp step"};
+    }
     if (have_safety) {
       const double e = stepEffortMax(st);
       if (e > p.safety.effort_max) {
@@ -272,8 +282,12 @@ double stepEffortMax(const Step& step) {
     for (double t : pen::PenControllerConfig{}.split.torque_limit_Nm) m = std::max(m, t);
     return m;
   }
+  if (step.kind == "glove-grasp") return glove::SceneConfig{}.max_force_N;  // the rendered contact force's clamp
   return 0.0;  // glove-free-motion: transparent mode commands 0 N
 }
+
+bool isGloveStep(const Step& step) { return step.kind == "glove-free-motion" || step.kind == "glove-grasp"; }
+bool isSeaStep(const Step& step) { return step.kind == "sea-rig-sine" || step.kind == "sea-rig-chirp"; }
 
 std::string setPlanDevice(Plan& plan, const std::string& device) {
   std::string sim_type;

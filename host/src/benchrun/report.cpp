@@ -176,8 +176,12 @@ std::string histogram(const std::vector<std::pair<std::string, std::vector<doubl
 /// bandwidth: the table has the −3 dB column (chirp steps only).
 std::string metricRow(const char* pair, const PairMetrics& m, const std::string& unit, bool bandwidth) {
   std::ostringstream o;
-  o << "<tr><td>" << pair << "</td><td>" << fmt(m.rmse) << " " << esc(unit) << "</td><td>" << fmt(m.nrmse_percent, "%.2f")
-    << " %</td><td>" << fmt(m.fidelity_percent, "%.2f") << " %</td>";
+  // A figure not defined for the step (fidelity off the SEA rig, NRMSE against a zero reference) is a dash.
+  const auto cell = [](double v, const char* f, const std::string& u) {
+    return "<td>" + (std::isfinite(v) ? fmt(v, f) + " " + u : std::string("&ndash;")) + "</td>";
+  };
+  o << "<tr><td>" << pair << "</td>" << cell(m.rmse, "%.4g", esc(unit)) << cell(m.nrmse_percent, "%.2f", "%")
+    << cell(m.fidelity_percent, "%.2f", "%");
   if (bandwidth) {
     o << "<td>";
     if (m.bandwidth_hz < 0) o << "&ndash;";

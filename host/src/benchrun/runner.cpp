@@ -190,15 +190,16 @@ SimTarget makeTarget(const Plan& plan, const Step& st) {
     };
     return t;
   }
-  if (st.kind == "glove-free-motion") {
+  if (isGloveStep(st)) {
+    // As `phalanx bench glove-free-motion` / `glove-grasp`: the hand closes and opens in transparent mode, or
+    // reaches for and squeezes the rigid ball the scene renders.
+    const bool grasp = st.kind == "glove-grasp";
     sim::GlovePlantConfig pc;
     pc.seed = plan.seed;
     pc.noise = plan.noise;
-    pc.scenario = sim::HandScenario::kCloseOpen;
+    pc.scenario = grasp ? sim::HandScenario::kGrasp : sim::HandScenario::kCloseOpen;
     auto dev = std::make_unique<fw_sim::Glove5SimDevice>(pc);
-    glove::GloveControllerConfig cc;
-    cc.transparent = true;
-    t.controller = std::make_unique<glove::GloveController>(cc);
+    t.controller = std::make_unique<glove::GloveController>(gloveStepControllerConfig(st));
     auto* d = dev.get();
     const int f = st.finger;
     t.truth = [d, f] { return d->glovePlant().padForce_N(f); };
@@ -221,8 +222,8 @@ SimTarget makeTarget(const Plan& plan, const Step& st) {
   }
   t.rig = std::make_unique<LockstepRig>(*t.device, *t.controller);
   auto* rig = t.rig.get();
-  const size_t est_index = st.kind == "glove-free-motion" ? kGloveForce0 + static_cast<size_t>(st.finger) : kSeaTorque0;
-  const size_t sp_index = st.kind == "glove-free-motion" ? static_cast<size_t>(st.finger) : 0;
+  const size_t est_index = isGloveStep(st) ? kGloveForce0 + static_cast<size_t>(st.finger) : kSeaTorque0;
+  const size_t sp_index = isGloveStep(st) ? static_cast<size_t>(st.finger) : 0;
   t.estimate = [rig, est_index] { return static_cast<double>(rig->session().latest().value[est_index]); };
   t.setpoint = [rig, sp_index] { return static_cast<double>(rig->lastCommand().setpoint[sp_index]); };
   return t;
@@ -420,6 +421,11 @@ bool scoreSeries(const Plan& plan, const Step& st, StepSeries& s, const char* la
   const double f_lo = st.f0_hz + 0.2, f_hi = st.fmax_hz - 0.5;  // the sweep's edges are ramps in the spectrum
   r.est = comparePair(y_est, y_inst, kFs, chirp, f_lo, f_hi);
   r.sp = comparePair(y_inst, y_sp, kFs, chirp, f_lo, f_hi);
+  if (!isSeaStep(st)) {
+    // Fidelity (eq 15) measures how a torque trajectory is tracked; against the glove's held or zero force and the
+    // pen's walls it is a ratio of noise variances: not reported.
+    r.est.fidelity_percent = r.sp.fidelity_percent = std::nan("");
+  }
   judge(st.estimate_vs_instrument, r.est, "estimate_vs_instrument", r.checks);
   judge(st.setpoint_vs_instrument, r.sp, "setpoint_vs_instrument", r.checks);
   return true;
@@ -428,7 +434,8 @@ bool scoreSeries(const Plan& plan, const Step& st, StepSeries& s, const char* la
 namespace {
 
 nlohmann::json pairJson(const PairMetrics& m) {
-  nlohmann::json j = {{"rmse", m.rmse}, {"nrmse_percent", m.nrmse_percent}, {"fidelity_percent", m.fidelity_percent}};
+  nlohmann::json j = {{"rmse", m.rmse}, {"nrmse_percent", m.nrmse_percent}};
+  if (std::isfinite(m.fidelity_percent)) j["fidelity_percent"] = m.fidelity_percent;
   if (m.bandwidth_hz >= 0) {
     j["bandwidth_hz"] = m.bandwidth_hz;
     j["bandwidth_beyond_band"] = m.bandwidth_beyond_band;

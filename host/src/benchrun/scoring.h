@@ -10,12 +10,25 @@
 #include <vector>
 
 #include "phalanx/host/benchrun/runner.h"
+#include "phalanx/host/glove/glove_controller.h"
 
 namespace phalanx::host::benchrun {
 
 constexpr double kFs = 1000.0;       // one rig tick or one session cycle: 1 kHz
 constexpr size_t kSeaTorque0 = 7;    // sea_finger sample: SEA 0 joint torque estimate (devices.h)
 constexpr size_t kGloveForce0 = 15;  // glove5 sample: pad force of finger 0 (devices.h)
+
+/// A glove step's controller, as `phalanx bench glove-free-motion` / `glove-grasp` run it: transparent, or the
+/// rigid ball rendered.
+inline glove::GloveControllerConfig gloveStepControllerConfig(const Step& st) {
+  glove::GloveControllerConfig cc;
+  if (st.kind == "glove-grasp") {
+    cc.scene = glove::DemoScene::kRigidBall;
+  } else {
+    cc.transparent = true;
+  }
+  return cc;
+}
 
 /// The plan's run-time safety stage (`safety:`), counted in rig ticks (1 ms each): an instrument silent, or
 /// disagreeing with the device's estimate on every fresh sample, for longer than the plan allows stops the step.

@@ -76,11 +76,7 @@ class PlanController : public Controller {
 };
 
 std::unique_ptr<Controller> stepController(const Plan& plan, const Step& st) {
-  if (st.kind == "glove-free-motion") {
-    glove::GloveControllerConfig cc;
-    cc.transparent = true;
-    return std::make_unique<glove::GloveController>(cc);
-  }
+  if (isGloveStep(st)) return std::make_unique<glove::GloveController>(gloveStepControllerConfig(st));
   const bool chirp = st.kind == "sea-rig-chirp";
   const double f1 = chirp ? (st.fmax_hz - st.f0_hz) / (2.0 * st.seconds) : 0.0;  // eq 16, as in lockstep
   return std::make_unique<sea::SeaTrajectoryController>(
@@ -472,7 +468,8 @@ StepResult BenchHooks::finishStep(size_t i, size_t begin, size_t end) {
   }
   const Alignment a = alignInstrument(T, est_held, s_ms, v, kMaxLagMs);
   r.alignment = {{"delay_ms", a.delay_ms}, {"uncertainty_ms", a.uncertainty_ms}, {"correlation", a.correlation},
-                 {"quarter_delay_ms", a.quarter_delay_ms}, {"clock_drift_ppm", clockDriftPpm(frames)},
+                 {"quarter_delay_ms", a.quarter_delay_ms}, {"quarter_correlation", a.quarter_correlation},
+                 {"quarters_used", a.quarters_used}, {"clock_drift_ppm", clockDriftPpm(frames)},
                  {"ok", a.ok}};
   if (!a.ok) {
     if (r.error.empty()) r.error = "alignment: " + a.error;
@@ -523,22 +520,33 @@ Alignment alignInstrument(const std::vector<double>& T, const std::vector<double
     return a;
   }
   a.delay_ms = bestLag(T, est, s, v, 0, s.size(), max_lag_ms, a.correlation);
-  // The uncertainty: how far the four quarters of the step disagree (their sample standard deviation), at least
-  // the search step.
+  // The uncertainty: how far the quarters of the step disagree (their sample standard deviation), at least the
+  // search step. A quarter whose instrument does not follow the estimate (a held grasp's steady force: noise on
+  // both sides) has no delay of its own and is left out; two quarters at least must remain.
   double m = 0, m2 = 0;
   for (size_t q = 0; q < 4; ++q) {
     double c = 0;
     const double d = bestLag(T, est, s, v, q * s.size() / 4, (q + 1) * s.size() / 4, max_lag_ms, c);
     a.quarter_delay_ms.push_back(d);
+    a.quarter_correlation.push_back(c);
+    if (!std::isfinite(c) || c < kMinCorrelation) continue;
+    ++a.quarters_used;
     m += d;
     m2 += d * d;
   }
-  const double var = (m2 - m * m / 4) / 3;
+  const auto n = static_cast<double>(a.quarters_used);
+  const double var = n > 1 ? (m2 - m * m / n) / (n - 1) : 0.0;
   a.uncertainty_ms = std::max(kLagStepMs, std::sqrt(std::max(0.0, var)));
   char buf[200];
   if (!std::isfinite(a.correlation) || a.correlation < kMinCorrelation) {
     std::snprintf(buf, sizeof buf, "the instrument and the device's estimate do not correlate (%.3f at the best delay, "
                   "%.2f needed): the step's excitation does not fix a delay", a.correlation, kMinCorrelation);
+    a.error = buf;
+    return a;
+  }
+  if (a.quarters_used < 2) {
+    std::snprintf(buf, sizeof buf, "only %zu of the step's quarters follow the estimate (correlation %.2f or more): the "
+                  "delay cannot be checked against a second part of the step", a.quarters_used, kMinCorrelation);
     a.error = buf;
     return a;
   }
@@ -564,6 +572,10 @@ std::string realtimeUnsupported(const Plan& plan) {
       return w + ": instrument_hang_at_s / instrument_lie_at_s are faults of the lockstep's own amplifier: use --lockstep "
              "(in real time, fail the instrument itself)";
     }
+    if (plan.device.rfind("sim:", 0) == 0 && st.kind != plan.steps.front().kind && isGloveStep(st)) {
+      return w + ".kind: firmware-sim's simulated hand runs one scenario for the whole session (close-open for "
+             "glove-free-motion, grasp for glove-grasp): put " + st.kind + " in a plan of its own, or use --lockstep";
+    }
     if (st.finger != plan.steps.front().finger) {
       return w + ".finger: in real time one instrument reads one finger for the whole plan (" +
              std::to_string(plan.steps.front().finger) + " in steps[0])";
@@ -585,7 +597,8 @@ PlanResult runPlanOnDevice(const Plan& plan, const Progress& progress, const Dev
   opt.realtime = o.realtime;
   opt.seed = plan.seed;
   opt.firmware_sim = o.firmware_sim;
-  opt.scenario = plan.device_type == "glove5" ? "close-open" : "still";
+  // The simulated user (sim: devices): the glove's hand closes and opens, or reaches for and squeezes the ball.
+  opt.scenario = plan.device_type != "glove5" ? "still" : (plan.steps.front().kind == "glove-grasp" ? "grasp" : "close-open");
   opt.mode = "transparent";
   if (sim_instrument) {
     const modbus::InstrumentConfig& c = plan.instrument;

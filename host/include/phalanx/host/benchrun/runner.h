@@ -32,7 +32,7 @@ struct PairLimits {
 
 struct Step {
   std::string name;
-  std::string kind;              ///< sea-rig-sine | sea-rig-chirp | glove-free-motion | pen-wall
+  std::string kind;              ///< sea-rig-sine | sea-rig-chirp | glove-free-motion | glove-grasp | pen-wall
   double seconds = 8.0;
   double settle_s = 1.0;         ///< excluded from the metrics (start transient)
   double peak_Nm = 0.3;          ///< sine
@@ -92,8 +92,13 @@ struct Plan {
 /// allowed), in its setpoint unit; 0 if unknown.
 double deviceEffortLimit(const std::string& device_type);
 /// The largest |setpoint| a step commands: sine peak_Nm, chirp amplitude_Nm, glove free motion 0 (transparent),
-/// pen-wall the force split's per-joint torque limit (the PD+B scene is closed-loop; the split caps it).
+/// glove grasp the rendered contact force's clamp (10 N), pen-wall the force split's per-joint torque limit (the
+/// PD+B scene is closed-loop; the split caps it).
 double stepEffortMax(const Step& step);
+/// glove-free-motion or glove-grasp: a step on the glove, whose signals are one finger's pad force.
+bool isGloveStep(const Step& step);
+/// sea-rig-sine or sea-rig-chirp: a torque trajectory on the SEA rig (fidelity, eq 15, is reported for these only).
+bool isSeaStep(const Step& step);
 
 /// Parse and validate a plan; "" or "<source>: <key>: <problem>".
 std::string loadPlanText(const std::string& yaml, const std::string& source, Plan& plan);
@@ -184,9 +189,11 @@ PlanResult runPlanOnDevice(const Plan& plan, const Progress& progress, const Dev
 struct Alignment {
   bool ok = false;
   double delay_ms = 0.0;         ///< instrument sample time minus the time (host clock) of the device tick it shows
-  double uncertainty_ms = 0.0;   ///< spread of the four quarter-step estimates (at least the search step)
+  /// Spread of the quarter-step estimates whose quarter follows the estimate (at least the search step).
+  double uncertainty_ms = 0.0;
   double correlation = 0.0;      ///< normalised cross-correlation at the delay
-  std::vector<double> quarter_delay_ms;
+  std::vector<double> quarter_delay_ms, quarter_correlation;
+  size_t quarters_used = 0;      ///< quarters correlating at least as well as the whole step must
   std::string error;             ///< why ok is false
 };
 /// dev_host_ms: each device tick's time on the host clock (ms, ascending); est: the device's estimate at it;
