@@ -61,8 +61,9 @@ def timing_line(name, s, rate, fw_log=None):
 
 def sea_rig_bench(name, device, instrument_port, bin_dir, out_dir, check, fail):
     """A bench plan (docs/bench-runner.md "Real time") over a real link: `phalanx bench run` drives the sea_rig
-    firmware on DEVICE while firmware-sim serves the rig's load cell over Modbus TCP on 127.0.0.1:INSTRUMENT_PORT,
-    as a lab's board and amplifier. Checked (through check/fail): the plan ran through the session runner on that
+    firmware on DEVICE while the rig's load cell is served over Modbus TCP on 127.0.0.1:INSTRUMENT_PORT (by
+    firmware-sim in the VM lane, by the emulated board's amplifier in tools/mcu/qemu_board.py plan), as a lab's
+    board and amplifier. Checked (through check/fail): the plan ran through the session runner on that
     link (the session ended cleanly) and its instrument was read. The limits' verdict, the alignment, any step error
     and what the link kept (telemetry rate, ticks unseen, the device clock's rate) are returned as one line, not
     gated: the emulated VM keeps neither 1 kHz nor a steady delay (measured over CAN: the instrument's delay wandered

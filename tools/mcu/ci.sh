@@ -36,6 +36,12 @@ tools/mcu/session-test.sh --app pantograph --seconds 4 --plant-period-ms 8
 for app in glove5 sea_finger pantograph; do
   tools/mcu/session-test.sh --board ast1030-evb --app "$app" --seconds 4 --rate-hz 1000 --host-realtime
 done
+# A bench plan in real time on the emulated SEA rig board (issue 26): `phalanx bench run` drives the sea_finger image
+# on ast1030-evb over its UART at 1 kHz while the harness serves the board's load cell (its truth, written on the
+# board's instrument UART) as a Modbus TCP amplifier on pymodbus. Gated: the plan ran over the board's link, the
+# session ended cleanly, the amplifier served the board's lines and was read. Printed, not gated: the limits'
+# verdict and the alignment, which measure the emulator's timing on this machine (docs/bench-runner.md).
+python3 tools/mcu/qemu_board.py plan --board ast1030-evb --app sea_finger
 
 # Cycle gates: worst-case control tick in instructions (qemu -icount shift=2, host 100 Hz, 3 s session). A gate is
 # a regression guard set above the app's measured worst case (docs/firmware-mcu.md, "Cycle budget"), not the

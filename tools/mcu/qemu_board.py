@@ -13,6 +13,10 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
                              halted): wrong-device, wrong-board and corrupt images are refused with nothing written;
                              the good image is written and the board answers the handshake with its build id.
   qemu_board.py blank     -- start a blank board waiting for a debugger (print its pty and gdbstub port).
+  qemu_board.py plan      -- a bench plan in real time on the emulated SEA rig board (docs/bench-runner.md): the
+                             board writes its load cell's true torque on its instrument UART, this script serves it
+                             as a Modbus TCP amplifier (pymodbus), and `phalanx bench run` drives the board over its
+                             link and polls the amplifier, as on a lab's bench.
 
 The protocol link is the CMSDK UART0 exposed with `-serial pty`; the debug console (UART1) is QEMU's stdout.
 QEMU's CMSDK UART model takes one received byte per guest read (docs/firmware-mcu.md: about 25-30 kB/s), so the
@@ -83,12 +87,15 @@ def realtime_prefix():
 class Board:
     """One QEMU process; collects its stdout (debug console + QEMU's own messages) in a background thread."""
 
-    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386", gdb_port=None):
+    def __init__(self, elf, seconds=0, icount=None, extra=(), machine="mps2-an386", gdb_port=None, instrument=False):
         # UART0 (the protocol link) on a pty, UART1 (debug console) on stdout; semihosting only for the
         # command line and the exit status. elf=None with a gdb_port: a blank board (nothing loaded; the core
         # halted until a debugger lets it run: -S), the image to be written through the gdbstub (`phalanx flash`).
+        # instrument: the board's instrument UART (the third -serial) on a pty of its own (self.instrument_pty).
         args = ["qemu-system-arm", "-M", machine, "-nographic", "-monitor", "none",
-                "-serial", "pty", "-serial", "stdio"]
+                "-serial", "pty", "-serial", "stdio"] + (["-serial", "pty"] if instrument else [])
+        if instrument:
+            extra = list(extra) + ["instrument=1"]
         if gdb_port is not None:
             args += ["-gdb", f"tcp:127.0.0.1:{gdb_port}"] + (["-S"] if elf is None else [])
         sh = ["enable=on", "target=native", "arg=fw", f"arg=seconds={seconds}"] + [f"arg={e}" for e in extra]
@@ -106,10 +113,13 @@ class Board:
         self.lock = threading.Lock()
         self.reader = threading.Thread(target=self._read, daemon=True)
         self.reader.start()
-        self.pty = None
-        m = self.wait_for(r"char device redirected to (/dev/pts/\d+)", 10)
+        self.pty = self.instrument_pty = None
+        m = self.wait_for(r"char device redirected to (/dev/pts/\d+) \(label serial0\)", 10)
         if m:
             self.pty = m.group(1)
+        if instrument:
+            m = self.wait_for(r"char device redirected to (/dev/pts/\d+) \(label serial2\)", 10)
+            self.instrument_pty = m.group(1) if m else None
         if elf is not None and not self.wait_for(r"^BOOT ", 30):
             raise RuntimeError("firmware did not boot:\n" + self.text())
 
@@ -403,6 +413,124 @@ def with_info(data, **fields):
     return bytes(out)
 
 
+class Amplifier:
+    """The emulated board's load cell as a Modbus TCP amplifier on pymodbus (PyPI), outside the host: reads the
+    board's instrument lines ("I <plant_ms> <micro-units>", board_main.cpp) from its pty and serves the newest as
+    int32 counts of `scale` SI units, big-endian words, input registers from 0, unit 1 (the bench plans' map).
+    Its two threads run under SCHED_FIFO 70 when permitted, as firmware-sim's amplifier does: an amplifier has a CPU
+    of its own, and beside a loaded machine's other work pymodbus answered too late for 5.8 % of a plan's polls
+    (50 ms timeout)."""
+
+    def __init__(self, pty, scale=1e-5):
+        import termios
+        import tty
+        self.scale = scale
+        self.counts = 0
+        self.lines = 0
+        self.bad = 0
+        self.fd = os.open(pty, os.O_RDONLY | os.O_NOCTTY)
+        tty.setraw(self.fd, termios.TCSANOW)
+        threading.Thread(target=self._read, daemon=True).start()
+        self.port = free_port()
+        threading.Thread(target=self._serve, daemon=True).start()
+        for _ in range(250):  # until it accepts connections
+            time.sleep(0.02)
+            try:
+                with socket.create_connection(("127.0.0.1", self.port), timeout=0.2):
+                    return
+            except OSError:
+                continue
+        raise RuntimeError("the amplifier did not start listening")
+
+    @staticmethod
+    def _realtime():
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(70))  # this thread only
+        except (PermissionError, OSError):
+            pass
+
+    def _read(self):
+        self._realtime()
+        buf = b""
+        while True:
+            try:
+                chunk = os.read(self.fd, 4096)
+            except OSError:
+                return
+            if not chunk:
+                return
+            buf += chunk
+            *whole, buf = buf.split(b"\n")
+            for line in whole:
+                f = line.split()
+                if len(f) == 3 and f[0] == b"I":
+                    self.counts = round(int(f[2]) * 1e-6 / self.scale)
+                    self.lines += 1
+                else:
+                    self.bad += 1
+
+    def _serve(self):
+        self._realtime()
+        import asyncio
+        from pymodbus.datastore import ModbusSequentialDataBlock, ModbusServerContext, ModbusSlaveContext
+        from pymodbus.server import StartAsyncTcpServer
+        amp = self
+
+        class Block(ModbusSequentialDataBlock):
+            def __init__(self):
+                super().__init__(1, [0] * 4)  # pymodbus numbers registers from 1 (PDU address 0 is its 1)
+
+            def getValues(self, address, count=1):
+                c = amp.counts & 0xFFFFFFFF
+                return [c >> 16, c & 0xFFFF, 0, 0][address - 1:address - 1 + count]
+
+        context = ModbusServerContext(slaves={1: ModbusSlaveContext(ir=Block(), hr=Block())}, single=False)
+        asyncio.run(StartAsyncTcpServer(context=context, address=("127.0.0.1", self.port)))
+
+
+def plan(args):
+    """A sea-rig sine plan in real time against the emulated board and its amplifier (tests/vm/vmlib.py
+    sea_rig_bench, as the VM lane runs it over CAN and USB). Gated: the plan ran through the session runner over
+    the board's link, the session ended cleanly, the amplifier served the board's lines and was read. Printed, not
+    gated: the limits' verdict and the alignment (an emulator's timing)."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "vm"))
+    from vmlib import sea_rig_bench
+    c = Checks()
+    if args.app != "sea_finger":
+        print("plan: the emulated board serves an instrument for the SEA rig only (--app sea_finger)", file=sys.stderr)
+        return 2
+    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra, machine=args.board,
+                  instrument=True)
+    out = tempfile.mkdtemp(prefix="phalanx-qemu-plan-")
+    try:
+        print(f"board up: pty={board.pty} instrument={board.instrument_pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
+        c.check(board.instrument_pty is not None, "QEMU exposed the board's instrument UART as a pty")
+        amp = Amplifier(board.instrument_pty)
+        time.sleep(0.2)
+        c.check(amp.lines > 0 and amp.bad == 0, "the board writes its load cell's truth on its instrument UART",
+                f"lines={amp.lines} unreadable={amp.bad}")
+
+        def check(ok, why):  # vmlib's convention: why is the failure's description
+            if ok:
+                c.passed += 1
+            else:
+                c.check(False, why)
+
+        def fail(why):
+            c.check(False, why)
+            raise RuntimeError(why)
+
+        line = sea_rig_bench("qemu-plan", f"serial:{board.pty}", amp.port, BIN, out, check, fail)
+        print(f"RESULT qemu-plan {args.board}: {line} (amplifier: {amp.lines} board lines)")
+    except RuntimeError:
+        pass
+    finally:
+        board.stop()
+        print(f"  the plan's JSON summary and the runner's stderr: {out}/qemu-plan.*; its report: /tmp/qemu-plan.html")
+    print(f"qemu plan {args.app}: {c.passed} passed, {c.failed} failed")
+    return 0 if c.failed == 0 else 1
+
+
 def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -571,7 +699,7 @@ def serve(board):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("mode", choices=["session", "bench", "run", "flash", "blank"])
+    ap.add_argument("mode", choices=["session", "bench", "run", "flash", "blank", "plan"])
     ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
     ap.add_argument("--board", default="mps2-an386", choices=sorted(BOARDS),
                     help="emulated board (QEMU machine): mps2-an386 (CMSDK UART, host 100 Hz) or ast1030-evb "
@@ -603,7 +731,7 @@ def main():
         args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
-    return {"session": session, "bench": bench, "run": run, "flash": flash, "blank": blank}[args.mode](args)
+    return {"session": session, "bench": bench, "run": run, "flash": flash, "blank": blank, "plan": plan}[args.mode](args)
 
 
 if __name__ == "__main__":

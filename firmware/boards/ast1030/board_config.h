@@ -17,6 +17,7 @@ constexpr const char* kBoardName = "ast1030-evb";
 constexpr const char* kLinkName = "uart5";
 constexpr uint32_t kLinkBase = ast1030::kUart5Base;
 constexpr uint32_t kConsoleBase = ast1030::kUart1Base;
+constexpr uint32_t kInstrumentBase = ast1030::kUart2Base;  ///< option instrument=1: the plant's truth, one line per step
 /// UART5 = IRQ 8 (QEMU aspeed_soc_ast1030_irqmap); handler LinkUart_Handler (startup.cpp).
 constexpr uint32_t kLinkIrqs[] = {ast1030::kUart5Irq};
 }  // namespace phalanx::mcu::board

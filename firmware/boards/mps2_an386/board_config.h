@@ -15,6 +15,7 @@ constexpr const char* kBoardName = "mps2-an386";
 constexpr const char* kLinkName = "uart0";
 constexpr uint32_t kLinkBase = mps2::kUart0Base;
 constexpr uint32_t kConsoleBase = mps2::kUart1Base;
+constexpr uint32_t kInstrumentBase = mps2::kUart2Base;  ///< option instrument=1: the plant's truth, one line per step
 /// UART0 RX = IRQ 0, TX = IRQ 1 (QEMU hw/arm/mps2.c); both enter LinkUart_Handler (startup.cpp).
 constexpr uint32_t kLinkIrqs[] = {mps2::kUart0RxIrq, mps2::kUart0TxIrq};
 }  // namespace phalanx::mcu::board

@@ -18,6 +18,9 @@
 //   seconds=N   stop after N s with a STATS line and exit QEMU (0: run until killed)
 //   icount_shift=N   the -icount shift QEMU was started with: tick durations are then reported in instructions
 //   scenario=still|close-open|grasp|random   seed=N   noise=0|1   substep_us=N   (the simulated hand)
+//   instrument=1   the plant's truth on the instrument UART (board_config.h kInstrumentBase), one line per plant
+//                  step, "I <plant_ms> <value in micro-units>": a bench's load cell outside the host, which
+//                  tools/mcu/qemu_board.py serves as a Modbus amplifier (SEA rig only: sim_devices.h)
 #include <cstddef>
 #include <cstdint>
 
@@ -60,6 +63,7 @@ struct Options {
   /// time. Larger values cap the CPU the physics takes (slow motion) so the UART keeps its throughput in
   /// real-time emulation, where every instruction the plant runs delays QEMU's delivery of received bytes.
   uint32_t plant_period_ms = 1;
+  bool instrument = false;
   PlantOptions plant;
 };
 
@@ -70,6 +74,7 @@ using Stats = TickStats<2048, 16>;       // 16-instruction bins up to 32768 inst
 fw_mcu::StaticObject<LinkUart> g_uart_obj;
 LinkUart& uartLink() { return g_uart_obj.get(); }
 DebugConsole g_console;
+DebugConsole g_instrument;  // option instrument=1 (written by the plant, PendSV, only)
 fw_mcu::StaticObject<sim::SimBoard> g_board;
 fw_mcu::StaticObject<fw_mcu::AppType> g_app;
 fw_mcu::StaticObject<PlantType> g_plant;
@@ -167,6 +172,7 @@ Options parseCommandLine() {
     else if (tokenIs(tok, len, "seed=", v, vl)) o.plant.seed = parseU32(v, vl);
     else if (tokenIs(tok, len, "noise=", v, vl)) o.plant.noise = vl > 0 && v[0] != '0';
     else if (tokenIs(tok, len, "substep_us=", v, vl)) o.plant.substep_us = parseU32(v, vl);
+    else if (tokenIs(tok, len, "instrument=", v, vl)) o.instrument = vl > 0 && v[0] != '0' && kInstrumentSignal != nullptr;
     else if (tokenIs(tok, len, "plant_period_ms=", v, vl)) {
       o.plant_period_ms = parseU32(v, vl) == 0 ? 1u : parseU32(v, vl);
     }
@@ -312,6 +318,7 @@ extern "C" void PendSV_Handler() {
   g_plant.get().step(1.0 / kTickHz, g_board.get().io());
   g_plant_ms = g_plant_ms + 1u;
   g_plant_steps = g_plant_steps + 1u;
+  if (g_opt.instrument) g_instrument.str("I ").u32(g_plant_ms).str(" ").i32(instrumentMicro(g_plant.get())).end();
   if (g_plant_ms < g_ms && g_opt.plant_period_ms == 1) cm4::reg(cm4::kScbIcsr) = 1u << 28;
 }
 
@@ -350,6 +357,7 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   g_diag_obj.emplace();
   g_uart_obj.emplace();
   uartLink().init(kLinkBase, 115200u);
+  if (g_opt.instrument) g_instrument.init(kInstrumentBase);
   fw_mcu::AppType& app = fw_mcu::constructApp(g_app);
   g_plant.emplace(plantConfig(g_opt.plant));
   sim::SimBoard& board = g_board.emplace(fw_mcu::kAppPwmCount, fw_mcu::kAppAdcCount, fw_mcu::kAppEncoderCount, uartLink());
@@ -378,6 +386,7 @@ extern "C" [[noreturn]] void phalanx_board_main() {
       .str(" seconds=").u32(g_opt.seconds)
       .str(" plant_period_ms=").u32(g_opt.plant_period_ms)
       .str(" icount_shift=").u32(static_cast<uint32_t>(g_opt.icount_shift < 0 ? 0 : g_opt.icount_shift))
+      .str(" instrument=").str(g_opt.instrument ? kInstrumentSignal : "none")
       .end();
 
   cm4::setSysTickPriority(kPrioTick);

@@ -78,6 +78,9 @@ inline int scenarioNumber(const char* s, int len) {
   if (is("random")) return static_cast<int>(sim::HandScenario::kRandom);
   return -1;
 }
+/// The simulated instrument (option instrument=1): none on the glove board yet.
+constexpr const char* kInstrumentSignal = nullptr;
+inline int32_t instrumentMicro(const PlantType&) { return 0; }
 }  // namespace phalanx::mcu::qemu
 
 #elif defined(PHALANX_MCU_APP_SEA_FINGER)
@@ -103,6 +106,13 @@ inline sim::SeaPlantConfig plantConfig(const PlantOptions& o) {
 inline int scenarioNumber(const char* s, int len) {
   if (spells(s, len, "rig")) return static_cast<int>(sim::SeaVariant::kRig);
   return -1;
+}
+/// The simulated instrument (option instrument=1): the rig's load cell on SEA 0, its true joint torque, as
+/// firmware-sim's sea_rig serves it (docs/bench-runner.md "Devices"), in µN·m.
+constexpr const char* kInstrumentSignal = "joint_torque_uNm";
+inline int32_t instrumentMicro(const PlantType& p) {
+  const double v = p.truth(0).joint_torque_Nm * 1e6;
+  return static_cast<int32_t>(v < -2e9 ? -2e9 : (v > 2e9 ? 2e9 : v));
 }
 }  // namespace phalanx::mcu::qemu
 #elif defined(PHALANX_MCU_APP_PANTOGRAPH)
@@ -132,6 +142,9 @@ inline int scenarioNumber(const char* s, int len) {
   if (spells(s, len, "released")) return static_cast<int>(sim::PenHandScenario::kReleased);
   return -1;
 }
+/// The simulated instrument (option instrument=1): none on the pen board yet.
+constexpr const char* kInstrumentSignal = nullptr;
+inline int32_t instrumentMicro(const PlantType&) { return 0; }
 }  // namespace phalanx::mcu::qemu
 #else
 #error "no simulated plant for this device app on the emulated board (firmware/boards/qemu/sim_devices.h)"

@@ -21,6 +21,7 @@
 namespace phalanx::mcu::ast1030 {
 
 constexpr uint32_t kUart1Base = 0x7E783000u;  ///< debug console (QEMU: the second -serial)
+constexpr uint32_t kUart2Base = 0x7E78D000u;  ///< the simulated instrument's output (QEMU: the third -serial)
 constexpr uint32_t kUart5Base = 0x7E784000u;  ///< protocol link (QEMU: the first -serial, the board's default UART)
 constexpr uint32_t kUart5Irq = 8;
 

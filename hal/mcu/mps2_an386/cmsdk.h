@@ -9,6 +9,7 @@ constexpr uint32_t kSysclkHz = 25000000u;  ///< SYSCLK = PCLK; SysTick counts it
 
 constexpr uint32_t kUart0Base = 0x40004000u;  ///< protocol link (QEMU -serial #0)
 constexpr uint32_t kUart1Base = 0x40005000u;  ///< debug console (QEMU -serial #1)
+constexpr uint32_t kUart2Base = 0x40006000u;  ///< the simulated instrument's output (QEMU -serial #2)
 constexpr uint32_t kUart0RxIrq = 0;
 constexpr uint32_t kUart0TxIrq = 1;
 

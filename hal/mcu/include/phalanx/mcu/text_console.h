@@ -25,6 +25,10 @@ class TextConsole {
     return str(buf + i);
   }
   TextConsole& u32(uint32_t v) { return u64(v); }
+  TextConsole& i32(int32_t v) {
+    if (v < 0) str("-");
+    return u64(v < 0 ? 0u - static_cast<uint32_t>(v) : static_cast<uint32_t>(v));
+  }
   TextConsole& hex16(uint16_t v) {
     constexpr char kDigits[] = "0123456789abcdef";
     const char buf[7] = {'0', 'x', kDigits[(v >> 12) & 0xF], kDigits[(v >> 8) & 0xF], kDigits[(v >> 4) & 0xF],
