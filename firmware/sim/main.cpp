@@ -388,77 +388,281 @@ class CodeFlash {
   std::optional<phalanx::fw::FirmwareUpdate> updater_;
 };
 
+/// Every command-line option of firmware-sim.
+struct SimOptions {
+  std::string device = "glove5";
+  unsigned tick_hz = 1000;
+  unsigned substeps = 10;
+  phalanx::fw_sim::SimDeviceOptions dev;
+  bool exit_with_parent = false;
+  double seconds = 0.0;
+  std::string can_if;
+  unsigned can_node = 1;
+  std::string can_mode = "fd";
+  std::string ffs_dir, tty_path, truth_path;
+  int fifo = 0;
+  std::string settings_path;
+  unsigned settings_layout = 0;
+  std::vector<std::string> inject_args;
+  std::string flash_path, flash_provision;
+  long long power_cut_after = -1;
+};
+
+void addOptions(CLI::App& cli, SimOptions& o, TruthInstrument& instrument) {
+  cli.add_option("--device", o.device, "glove5 | sea_finger | sea_rig | pantograph");
+  cli.add_option("--tick-hz", o.tick_hz, "firmware tick rate")->check(CLI::Range(100u, 10000u));
+  cli.add_option("--substeps", o.substeps, "plant integration steps per tick")->check(CLI::Range(1u, 100u));
+  cli.add_option("--seed", o.dev.seed, "plant noise seed");
+  cli.add_option("--scenario", o.dev.scenario, "simulated user: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)|press (pantograph: push along +x)")
+      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic", "press"}));
+  cli.add_option("--seconds", o.seconds, "stop after this long (0: until SIGTERM)")->check(CLI::Range(0.0, 86400.0));
+  cli.add_option("--can", o.can_if, "talk over this SocketCAN interface instead of a pseudo-terminal");
+  cli.add_option("--node", o.can_node, "CAN node id")->check(CLI::Range(1u, 63u));
+  cli.add_option("--can-mode", o.can_mode, "fd (one message per CAN-FD frame) | fd-compact (short CAN-FD command and telemetry "
+                 "frames, docs/protocol.md) | classic (compact 8-byte frames)")
+      ->check(CLI::IsMember({"fd", "fd-compact", "classic"}));
+  cli.add_option("--ffs", o.ffs_dir, "be a USB device: a mounted FunctionFS instance (e.g. /dev/ffs-phalanx)");
+  cli.add_option("--tty", o.tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
+  cli.add_option("--truth", o.truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
+  instrument.addOptions(cli);
+  cli.add_flag("--exit-with-parent", o.exit_with_parent, "terminate when the parent process dies");
+  cli.add_option("--fifo", o.fifo,
+                 "run under SCHED_FIFO at this priority with memory locked (0: off): a simulated board has a CPU of its "
+                 "own, which the host machine's load must not starve (the bench runner asks for 70)")
+      ->check(CLI::Range(0, 99));
+  cli.add_option("--settings", o.settings_path,
+                 "the board's settings flash, kept in this file (created when absent): a restart is a power cycle "
+                 "(docs/params.md)");
+  cli.add_option("--settings-layout", o.settings_layout,
+                 "be the firmware that writes this settings layout version (0: the newest; tests play an older "
+                 "firmware before an update with it)")
+      ->check(CLI::Range(0u, 255u));
+  cli.add_option("--inject", o.inject_args,
+                 "fail an input on the board's clock (repeatable): sensor-range@T, sensor-stuck@T, estop@T+D (seconds; "
+                 "docs/soak.md)");
+  cli.add_option("--flash", o.flash_path,
+                 "the board's code flash (two image slots and a boot record, the STM32G474's geometry), kept in this file: "
+                 "firmware update over the link; the HelloAck's build id is the booted slot's (docs/firmware-update.md)");
+  cli.add_option("--flash-provision", o.flash_provision,
+                 "when no slot of --flash holds a valid image, write this one into slot 0 first (as the factory would)");
+  cli.add_option("--flash-power-cut-after", o.power_cut_after,
+                 "lose power after this many more bytes are programmed into --flash: the process ends at once with status 75")
+      ->check(CLI::Range(0ll, 1ll << 30));
+}
+
+/// The board's link to the host: a pseudo-terminal (the default), a serial device (--tty, reopened after a hang-up),
+/// SocketCAN (--can) or a FunctionFS USB device (--ffs).
+class HostLink {
+ public:
+  explicit HostLink(const SimOptions& o) : o_(o), can_(!o.can_if.empty()), ffs_(!o.ffs_dir.empty()), tty_(!o.tty_path.empty()) {}
+  /// More than one of --can, --ffs, --tty.
+  bool ambiguous() const { return static_cast<int>(can_) + static_cast<int>(ffs_) + static_cast<int>(tty_) > 1; }
+
+  /// "" or why the link did not open.
+  std::string open(phalanx::protocol::DeviceType type) {
+    using namespace phalanx;
+    if (ffs_) return ffs.open(o_.ffs_dir);
+    if (tty_) return tty.open(o_.tty_path, 0);
+    if (!can_) return pty.open();
+    linux_hal::CanLink::Options c;
+    c.ifname = o_.can_if;
+    c.node = static_cast<uint8_t>(o_.can_node);
+    c.flavor = o_.can_mode == "classic"      ? protocol::can::Flavor::kClassic
+               : o_.can_mode == "fd-compact" ? protocol::can::Flavor::kFdCompact
+                                             : protocol::can::Flavor::kFd;
+    c.role = protocol::can::Role::kDevice;
+    std::string err = can.open(c);
+    if (err.empty()) can.setDevice(type, static_cast<uint16_t>(o_.tick_hz));
+    return err;
+  }
+
+  /// The byte stream the board's UART stands for (unused when the protocol runs over packets()).
+  phalanx::linux_hal::FdLink& stream() {
+    return tty_ ? static_cast<phalanx::linux_hal::FdLink&>(tty) : static_cast<phalanx::linux_hal::FdLink&>(pty);
+  }
+  phalanx::hal::PacketLink* packets() {
+    if (can_) return &can;
+    if (ffs_) return &ffs;
+    return nullptr;
+  }
+
+  /// The line the tools wait for on stdout once the link is up.
+  void announce() const {
+    if (can_) {
+      std::printf("CAN %s node %u %s\n", o_.can_if.c_str(), o_.can_node, o_.can_mode.c_str());
+    } else if (ffs_) {
+      std::printf("USB %s\n", o_.ffs_dir.c_str());
+    } else if (tty_) {
+      std::printf("TTY %s\n", o_.tty_path.c_str());
+    } else {
+      std::printf("PTY %s\n", pty.slavePath().c_str());
+    }
+  }
+
+  /// Before tick n: the USB function's state, and a hung-up tty reopened (every 50 ms until it is back).
+  void service(uint64_t n, uint64_t now_us) {
+    if (ffs_) {
+      ffs.service();
+      if (ffs.online() != ffs_online_) {
+        ffs_online_ = ffs.online();
+        std::fprintf(stderr, "firmware-sim: USB %s t_us=%llu\n", ffs_online_ ? "enabled (host configured us)" : "disabled (unplugged)",
+                     static_cast<unsigned long long>(now_us));
+      }
+    }
+    if (!tty_ || !tty.hungUp() || n < tty_reopen_at_) return;
+    // USB unplug hangs the gadget's tty up: this descriptor is dead for good; reopen until the port is back.
+    if (tty.isOpen()) {
+      std::fprintf(stderr, "firmware-sim: TTY %s hung up t_us=%llu\n", o_.tty_path.c_str(), static_cast<unsigned long long>(now_us));
+    }
+    tty.close();
+    if (tty.open(o_.tty_path, 0).empty()) {
+      std::fprintf(stderr, "firmware-sim: TTY %s reopened t_us=%llu\n", o_.tty_path.c_str(), static_cast<unsigned long long>(now_us));
+    } else {
+      tty_reopen_at_ = n + o_.tick_hz / 20;
+    }
+  }
+
+  /// After the tick: what it queued goes out (FunctionFS submits as it is written).
+  void flush() {
+    if (can_) {
+      can.flush();
+    } else if (tty_) {
+      tty.flush();
+    } else if (!ffs_) {
+      pty.flush();
+    }
+  }
+
+  void printStats() const { printLinkStats(ffs_ ? &ffs : nullptr, can_ ? &can : nullptr); }
+
+ private:
+  const SimOptions& o_;
+  const bool can_, ffs_, tty_;
+  phalanx::linux_hal::PtyMaster pty;
+  phalanx::linux_hal::SerialLink tty;
+  phalanx::linux_hal::CanLink can;
+  phalanx::linux_hal::FfsLink ffs;
+  bool ffs_online_ = false;
+  uint64_t tty_reopen_at_ = 0;
+};
+
+/// The board's settings store on its flash (--settings; loaded by the firmware core when it starts), or nullptr;
+/// error says why it could not be used.
+std::unique_ptr<phalanx::fw::SettingsStore> openSettings(const SimOptions& o, phalanx::fw_sim::SimDevice& dev,
+                                                         phalanx::sim::FileFlash& flash, std::string& error) {
+  if (o.settings_path.empty()) return nullptr;
+  if (const std::string err = flash.open(o.settings_path); !err.empty()) {
+    error = "--settings " + err;
+    return nullptr;
+  }
+  auto store = std::make_unique<phalanx::fw::SettingsStore>(flash, 0, static_cast<uint16_t>(o.settings_layout));
+  if (store->layoutVersion(dev.app()) == 0) {
+    error = "--settings-layout " + std::to_string(o.settings_layout) + ": " + o.device + " has no such settings layout";
+    return nullptr;
+  }
+  return store;
+}
+
+/// What the firmware core found in the settings flash when it started.
+void reportSettings(const phalanx::fw::SettingsStore& store, phalanx::fw_sim::SimDevice& dev) {
+  const phalanx::fw::SettingsReport& r = store.lastLoad();
+  std::fprintf(stderr, "firmware-sim: settings layout v%u: %s (record v%u seq %u) applied=%u refused=%u dropped=%u\n",
+               store.layoutVersion(dev.app()), phalanx::fw::settingsLoadName(r.result), r.record_version,
+               static_cast<unsigned>(r.sequence), r.applied, r.refused, r.dropped);
+}
+
+/// The running board: plant, sensors, firmware core and link, one tick at a time.
+struct RunningBoard {
+  const SimOptions& o;
+  phalanx::fw_sim::SimDevice& dev;
+  phalanx::sim::SimBoard& board;
+  HostLink& link;
+  phalanx::fw_sim::FaultInjector& injector;
+  TruthLog& truth;
+  TruthInstrument& instrument;
+  CodeFlash& code_flash;
+  phalanx::fw::CoreConfig& cfg;
+  std::optional<phalanx::fw::FirmwareCore>& core;
+  LogObserver& observer;
+  std::vector<double> truth_values;
+  uint64_t period_us = 1000000u / o.tick_hz;
+  bool was_active = false;
+
+  /// Tick n (1 ms at 1 kHz): physics, injected faults, truth, the link's upkeep, the firmware, a reset after an
+  /// update, the link's output and the safe-state report.
+  void tick(uint64_t n) {
+    dev.plant().advance(static_cast<double>(period_us) * 1e-6 / o.substeps, o.substeps, board.io());
+    board.clock().advanceUs(period_us);
+    const uint64_t now_us = board.clock().nowUs();
+    injector.apply(now_us, board.io(), stderr);
+    if (truth.isOpen() || instrument.enabled()) {
+      // One truth per tick for both: the instrument serves what the truth file says, before this tick's telemetry.
+      dev.truthValues(truth_values.data());
+      truth.write(now_us, truth_values);
+      instrument.update(truth_values);
+    }
+    const uint64_t deadline_us = core->commandDeadlineUs();
+    link.service(n, now_us);
+    core->tick();
+    if (code_flash.enabled() && code_flash.flash().powerLost()) {
+      std::fprintf(stderr, "firmware-sim: power lost (--flash-power-cut-after) t_us=%llu\n", static_cast<unsigned long long>(now_us));
+      std::_Exit(75);  // as a board losing power: nothing more is written or flushed
+    }
+    if (cfg.update != nullptr && cfg.update->rebootRequested()) resetAfterUpdate();
+    link.flush();
+    // Observe the power stage itself (the simulated H-bridges), not the core's opinion of it.
+    const bool active = board.io().pwm_enabled;
+    if (was_active && !active) {
+      std::fprintf(stderr, "firmware-sim: SAFE t_us=%llu deadline_us=%llu period_us=%llu faults=0x%04x\n",
+                   static_cast<unsigned long long>(now_us), static_cast<unsigned long long>(deadline_us),
+                   static_cast<unsigned long long>(period_us), core->faultBits());
+    }
+    was_active = active;
+  }
+
+  /// The board resets into the image the update committed (outputs off first).
+  void resetAfterUpdate() {
+    board.board().pwm->disableAll();
+    code_flash.reboot();
+    cfg.firmware_build_id = code_flash.boot().build_id;
+    cfg.update = code_flash.updater();
+    core.emplace(board.board(), dev.app(), cfg);
+    core->setObserver(&observer);
+    code_flash.report("reset after the update, boot");
+  }
+
+  void printSummary(uint64_t overruns) const {
+    std::fprintf(stderr,
+                 "firmware-sim: stopped ticks=%u overruns=%llu commands=%u rejected=%u cmd_lost=%u cmd_stale=%u rx_crc=%u "
+                 "rx_framing=%u rx_invalid=%u rx_wrong_direction=%u tx_dropped=%u faults=0x%04x\n",
+                 core->counters().ticks, static_cast<unsigned long long>(overruns), core->counters().commands_applied,
+                 core->counters().commands_rejected, core->counters().cmd_lost, core->counters().cmd_stale,
+                 core->rxStats().crc_errors, core->rxStats().framing_errors, core->counters().frames_invalid,
+                 core->counters().frames_wrong_direction, core->counters().tx_dropped, core->faultBits());
+  }
+};
+
+int fail(int code, const std::string& what) {
+  std::fprintf(stderr, "firmware-sim: error: %s\n", what.c_str());
+  return code;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace phalanx;
   CLI::App cli{"firmware-sim - Phalanx firmware on the simulated board, linked over a pseudo-terminal"};
-  std::string device = "glove5";
-  unsigned tick_hz = 1000;
-  unsigned substeps = 10;
-  fw_sim::SimDeviceOptions dev_opt;
-  bool exit_with_parent = false;
-  double seconds = 0.0;
-  cli.add_option("--device", device, "glove5 | sea_finger | sea_rig | pantograph");
-  cli.add_option("--tick-hz", tick_hz, "firmware tick rate")->check(CLI::Range(100u, 10000u));
-  cli.add_option("--substeps", substeps, "plant integration steps per tick")->check(CLI::Range(1u, 100u));
-  cli.add_option("--seed", dev_opt.seed, "plant noise seed");
-  cli.add_option("--scenario", dev_opt.scenario, "simulated user: still|close-open|grasp|random|spastic (sea_finger: a stretch reflex)|press (pantograph: push along +x)")
-      ->check(CLI::IsMember({"still", "close-open", "grasp", "random", "spastic", "press"}));
-  cli.add_option("--seconds", seconds, "stop after this long (0: until SIGTERM)")->check(CLI::Range(0.0, 86400.0));
-  std::string can_if;
-  unsigned can_node = 1;
-  std::string can_mode = "fd";
-  cli.add_option("--can", can_if, "talk over this SocketCAN interface instead of a pseudo-terminal");
-  cli.add_option("--node", can_node, "CAN node id")->check(CLI::Range(1u, 63u));
-  cli.add_option("--can-mode", can_mode, "fd (one message per CAN-FD frame) | fd-compact (short CAN-FD command and telemetry "
-                 "frames, docs/protocol.md) | classic (compact 8-byte frames)")
-      ->check(CLI::IsMember({"fd", "fd-compact", "classic"}));
-  std::string ffs_dir;
-  std::string tty_path;
-  cli.add_option("--ffs", ffs_dir, "be a USB device: a mounted FunctionFS instance (e.g. /dev/ffs-phalanx)");
-  cli.add_option("--tty", tty_path, "talk over this serial device (e.g. the gadget's /dev/ttyGS0)");
-  std::string truth_path;
-  cli.add_option("--truth", truth_path, "write the plant's ground truth after every tick to this CSV (docs/sdk.md \"Plant truth\")");
+  SimOptions o;
   TruthInstrument instrument;
-  instrument.addOptions(cli);
-  cli.add_flag("--exit-with-parent", exit_with_parent, "terminate when the parent process dies");
-  int fifo = 0;
-  cli.add_option("--fifo", fifo,
-                 "run under SCHED_FIFO at this priority with memory locked (0: off): a simulated board has a CPU of its "
-                 "own, which the host machine's load must not starve (the bench runner asks for 70)")
-      ->check(CLI::Range(0, 99));
-  std::string settings_path;
-  unsigned settings_layout = 0;
-  cli.add_option("--settings", settings_path,
-                 "the board's settings flash, kept in this file (created when absent): a restart is a power cycle "
-                 "(docs/params.md)");
-  cli.add_option("--settings-layout", settings_layout,
-                 "be the firmware that writes this settings layout version (0: the newest; tests play an older "
-                 "firmware before an update with it)")
-      ->check(CLI::Range(0u, 255u));
-  std::vector<std::string> inject_args;
-  cli.add_option("--inject", inject_args,
-                 "fail an input on the board's clock (repeatable): sensor-range@T, sensor-stuck@T, estop@T+D (seconds; "
-                 "docs/soak.md)");
-  std::string flash_path, flash_provision;
-  long long power_cut_after = -1;
-  cli.add_option("--flash", flash_path,
-                 "the board's code flash (two image slots and a boot record, the STM32G474's geometry), kept in this file: "
-                 "firmware update over the link; the HelloAck's build id is the booted slot's (docs/firmware-update.md)");
-  cli.add_option("--flash-provision", flash_provision,
-                 "when no slot of --flash holds a valid image, write this one into slot 0 first (as the factory would)");
-  cli.add_option("--flash-power-cut-after", power_cut_after,
-                 "lose power after this many more bytes are programmed into --flash: the process ends at once with status 75")
-      ->check(CLI::Range(0ll, 1ll << 30));
+  addOptions(cli, o, instrument);
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return cli.exit(e);
   }
-  if (exit_with_parent) prctl(PR_SET_PDEATHSIG, SIGTERM);
-  if (fifo > 0) {  // before any thread starts: the instrument's server thread inherits it
-    const linux_hal::RealtimeStatus rt = linux_hal::setupRealtime(fifo);
+  if (o.exit_with_parent) prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (o.fifo > 0) {  // before any thread starts: the instrument's server thread inherits it
+    const linux_hal::RealtimeStatus rt = linux_hal::setupRealtime(o.fifo);
     if (!rt.warning.empty()) std::fprintf(stderr, "firmware-sim: warning: %s\n", rt.warning.c_str());
   }
   struct sigaction sa {};
@@ -467,105 +671,42 @@ int main(int argc, char** argv) {
   sigaction(SIGINT, &sa, nullptr);
 
   std::string error;
-  auto dev = fw_sim::makeSimDevice(device, dev_opt, error);
-  if (!dev) {
-    std::fprintf(stderr, "firmware-sim: error: %s\n", error.c_str());
-    return 2;
-  }
+  auto dev = fw_sim::makeSimDevice(o.device, o.dev, error);
+  if (!dev) return fail(2, error);
   std::vector<fw_sim::Injection> schedule;
-  for (const std::string& a : inject_args) {
+  for (const std::string& a : o.inject_args) {
     fw_sim::Injection j;
-    if (const std::string err = fw_sim::parseInjection(a, j); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 2;
-    }
+    if (const std::string err = fw_sim::parseInjection(a, j); !err.empty()) return fail(2, err);
     schedule.push_back(j);
   }
   fw_sim::FaultInjector injector(std::move(schedule), dev->injectableSensor());
   TruthLog truth;
-  if (!truth_path.empty()) {
-    if (const std::string err = truth.open(truth_path, *dev); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 2;
-    }
+  if (!o.truth_path.empty()) {
+    if (const std::string err = truth.open(o.truth_path, *dev); !err.empty()) return fail(2, err);
   }
-  if (const std::string err = instrument.configure(*dev, device, dev_opt.seed, tick_hz); !err.empty()) {
-    std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-    return 2;
-  }
-  std::vector<double> truth_values(dev->truthColumns().size(), 0.0);
-  linux_hal::PtyMaster link;  // stays closed when the link is CAN, USB or a tty
-  linux_hal::SerialLink tty;
-  linux_hal::CanLink can;
-  linux_hal::FfsLink ffs;
-  const bool use_can = !can_if.empty();
-  const bool use_ffs = !ffs_dir.empty();
-  const bool use_tty = !tty_path.empty();
-  if (static_cast<int>(use_can) + static_cast<int>(use_ffs) + static_cast<int>(use_tty) > 1) {
-    std::fprintf(stderr, "firmware-sim: error: --can, --ffs and --tty exclude each other\n");
-    return 2;
-  }
-  if (use_ffs) {
-    if (const std::string err = ffs.open(ffs_dir); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 3;
-    }
-  } else if (use_tty) {
-    if (const std::string err = tty.open(tty_path, 0); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 3;
-    }
-  } else if (use_can) {
-    linux_hal::CanLink::Options o;
-    o.ifname = can_if;
-    o.node = static_cast<uint8_t>(can_node);
-    o.flavor = can_mode == "classic"      ? protocol::can::Flavor::kClassic
-               : can_mode == "fd-compact" ? protocol::can::Flavor::kFdCompact
-                                          : protocol::can::Flavor::kFd;
-    o.role = protocol::can::Role::kDevice;
-    if (const std::string err = can.open(o); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 3;
-    }
-    can.setDevice(dev->app().layout().type, static_cast<uint16_t>(tick_hz));
-  } else if (const std::string err = link.open(); !err.empty()) {
-    std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-    return 3;
-  }
-  sim::SimBoard board(dev->pwmCount(), dev->adcCount(), dev->encoderCount(),
-                     use_tty ? static_cast<linux_hal::FdLink&>(tty) : static_cast<linux_hal::FdLink&>(link));
-  if (use_can) board.board().packets = &can;
-  if (use_ffs) board.board().packets = &ffs;
+  if (const std::string err = instrument.configure(*dev, o.device, o.dev.seed, o.tick_hz); !err.empty()) return fail(2, err);
+  HostLink link(o);
+  if (link.ambiguous()) return fail(2, "--can, --ffs and --tty exclude each other");
+  if (const std::string err = link.open(dev->app().layout().type); !err.empty()) return fail(3, err);
+  sim::SimBoard board(dev->pwmCount(), dev->adcCount(), dev->encoderCount(), link.stream());
+  board.board().packets = link.packets();
   // Two 512-byte pages (two slots of one record each), as the boards reserve for settings.
   sim::FileFlash settings_flash(2, 512);
-  std::unique_ptr<fw::SettingsStore> settings;
-  if (!settings_path.empty()) {
-    if (const std::string err = settings_flash.open(settings_path); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: --settings %s\n", err.c_str());
-      return 2;
-    }
-    settings = std::make_unique<fw::SettingsStore>(settings_flash, 0, static_cast<uint16_t>(settings_layout));
-    if (settings->layoutVersion(dev->app()) == 0) {
-      std::fprintf(stderr, "firmware-sim: error: --settings-layout %u: %s has no such settings layout\n", settings_layout,
-                   device.c_str());
-      return 2;
-    }
-  }
+  std::unique_ptr<fw::SettingsStore> settings = openSettings(o, *dev, settings_flash, error);
+  if (!error.empty()) return fail(2, error);
   CodeFlash code_flash;
-  if (!flash_path.empty()) {
-    if (const std::string err = code_flash.open(flash_path, flash_provision, static_cast<uint8_t>(dev->app().layout().type));
+  if (!o.flash_path.empty()) {
+    if (const std::string err = code_flash.open(o.flash_path, o.flash_provision, static_cast<uint8_t>(dev->app().layout().type));
         !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: %s\n", err.c_str());
-      return 2;
+      return fail(2, err);
     }
-    if (power_cut_after >= 0) code_flash.flash().cutPowerAfter(static_cast<size_t>(power_cut_after));
-  } else if (!flash_provision.empty() || power_cut_after >= 0) {
-    std::fprintf(stderr, "firmware-sim: error: --flash-provision and --flash-power-cut-after need --flash\n");
-    return 2;
+    if (o.power_cut_after >= 0) code_flash.flash().cutPowerAfter(static_cast<size_t>(o.power_cut_after));
+  } else if (!o.flash_provision.empty() || o.power_cut_after >= 0) {
+    return fail(2, "--flash-provision and --flash-power-cut-after need --flash");
   }
   fw::CoreConfig cfg;
   cfg.settings = settings.get();
-  cfg.tick_rate_hz = static_cast<uint16_t>(tick_hz);
+  cfg.tick_rate_hz = static_cast<uint16_t>(o.tick_hz);
   cfg.firmware_build_id = code_flash.enabled() ? code_flash.boot().build_id : PHALANX_BUILD_ID;
   cfg.update = code_flash.updater();
   cfg.device_variant = dev->variant();  // sea_rig: the sea_finger firmware on the test rig
@@ -574,127 +715,40 @@ int main(int argc, char** argv) {
   LogObserver observer;
   core->setObserver(&observer);
   if (code_flash.enabled()) code_flash.report("boot");
-  if (settings) {
-    const fw::SettingsReport& r = settings->lastLoad();
-    std::fprintf(stderr, "firmware-sim: settings layout v%u: %s (record v%u seq %u) applied=%u refused=%u dropped=%u\n",
-                 settings->layoutVersion(dev->app()), fw::settingsLoadName(r.result), r.record_version,
-                 static_cast<unsigned>(r.sequence), r.applied, r.refused, r.dropped);
-  }
+  if (settings) reportSettings(*settings, *dev);
 
-  if (use_can) {
-    std::printf("CAN %s node %u %s\n", can_if.c_str(), can_node, can_mode.c_str());
-  } else if (use_ffs) {
-    std::printf("USB %s\n", ffs_dir.c_str());
-  } else if (use_tty) {
-    std::printf("TTY %s\n", tty_path.c_str());
-  } else {
-    std::printf("PTY %s\n", link.slavePath().c_str());
-  }
+  RunningBoard sim{o, *dev, board, link, injector, truth, instrument, code_flash, cfg, core, observer,
+            std::vector<double>(dev->truthColumns().size(), 0.0)};
+  link.announce();
   if (instrument.enabled()) {
     // The first tick's truth is served from the start, never a value the plant did not have.
-    dev->truthValues(truth_values.data());
-    instrument.update(truth_values);
+    dev->truthValues(sim.truth_values.data());
+    instrument.update(sim.truth_values);
     std::string line;
-    if (const std::string err = instrument.start(line); !err.empty()) {
-      std::fprintf(stderr, "firmware-sim: error: --instrument: %s\n", err.c_str());
-      return 3;
-    }
+    if (const std::string err = instrument.start(line); !err.empty()) return fail(3, "--instrument: " + err);
     std::printf("%s\n", line.c_str());
   }
   std::fflush(stdout);
 
-  const uint64_t period_us = 1000000u / tick_hz;
-  const double sub_dt_s = static_cast<double>(period_us) * 1e-6 / substeps;
-  linux_hal::PeriodicTimer timer(period_us * 1000u);
+  linux_hal::PeriodicTimer timer(sim.period_us * 1000u);
   uint64_t overruns = 0;
-  bool was_active = false;
-  bool ffs_online = false;
-  uint64_t tty_reopen_at = 0;
-  const auto max_ticks = static_cast<uint64_t>(seconds * tick_hz);
+  const auto max_ticks = static_cast<uint64_t>(o.seconds * o.tick_hz);
   static TickTimes tick_times;  // static: 8 KB, off the stack
   for (uint64_t n = 0; g_stop == 0 && (max_ticks == 0 || n < max_ticks); ++n) {
     overruns += timer.wait();
     const uint64_t woke_ns = linux_hal::monotonicNs();
-    dev->plant().advance(sub_dt_s, substeps, board.io());
-    board.clock().advanceUs(period_us);
-    injector.apply(board.clock().nowUs(), board.io(), stderr);
-    if (truth.isOpen() || instrument.enabled()) {
-      // One truth per tick for both: the instrument serves what the truth file says, before this tick's telemetry.
-      dev->truthValues(truth_values.data());
-      truth.write(board.clock().nowUs(), truth_values);
-      instrument.update(truth_values);
-    }
-    const uint64_t deadline_us = core->commandDeadlineUs();
-    if (use_ffs) {
-      ffs.service();
-      if (ffs.online() != ffs_online) {
-        ffs_online = ffs.online();
-        std::fprintf(stderr, "firmware-sim: USB %s t_us=%llu\n", ffs_online ? "enabled (host configured us)" : "disabled (unplugged)",
-                     static_cast<unsigned long long>(board.clock().nowUs()));
-      }
-    }
-    if (use_tty && tty.hungUp() && n >= tty_reopen_at) {
-      // USB unplug hangs the gadget's tty up: this descriptor is dead for good; reopen until the port is back.
-      if (tty.isOpen()) {
-        std::fprintf(stderr, "firmware-sim: TTY %s hung up t_us=%llu\n", tty_path.c_str(),
-                     static_cast<unsigned long long>(board.clock().nowUs()));
-      }
-      tty.close();
-      if (const std::string err = tty.open(tty_path, 0); err.empty()) {
-        std::fprintf(stderr, "firmware-sim: TTY %s reopened t_us=%llu\n", tty_path.c_str(),
-                     static_cast<unsigned long long>(board.clock().nowUs()));
-      } else {
-        tty_reopen_at = n + tick_hz / 20;  // every 50 ms
-      }
-    }
-    core->tick();
-    if (code_flash.enabled() && code_flash.flash().powerLost()) {
-      std::fprintf(stderr, "firmware-sim: power lost (--flash-power-cut-after) t_us=%llu\n",
-                   static_cast<unsigned long long>(board.clock().nowUs()));
-      std::_Exit(75);  // as a board losing power: nothing more is written or flushed
-    }
-    if (cfg.update != nullptr && cfg.update->rebootRequested()) {
-      board.board().pwm->disableAll();
-      code_flash.reboot();
-      cfg.firmware_build_id = code_flash.boot().build_id;
-      cfg.update = code_flash.updater();
-      core.emplace(board.board(), dev->app(), cfg);
-      core->setObserver(&observer);
-      code_flash.report("reset after the update, boot");
-    }
-    if (use_can) {
-      can.flush();
-    } else if (use_tty) {
-      tty.flush();
-    } else if (!use_ffs) {
-      link.flush();
-    }
-    // Observe the power stage itself (the simulated H-bridges), not the core's opinion of it.
-    const bool active = board.io().pwm_enabled;
-    if (was_active && !active) {
-      std::fprintf(stderr, "firmware-sim: SAFE t_us=%llu deadline_us=%llu period_us=%llu faults=0x%04x\n",
-                   static_cast<unsigned long long>(board.clock().nowUs()),
-                   static_cast<unsigned long long>(deadline_us), static_cast<unsigned long long>(period_us),
-                   core->faultBits());
-    }
-    was_active = active;
+    sim.tick(n);
     tick_times.add(woke_ns - timer.lastDeadlineNs(), linux_hal::monotonicNs() - woke_ns);
   }
   board.board().pwm->disableAll();
   dev->app().safe();
-  std::fprintf(stderr,
-               "firmware-sim: stopped ticks=%u overruns=%llu commands=%u rejected=%u cmd_lost=%u cmd_stale=%u rx_crc=%u "
-               "rx_framing=%u rx_invalid=%u rx_wrong_direction=%u tx_dropped=%u faults=0x%04x\n",
-               core->counters().ticks, static_cast<unsigned long long>(overruns), core->counters().commands_applied,
-               core->counters().commands_rejected, core->counters().cmd_lost, core->counters().cmd_stale,
-               core->rxStats().crc_errors, core->rxStats().framing_errors, core->counters().frames_invalid,
-               core->counters().frames_wrong_direction, core->counters().tx_dropped, core->faultBits());
+  sim.printSummary(overruns);
   tick_times.print();
   if (instrument.enabled()) {
     std::fprintf(stderr, "firmware-sim: instrument requests=%llu\n", static_cast<unsigned long long>(instrument.requests()));
     instrument.stop();
   }
-  if (!truth.close()) std::fprintf(stderr, "firmware-sim: error: --truth %s: a write failed; the file is incomplete\n", truth_path.c_str());
-  printLinkStats(use_ffs ? &ffs : nullptr, use_can ? &can : nullptr);
+  link.printStats();
+  if (!truth.close()) return fail(1, "--truth " + o.truth_path + ": a write failed; the file is incomplete");
   return 0;
 }
