@@ -36,6 +36,10 @@ tools/mcu/session-test.sh --app pantograph --seconds 4 --plant-period-ms 8
 for app in glove5 sea_finger pantograph; do
   tools/mcu/session-test.sh --board ast1030-evb --app "$app" --seconds 4 --rate-hz 1000 --host-realtime
 done
+# The settings store in the cross-compiled images (docs/params.md): the board's settings flash is a host file
+# (semihosting); `phalanx param set --save` over the link, QEMU restarted, the value read back, twice.
+python3 tools/mcu/qemu_board.py settings --app glove5
+python3 tools/mcu/qemu_board.py settings --board ast1030-evb --app sea_finger
 # A bench plan in real time on the emulated SEA rig board (issue 26): `phalanx bench run` drives the sea_finger image
 # on ast1030-evb over its UART at 1 kHz while the harness serves the board's load cell (its truth, written on the
 # board's instrument UART) as a Modbus TCP amplifier on pymodbus. Gated: the plan ran over the board's link, the

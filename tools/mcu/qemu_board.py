@@ -13,6 +13,9 @@ daemon over a pseudo-terminal, exactly as a real board on a serial port.
                              halted): wrong-device, wrong-board and corrupt images are refused with nothing written;
                              the good image is written and the board answers the handshake with its build id.
   qemu_board.py blank     -- start a blank board waiting for a debugger (print its pty and gdbstub port).
+  qemu_board.py settings  -- the board's settings flash kept in a host file (semihosting): `phalanx param set --save`
+                             over the link, QEMU restarted (a power cycle), the saved value read back; twice, so
+                             both pages of the store are written.
   qemu_board.py plan      -- a bench plan in real time on the emulated SEA rig board (docs/bench-runner.md): the
                              board writes its load cell's true torque on its instrument UART, this script serves it
                              as a Modbus TCP amplifier (pymodbus), and `phalanx bench run` drives the board over its
@@ -531,6 +534,53 @@ def plan(args):
     return 0 if c.failed == 0 else 1
 
 
+SETTINGS_PARAM = {"glove5": "force_kp", "sea_finger": "kp_mcp", "pantograph": "torque_limit_j0_Nm"}
+
+
+def settings(args):
+    """`phalanx param` against the cross-compiled image's settings store (docs/params.md), its flash a host file."""
+    c = Checks()
+    name = SETTINGS_PARAM[args.app]
+    path = os.path.join(tempfile.mkdtemp(prefix="phalanx-qemu-settings-"), "settings.bin")
+
+    def param(board, *argv):
+        r = subprocess.run([os.path.join(BIN, "phalanx"), "param", *argv, "--device", f"serial:{board.pty}"],
+                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+        return r.returncode, r.stdout + r.stderr
+
+    def boot():
+        board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}", f"settings={path}"]
+                      + relaxed_hand(args) + args.extra, machine=args.board)
+        return board, parse_kv(board.wait_for(r"^BOOT .*", 1).group(0)).get("settings")
+
+    value = None
+    for i, new in enumerate(("0.75", "1.25")):
+        board, loaded = boot()
+        try:
+            c.check(loaded == ("nothing-stored" if i == 0 else "loaded"),
+                    f"power-up {i + 1}: the board found {'an erased' if i == 0 else 'its kept'} settings flash", loaded)
+            if value is not None:
+                rc, out = param(board, "get", name)
+                c.check(rc == 0 and f"{name} = " in out and abs(float(out.split("=")[1].split()[0]) - float(value)) < 1e-6,
+                        f"power-up {i + 1}: {name} is the value saved before the power cycle ({value})", out.strip())
+            rc, out = param(board, "set", name, new, "--save")
+            c.check(rc == 0 and "saved: settings record" in out, f"power-up {i + 1}: param set {name} {new} --save", out.strip())
+            value = new
+        finally:
+            board.stop()
+    board, loaded = boot()
+    try:
+        c.check(loaded == "loaded", "power-up 3: the board loaded its kept settings", loaded)
+        rc, out = param(board, "get", name)
+        c.check(rc == 0 and abs(float(out.split("=")[1].split()[0]) - float(value)) < 1e-6,
+                f"power-up 3: {name} is the second saved value ({value}): the store's other page", out.strip())
+    finally:
+        board.stop()
+    shutil.rmtree(os.path.dirname(path), ignore_errors=True)
+    print(f"qemu settings {args.app}: {c.passed} passed, {c.failed} failed")
+    return 0 if c.failed == 0 else 1
+
+
 def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -699,7 +749,7 @@ def serve(board):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("mode", choices=["session", "bench", "run", "flash", "blank", "plan"])
+    ap.add_argument("mode", choices=["session", "bench", "run", "flash", "blank", "plan", "settings"])
     ap.add_argument("--app", default="glove5", choices=APPS, help="device app of the image (default glove5)")
     ap.add_argument("--board", default="mps2-an386", choices=sorted(BOARDS),
                     help="emulated board (QEMU machine): mps2-an386 (CMSDK UART, host 100 Hz) or ast1030-evb "
@@ -731,7 +781,8 @@ def main():
         args.plant_period_ms = SESSION_PLANT_PERIOD_MS[args.app]
     if args.mode == "bench" and args.shift is None:
         args.shift = 2
-    return {"session": session, "bench": bench, "run": run, "flash": flash, "blank": blank, "plan": plan}[args.mode](args)
+    return {"session": session, "bench": bench, "run": run, "flash": flash, "blank": blank, "plan": plan,
+            "settings": settings}[args.mode](args)
 
 
 if __name__ == "__main__":

@@ -21,14 +21,19 @@
 //   instrument=1   the plant's truth on the instrument UART (board_config.h kInstrumentBase), one line per plant
 //                  step, "I <plant_ms> <value in micro-units>": a bench's load cell outside the host, which
 //                  tools/mcu/qemu_board.py serves as a Modbus amplifier (SEA rig only: sim_devices.h)
+//   settings=PATH  the board's settings flash kept in this host file (semihosting; created when absent): a restart
+//                  with the same file is a power cycle that keeps `phalanx param save` (docs/params.md)
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 #include "board_config.h"
 #include "phalanx/fw/core.h"
+#include "phalanx/fw/settings_store.h"
 #include "phalanx/fw_mcu/app_registry.h"
 #include "phalanx/fw_mcu/board_diag.h"
 #include "phalanx/mcu/cortex_m.h"
+#include "phalanx/mcu/semihost_flash.h"
 #include "phalanx/mcu/semihosting.h"
 #include "phalanx/mcu/tick_stats.h"
 #include "phalanx/sim/board.h"
@@ -64,6 +69,7 @@ struct Options {
   /// real-time emulation, where every instruction the plant runs delays QEMU's delivery of received bytes.
   uint32_t plant_period_ms = 1;
   bool instrument = false;
+  const char* settings_path = nullptr;  ///< settings=PATH (parseCommandLine's static copy)
   PlantOptions plant;
 };
 
@@ -79,6 +85,9 @@ fw_mcu::StaticObject<sim::SimBoard> g_board;
 fw_mcu::StaticObject<fw_mcu::AppType> g_app;
 fw_mcu::StaticObject<PlantType> g_plant;
 fw_mcu::StaticObject<fw::FirmwareCore> g_core;
+// The settings flash (option settings=PATH): two 512-byte pages, as firmware-sim's (--settings).
+mcu::SemihostFlashPages<2, 512> g_settings_flash;
+fw_mcu::StaticObject<fw::SettingsStore> g_settings;
 Options g_opt;
 volatile uint32_t g_ms = 0;
 volatile uint32_t g_plant_ms = 0;  // simulated time the plant has reached (skips ahead when it lags, below)
@@ -152,6 +161,7 @@ uint32_t parseU32(const char* s, int len) {
 Options parseCommandLine() {
   Options o;
   static char buf[256];
+  static char path[128];
   struct {
     char* ptr;
     uint32_t len;
@@ -173,6 +183,11 @@ Options parseCommandLine() {
     else if (tokenIs(tok, len, "noise=", v, vl)) o.plant.noise = vl > 0 && v[0] != '0';
     else if (tokenIs(tok, len, "substep_us=", v, vl)) o.plant.substep_us = parseU32(v, vl);
     else if (tokenIs(tok, len, "instrument=", v, vl)) o.instrument = vl > 0 && v[0] != '0' && kInstrumentSignal != nullptr;
+    else if (tokenIs(tok, len, "settings=", v, vl) && vl > 0 && vl < static_cast<int>(sizeof path)) {
+      std::memcpy(path, v, static_cast<size_t>(vl));
+      path[vl] = 0;
+      o.settings_path = path;
+    }
     else if (tokenIs(tok, len, "plant_period_ms=", v, vl)) {
       o.plant_period_ms = parseU32(v, vl) == 0 ? 1u : parseU32(v, vl);
     }
@@ -376,7 +391,16 @@ extern "C" [[noreturn]] void phalanx_board_main() {
   // at 1.3 commands per tick and keep the worst tick within the 17 000-instruction target; the core's default
   // (four, as on the STM32 board) took 17 197 in the 1 kHz cycle bench (docs/firmware-mcu.md "Cycle budget").
   cfg.max_rx_bytes_per_tick = static_cast<uint16_t>(kMaxRxBytesPerTick);
-  g_core.emplace(board.board(), diag_app, cfg);
+  const char* settings = "none";
+  if (g_opt.settings_path != nullptr) {
+    if (g_settings_flash.open(g_opt.settings_path)) {
+      cfg.settings = &g_settings.emplace(g_settings_flash);
+    } else {
+      settings = "cannot-open";
+    }
+  }
+  g_core.emplace(board.board(), diag_app, cfg);  // loads the settings
+  if (cfg.settings != nullptr) settings = fw::settingsLoadName(cfg.settings->lastLoad().result);
 
   g_console.str("BOOT phalanx-mcu board=").str(kBoardName).str(" app=").str(fw_mcu::kAppName)
       .str(" link=").str(kLinkName)
@@ -387,6 +411,7 @@ extern "C" [[noreturn]] void phalanx_board_main() {
       .str(" plant_period_ms=").u32(g_opt.plant_period_ms)
       .str(" icount_shift=").u32(static_cast<uint32_t>(g_opt.icount_shift < 0 ? 0 : g_opt.icount_shift))
       .str(" instrument=").str(g_opt.instrument ? kInstrumentSignal : "none")
+      .str(" settings=").str(settings)
       .end();
 
   cm4::setSysTickPriority(kPrioTick);

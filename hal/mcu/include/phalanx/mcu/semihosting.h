@@ -1,11 +1,15 @@
 #pragma once
-/// ARM semihosting as QEMU traps it (-semihosting-config enable=on): the emulated boards' command line and exit
-/// status. Shared by both emulated boards (mps2-an386, ast1030-evb); never linked into the STM32 image.
+/// ARM semihosting as QEMU traps it (-semihosting-config enable=on): the emulated boards' command line, exit
+/// status and settings flash file (semihost_flash.h). Shared by both emulated boards (mps2-an386, ast1030-evb); never linked into the STM32 image.
 #include <cstdint>
 
 namespace phalanx::mcu {
 
 // ARM semihosting (ARM DUI 0471 "Semihosting operations"), trapped by QEMU with -semihosting-config.
+constexpr uint32_t kSysOpen = 0x01;   ///< {name, mode, strlen(name)} -> handle or -1
+constexpr uint32_t kSysWrite = 0x05;  ///< {handle, data, n} -> bytes NOT written
+constexpr uint32_t kSysRead = 0x06;   ///< {handle, data, n} -> bytes NOT read
+constexpr uint32_t kSysSeek = 0x0A;   ///< {handle, absolute position} -> 0 or negative
 constexpr uint32_t kSysWriteC = 0x03;
 constexpr uint32_t kSysReadC = 0x07;
 constexpr uint32_t kSysGetCmdline = 0x15;
