@@ -455,6 +455,7 @@ class Amplifier:
     def _read(self):
         self._realtime()
         buf = b""
+        synced = False
         while True:
             try:
                 chunk = os.read(self.fd, 4096)
@@ -464,6 +465,9 @@ class Amplifier:
                 return
             buf += chunk
             *whole, buf = buf.split(b"\n")
+            if not synced and whole:
+                # The pty delivers from when it was opened, perhaps mid-line: the first piece is not a line.
+                whole, synced = whole[1:], True
             for line in whole:
                 f = line.split()
                 if len(f) == 3 and f[0] == b"I":
