@@ -350,6 +350,26 @@ TEST_F(FirmwareUpdateTest, ARecordNamingASlotThatNoLongerVerifiesFallsBackToTheO
   EXPECT_FALSE(fw::chooseBoot(flash, layout()).valid);
 }
 
+TEST(FirmwareUpdateRecord, ARecordWithNonZeroReservedBytesIsRefusedEvenWithAValidCrc) {
+  fw::BootRecord rec;
+  rec.slot = 1;
+  rec.sequence = 7;
+  rec.build_id = 0x1234;
+  uint8_t buf[fw::kBootRecordBytes];
+  fw::encodeBootRecord(rec, buf);
+  fw::BootRecord out;
+  ASSERT_TRUE(fw::decodeBootRecord(buf, out));
+  EXPECT_EQ(out.sequence, 7u);
+  for (const size_t at : {size_t{7}, size_t{24}, size_t{27}}) {
+    uint8_t bad[fw::kBootRecordBytes];
+    std::copy(buf, buf + sizeof buf, bad);
+    bad[at] = 1;
+    const uint32_t crc = fw::crc32(bad, 28);  // re-signed: only the reserved field is wrong
+    for (size_t i = 0; i < 4; ++i) bad[28 + i] = static_cast<uint8_t>(crc >> (8 * i));
+    EXPECT_FALSE(fw::decodeBootRecord(bad, out)) << "reserved byte " << at;
+  }
+}
+
 TEST(FirmwareUpdateCan, UpdateMessagesTravelOnCanFdAndAreRefusedOnClassicCan) {
   protocol::can::Mapper host(protocol::can::Flavor::kFd, protocol::can::Role::kHost, 5);
   protocol::can::Mapper dev(protocol::can::Flavor::kFd, protocol::can::Role::kDevice, 5);

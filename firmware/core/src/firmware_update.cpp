@@ -69,8 +69,11 @@ void encodeBootRecord(const BootRecord& rec, uint8_t* out) {
 }
 
 bool decodeBootRecord(const uint8_t* in, BootRecord& rec) {
+  // The reserved byte 7 and word 24 are written as zero: a record with anything else there, even under a valid
+  // CRC, is not one this firmware wrote (as the settings record's reserved fields, found by fuzzing).
   if (get32(in) != kBootRecordMagic || in[4] != kBootRecordFormat || in[5] > 1 ||
-      in[6] > static_cast<uint8_t>(BootState::kTrialBooted) || get32(in + 28) != crc32(in, 28)) {
+      in[6] > static_cast<uint8_t>(BootState::kTrialBooted) || in[7] != 0 || get32(in + 24) != 0 ||
+      get32(in + 28) != crc32(in, 28)) {
     return false;
   }
   rec.slot = in[5];

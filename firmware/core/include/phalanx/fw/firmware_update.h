@@ -61,7 +61,7 @@ struct BootRecord {
   uint32_t build_id = 0;
 };
 void encodeBootRecord(const BootRecord& rec, uint8_t* out);  ///< kBootRecordBytes bytes
-bool decodeBootRecord(const uint8_t* in, BootRecord& rec);   ///< false: magic, format, slot or CRC wrong
+bool decodeBootRecord(const uint8_t* in, BootRecord& rec);   ///< false: magic, format, slot, state, reserved or CRC wrong
 
 /// What the boot stage chose.
 struct BootChoice {
