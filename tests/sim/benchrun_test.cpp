@@ -2,9 +2,12 @@
 // polled over Modbus as on the bench), with short plans so the suite stays within its time budget.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <random>
 #include <sstream>
 
 #include "phalanx/host/benchrun/report.h"
@@ -445,6 +448,53 @@ TEST(BenchRun, APlanWithARepeatedKeyIsRefusedNamingIt) {
   br::Plan p;
   const std::string err = br::loadPlanText("steps:\n  - kind: sea-rig-sine\n    peak_Nm: 0.1\n    peak_Nm: 0.3\n", "p", p);
   EXPECT_NE(err.find("p: steps[0].peak_Nm: duplicate key"), std::string::npos) << err;
+}
+
+/// An instrument that shows the estimate `delay_ms` late, sampled at 500 Hz between the device's ticks, each side
+/// with its own noise. The alignment compares against the estimate held from tick to tick, so it finds the delay
+/// to within a tick.
+br::Alignment alignSynthetic(const std::function<double(double)>& signal, double delay_ms, double noise) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, noise);
+  std::vector<double> T, est, s, v;
+  for (int k = 0; k < 6000; ++k) {  // 6 s of 1 ms ticks
+    T.push_back(k);
+    est.push_back(signal(k) + n(rng));
+  }
+  for (double t = 0.37; t < 6000; t += 2.0) {
+    s.push_back(t);
+    v.push_back(signal(t - delay_ms) + n(rng));
+  }
+  return br::alignInstrument(T, est, s, v, 60.0);
+}
+
+TEST(BenchRun, TheAlignmentFindsTheDelayAndChecksItOnTheQuartersThatFollowTheEstimate) {
+  // Broadband motion (sines from 0.5 to 21 Hz): every quarter follows, and each finds the delay.
+  const auto motion = [](double t) {
+    double y = 0.0;
+    for (const double f : {0.5, 3.1, 7.3, 13.7, 21.1}) y += std::sin(2 * M_PI * f * t / 1000.0 + f);
+    return y;
+  };
+  const br::Alignment moving = alignSynthetic(motion, 3.0, 0.01);
+  EXPECT_TRUE(moving.ok) << moving.error;
+  EXPECT_NEAR(moving.delay_ms, 3.0, 1.0);
+  EXPECT_EQ(moving.quarters_used, 4u);
+  // A grasp: the reach (1.0-2.0 s, minimum jerk to 5 N) and the contact's ringing (20 Hz, decaying) span the first
+  // two quarters, then the force is held: the held quarters are noise on both sides, left out, and the delay is
+  // still found and checked on the two quarters of the reach.
+  const auto reach = [](double t) {
+    const double x = std::clamp((t - 1000.0) / 1000.0, 0.0, 1.0);
+    const double ring = t > 2000.0 ? 0.5 * std::exp(-(t - 2000.0) / 150.0) * std::sin(2 * M_PI * 20.0 * (t - 2000.0) / 1000.0) : 0.0;
+    return 5.0 * x * x * x * (10.0 - 15.0 * x + 6.0 * x * x) + ring;
+  };
+  const br::Alignment grasp = alignSynthetic(reach, 3.0, 0.01);
+  EXPECT_TRUE(grasp.ok) << grasp.error;
+  EXPECT_NEAR(grasp.delay_ms, 3.0, 1.0);
+  EXPECT_EQ(grasp.quarters_used, 2u);
+  EXPECT_LT(grasp.quarter_correlation[3], 0.5);
+  // A held force only: nothing fixes a delay.
+  const br::Alignment held = alignSynthetic([](double) { return 5.0; }, 3.0, 0.01);
+  EXPECT_FALSE(held.ok);
 }
 
 TEST(BenchRun, MetricsFollowTheirDefinitions) {
