@@ -105,91 +105,95 @@ void penAfterStep(PenWallState& s) {
   if (s.controller->lastSplit().status == pen::SplitStatus::kScaled) ++s.split_scaled;
 }
 
-SimTarget makeTarget(const Plan& plan, const Step& st) {
+/// pen-wall: the wall bench's hand schedule on the pantograph, PD+B walls, and the step's penetration and energy checks.
+SimTarget penWallTarget(const Plan& plan, const Step& st) {
   SimTarget t;
-  if (st.kind == "pen-wall") {
-    pen::PenWallBenchOptions o;
-    o.stiffness_N_per_cm = st.stiffness_N_per_cm;
-    o.braking = st.braking;
-    auto s = std::make_shared<PenWallState>();
-    s->scene = pen::wallBenchScene(o);
-    s->phases = pen::wallBenchSchedule(s->scene);
-    size_t start = 0;
-    for (const pen::PenWallPhase& ph : s->phases) {
-      s->phase_start.push_back(start);
-      start += static_cast<size_t>(std::lround((ph.move_s + ph.hold_s) * kFs));
-    }
-    sim::PenPlantConfig pc;
-    pc.seed = plan.seed;
-    pc.noise = plan.noise;
-    pc.scenario = sim::PenHandScenario::kExternal;
-    auto dev = std::make_unique<fw_sim::PantographSimDevice>(pc);
-    pen::PenControllerConfig cc;
-    cc.scene = s->scene;
-    auto ctl = std::make_unique<pen::PenController>(cc);
-    s->plant = &dev->penPlant();
-    s->controller = ctl.get();
-    t.controller = std::move(ctl);
-    t.device = std::move(dev);
-    t.rig = std::make_unique<LockstepRig>(*t.device, *t.controller);
-    auto* rig = t.rig.get();
-    // Instrument: the force the device TRULY puts on the walls — the plant's motor torques after the amplifier
-    // through its true kinematics (f = J⁻ᵀτ per pantograph), minus the force that holds the pen's true weight.
-    t.truth = [s] {
-      const sim::PenTruth& tr = s->plant->truth();
-      if (!phalanx::pen::isUsable(phalanx::pen::computeForward(s->plant->model(), tr.q_rad, s->true_kin))) return std::nan("");
-      const pen::Vec3d g{0.0, s->plant->weightKg(tr.x[2]) * s->plant->config().params.gravity_m_s2, 0.0};
-      return penWallForce(s->true_kin, tr.motor_torque_Nm, g);
-    };
-    // Estimate: what the device reports it renders — its measured motor torques (telemetry 6..11) through the
-    // kinematics of its encoder angles (Jᵀτ inverted per pantograph), minus the controller's gravity compensation.
-    t.estimate = [s, rig] {
-      const auto& tel = rig->session().latest();
-      pen::JointVecd tau{};
-      for (size_t i = 0; i < tau.size(); ++i) tau[i] = static_cast<double>(tel.value[kPenTorque0 + i]);
-      if (!phalanx::pen::isUsable(s->controller->kinematics().status)) return std::nan("");
-      return penWallForce(s->controller->kinematics(), tau, s->controller->lastRender().gravity_force_N);
-    };
-    // Setpoint: the wall force the PD+B scene commanded this cycle (both pen ends, braking pulse included).
-    t.setpoint = [s] {
-      const pen::PenRenderOutput& r = s->controller->lastRender();
-      pen::Vec3d f{};
-      for (const auto& e : r.end) {
-        for (size_t i = 0; i < 3; ++i) f[i] += e.force_N[i];
-      }
-      const double m = std::sqrt(phalanx::pen::dot(f, f));
-      s->peak_force_N = std::max(s->peak_force_N, m);
-      return m;
-    };
-    t.unscorable = [s] {
-      const pen::PenRenderOutput& r = s->controller->lastRender();
-      return r.end[0].brake_applied || r.end[1].brake_applied;
-    };
-    t.before_step = [s](size_t k) { penBeforeStep(*s, k); };
-    t.after_step = [s] { penAfterStep(*s); };
-    t.finish = [s](const Step& step, StepResult& r) {
-      const sim::PenTruth& tr = s->plant->truth();
-      const double stored = pen::wallStoredEnergy(s->scene, tr.B_p_tip) + pen::wallStoredEnergy(s->scene, tr.B_p_eraser);
-      const double generated_mJ = (s->wall_work_J - stored) * 1e3;
-      r.step_metrics = {{"peak_tip_penetration_mm", s->peak_pen_m * 1e3},
-                        {"wall_energy_generated_mJ", generated_mJ},
-                        {"wall_work_mJ", s->wall_work_J * 1e3},
-                        {"peak_commanded_wall_force_N", s->peak_force_N},
-                        {"braking_pulses", s->brake_pulses},
-                        {"split_scaled_cycles", s->split_scaled},
-                        {"stiffness_N_per_cm", step.stiffness_N_per_cm},
-                        {"braking", step.braking}};
-      if (step.penetration_mm_max) {
-        r.checks.push_back({"penetration_mm", s->peak_pen_m * 1e3, *step.penetration_mm_max, false,
-                            s->peak_pen_m * 1e3 <= *step.penetration_mm_max});
-      }
-      if (step.wall_energy_generated_mJ_max) {
-        r.checks.push_back({"wall_energy_generated_mJ", generated_mJ, *step.wall_energy_generated_mJ_max, false,
-                            std::isfinite(generated_mJ) && generated_mJ <= *step.wall_energy_generated_mJ_max});
-      }
-    };
-    return t;
+  pen::PenWallBenchOptions o;
+  o.stiffness_N_per_cm = st.stiffness_N_per_cm;
+  o.braking = st.braking;
+  auto s = std::make_shared<PenWallState>();
+  s->scene = pen::wallBenchScene(o);
+  s->phases = pen::wallBenchSchedule(s->scene);
+  size_t start = 0;
+  for (const pen::PenWallPhase& ph : s->phases) {
+    s->phase_start.push_back(start);
+    start += static_cast<size_t>(std::lround((ph.move_s + ph.hold_s) * kFs));
   }
+  sim::PenPlantConfig pc;
+  pc.seed = plan.seed;
+  pc.noise = plan.noise;
+  pc.scenario = sim::PenHandScenario::kExternal;
+  auto dev = std::make_unique<fw_sim::PantographSimDevice>(pc);
+  pen::PenControllerConfig cc;
+  cc.scene = s->scene;
+  auto ctl = std::make_unique<pen::PenController>(cc);
+  s->plant = &dev->penPlant();
+  s->controller = ctl.get();
+  t.controller = std::move(ctl);
+  t.device = std::move(dev);
+  t.rig = std::make_unique<LockstepRig>(*t.device, *t.controller);
+  auto* rig = t.rig.get();
+  // Instrument: the force the device TRULY puts on the walls — the plant's motor torques after the amplifier
+  // through its true kinematics (f = J⁻ᵀτ per pantograph), minus the force that holds the pen's true weight.
+  t.truth = [s] {
+    const sim::PenTruth& tr = s->plant->truth();
+    if (!phalanx::pen::isUsable(phalanx::pen::computeForward(s->plant->model(), tr.q_rad, s->true_kin))) return std::nan("");
+    const pen::Vec3d g{0.0, s->plant->weightKg(tr.x[2]) * s->plant->config().params.gravity_m_s2, 0.0};
+    return penWallForce(s->true_kin, tr.motor_torque_Nm, g);
+  };
+  // Estimate: what the device reports it renders — its measured motor torques (telemetry 6..11) through the
+  // kinematics of its encoder angles (Jᵀτ inverted per pantograph), minus the controller's gravity compensation.
+  t.estimate = [s, rig] {
+    const auto& tel = rig->session().latest();
+    pen::JointVecd tau{};
+    for (size_t i = 0; i < tau.size(); ++i) tau[i] = static_cast<double>(tel.value[kPenTorque0 + i]);
+    if (!phalanx::pen::isUsable(s->controller->kinematics().status)) return std::nan("");
+    return penWallForce(s->controller->kinematics(), tau, s->controller->lastRender().gravity_force_N);
+  };
+  // Setpoint: the wall force the PD+B scene commanded this cycle (both pen ends, braking pulse included).
+  t.setpoint = [s] {
+    const pen::PenRenderOutput& r = s->controller->lastRender();
+    pen::Vec3d f{};
+    for (const auto& e : r.end) {
+      for (size_t i = 0; i < 3; ++i) f[i] += e.force_N[i];
+    }
+    const double m = std::sqrt(phalanx::pen::dot(f, f));
+    s->peak_force_N = std::max(s->peak_force_N, m);
+    return m;
+  };
+  t.unscorable = [s] {
+    const pen::PenRenderOutput& r = s->controller->lastRender();
+    return r.end[0].brake_applied || r.end[1].brake_applied;
+  };
+  t.before_step = [s](size_t k) { penBeforeStep(*s, k); };
+  t.after_step = [s] { penAfterStep(*s); };
+  t.finish = [s](const Step& step, StepResult& r) {
+    const sim::PenTruth& tr = s->plant->truth();
+    const double stored = pen::wallStoredEnergy(s->scene, tr.B_p_tip) + pen::wallStoredEnergy(s->scene, tr.B_p_eraser);
+    const double generated_mJ = (s->wall_work_J - stored) * 1e3;
+    r.step_metrics = {{"peak_tip_penetration_mm", s->peak_pen_m * 1e3},
+                      {"wall_energy_generated_mJ", generated_mJ},
+                      {"wall_work_mJ", s->wall_work_J * 1e3},
+                      {"peak_commanded_wall_force_N", s->peak_force_N},
+                      {"braking_pulses", s->brake_pulses},
+                      {"split_scaled_cycles", s->split_scaled},
+                      {"stiffness_N_per_cm", step.stiffness_N_per_cm},
+                      {"braking", step.braking}};
+    if (step.penetration_mm_max) {
+      r.checks.push_back({"penetration_mm", s->peak_pen_m * 1e3, *step.penetration_mm_max, false,
+                          s->peak_pen_m * 1e3 <= *step.penetration_mm_max});
+    }
+    if (step.wall_energy_generated_mJ_max) {
+      r.checks.push_back({"wall_energy_generated_mJ", generated_mJ, *step.wall_energy_generated_mJ_max, false,
+                          std::isfinite(generated_mJ) && generated_mJ <= *step.wall_energy_generated_mJ_max});
+    }
+  };
+  return t;
+}
+
+SimTarget makeTarget(const Plan& plan, const Step& st) {
+  if (st.kind == "pen-wall") return penWallTarget(plan, st);
+  SimTarget t;
   if (isGloveStep(st)) {
     // As `phalanx bench glove-free-motion` / `glove-grasp`: the hand closes and opens in transparent mode, or
     // reaches for and squeezes the rigid ball the scene renders.
@@ -210,12 +214,7 @@ SimTarget makeTarget(const Plan& plan, const Step& st) {
     pc.noise = plan.noise;
     pc.variant = sim::SeaVariant::kRig;
     auto dev = std::make_unique<fw_sim::SeaFingerSimDevice>(pc);
-    const bool chirp = st.kind == "sea-rig-chirp";
-    // eq 16: the instantaneous frequency f0 + 2 f1 t reaches fmax at the end of the step.
-    const double f1 = chirp ? (st.fmax_hz - st.f0_hz) / (2.0 * st.seconds) : 0.0;
-    t.controller = std::make_unique<sea::SeaTrajectoryController>(
-        chirp ? sea::SeaTrajectoryController::Shape::kChirp : sea::SeaTrajectoryController::Shape::kSine,
-        chirp ? st.amplitude_Nm : st.peak_Nm, chirp ? st.f0_hz : st.hz, f1, plan.controller == "paper");
+    t.controller = seaStepController(plan, st);
     auto* d = dev.get();
     t.truth = [d] { return d->seaPlant().truth(0).joint_torque_Nm; };  // the load cell's true torque
     t.device = std::move(dev);

@@ -11,6 +11,7 @@
 
 #include "phalanx/host/benchrun/runner.h"
 #include "phalanx/host/glove/glove_controller.h"
+#include "phalanx/host/sea/sea_bench.h"
 
 namespace phalanx::host::benchrun {
 
@@ -28,6 +29,16 @@ inline glove::GloveControllerConfig gloveStepControllerConfig(const Step& st) {
     cc.transparent = true;
   }
   return cc;
+}
+
+/// A SEA rig step's controller: the trajectory controller of eq 16 (sine, or the chirp whose instantaneous
+/// frequency f0 + 2 f1 t reaches fmax at the end of the step), ours or the paper's.
+inline std::unique_ptr<sea::SeaTrajectoryController> seaStepController(const Plan& plan, const Step& st) {
+  const bool chirp = st.kind == "sea-rig-chirp";
+  const double f1 = chirp ? (st.fmax_hz - st.f0_hz) / (2.0 * st.seconds) : 0.0;
+  return std::make_unique<sea::SeaTrajectoryController>(
+      chirp ? sea::SeaTrajectoryController::Shape::kChirp : sea::SeaTrajectoryController::Shape::kSine,
+      chirp ? st.amplitude_Nm : st.peak_Nm, chirp ? st.f0_hz : st.hz, f1, plan.controller == "paper");
 }
 
 /// The plan's run-time safety stage (`safety:`), counted in rig ticks (1 ms each): an instrument silent, or

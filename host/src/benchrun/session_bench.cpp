@@ -77,11 +77,7 @@ class PlanController : public Controller {
 
 std::unique_ptr<Controller> stepController(const Plan& plan, const Step& st) {
   if (isGloveStep(st)) return std::make_unique<glove::GloveController>(gloveStepControllerConfig(st));
-  const bool chirp = st.kind == "sea-rig-chirp";
-  const double f1 = chirp ? (st.fmax_hz - st.f0_hz) / (2.0 * st.seconds) : 0.0;  // eq 16, as in lockstep
-  return std::make_unique<sea::SeaTrajectoryController>(
-      chirp ? sea::SeaTrajectoryController::Shape::kChirp : sea::SeaTrajectoryController::Shape::kSine,
-      chirp ? st.amplitude_Nm : st.peak_Nm, chirp ? st.f0_hz : st.hz, f1, plan.controller == "paper");
+  return seaStepController(plan, st);
 }
 
 /// firmware-sim's "instrument: modbus tcp 127.0.0.1:PORT …" / "… rtu /dev/pts/N …" line into the client's address.
