@@ -64,6 +64,10 @@ class SimChild {
     std::vector<std::string> args = {exe, "--device", device_name, "--tick-hz", hz, "--seed", seed,
                                      "--scenario", opt.scenario, "--exit-with-parent"};
     if (!opt.sim_truth.empty()) args.insert(args.end(), {"--truth", opt.sim_truth});
+    // A real-time session's simulated board runs under SCHED_FIFO too, below the session thread (as the VM lane runs
+    // it): it stands in for a board with a CPU of its own, which the host machine's load must not starve (the bench
+    // runner's measurement without it, beside stress-ng --cpu 1: 4 800 overruns in 16 s; docs/bench-runner.md).
+    if (opt.realtime) args.insert(args.end(), {"--fifo", std::to_string(std::max(1, opt.rt_priority - 10))});
     args.insert(args.end(), opt.sim_args.begin(), opt.sim_args.end());
     const bool instrument = std::find(opt.sim_args.begin(), opt.sim_args.end(), "--instrument") != opt.sim_args.end();
     if (!opt.sim_settings.empty()) {

@@ -393,9 +393,6 @@ def ep_input_fault(ep, b, device, kind):
     """A sensor that fails (open or frozen) or the e-stop pressed on the board (firmware-sim --inject), while the
     daemon drives the device: the firmware must find it itself and latch its safe state; the session runs on to
     its end with the device safe (exit 0)."""
-    if kind == "sensor_stuck" and device == "pantograph":
-        # The pen's encoders have no frozen-sensor detector (docs/soak.md): the glove or the SEA finger instead.
-        device = ep.meta["device"] = ep.rng.choice(["glove5", "sea_finger"])
     what, bit = INPUT_FAULTS[kind]
     at = round(ep.rng.uniform(2.0, 3.0), 2)
     spec = f"{what}@{at}" + (f"+{round(ep.rng.uniform(0.1, 1.0), 2)}" if what == "estop" else "")

@@ -107,7 +107,77 @@ TEST(PantographFirmware, AmplifierThatDoesNotFollowItsCommandIsAFault) {
   EXPECT_FALSE(r.rig.board().io().pwm_enabled);
 }
 
+// A frozen encoder (its count held, as firmware-sim's sensor-stuck injects it) while the hand moves the pen: the
+// other five encoders move the pen's ends apart from one pen length and the rigid-pen watch latches kSensorStuck.
+// Each of the six joints, the hand moving the pen through the workspace (random, seeded).
+TEST(PantographFirmware, AFrozenEncoderWhileThePenMovesLatchesSensorStuckAndGoesSafe) {
+  for (int joint = 0; joint < 6; ++joint) {
+    PenRig r(sim::PenHandScenario::kRandom);
+    ASSERT_EQ(r.rig.handshake(), "");
+    r.rig.run(0.5);
+    ASSERT_EQ(r.rig.core().faultBits(), 0) << "joint " << joint;
+    int32_t held = 0;
+    bool first = true;
+    r.rig.setIoHook([&](sim::SimIo& io) {
+      if (first) held = io.encoder[joint];
+      first = false;
+      io.encoder[joint] = held;
+    });
+    long ticks = 0;
+    while (!(r.rig.core().faultBits() & protocol::fault::kSensorStuck) && ticks < 3000) {
+      r.rig.step();
+      ++ticks;
+    }
+    EXPECT_EQ(r.rig.core().faultBits(), protocol::fault::kSensorStuck) << "joint " << joint << " after " << ticks << " ticks";
+    EXPECT_GE(ticks, static_cast<long>(apps::pantographDefaultConfig().ends_inconsistent_ticks)) << "joint " << joint;
+    EXPECT_FALSE(r.rig.board().io().pwm_enabled) << "joint " << joint;
+    std::printf("joint %d frozen: sensor-stuck after %ld ticks\n", joint, ticks);
+  }
+}
+
+// The same encoder frozen while the hand holds the pen still: nothing it should have seen has happened, so no
+// fault (an encoder's count is legitimately constant on a still pen).
+TEST(PantographFirmware, AFrozenEncoderOnAStillPenIsNoFault) {
+  PenRig r(sim::PenHandScenario::kHold);
+  ASSERT_EQ(r.rig.handshake(), "");
+  r.rig.run(0.2);
+  r.rig.setIoHook([held = r.rig.board().io().encoder[1]](sim::SimIo& io) { io.encoder[1] = held; });
+  r.rig.run(2.0);
+  EXPECT_EQ(r.rig.core().faultBits(), 0);
+}
+
 }  // namespace
+
+// The rigid-pen watch must never trip on a sound pen: at every pose of the soft-stop workspace grid, the encoder
+// counts of the true joint angles place the pen's ends (in the firmware's single precision) within half the
+// tolerance of one pen length.
+TEST(PantographFirmware, SoundEncodersDescribeOneRigidPenAcrossTheSoftStopWorkspace) {
+  const auto model = pen::defaultModel<double>();
+  const auto model_f = pen::defaultModel<float>();
+  const sim::PenPlantParams p;
+  const int n = 7;
+  double worst = 0.0;
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b)
+      for (int c = 0; c < n; ++c)
+        for (int d = 0; d < n; ++d)
+          for (int e = 0; e < n; ++e) {
+            auto lerp = [&](int k, int i) { return p.stop_lo[static_cast<std::size_t>(k)] +
+                                                   (p.stop_hi[static_cast<std::size_t>(k)] - p.stop_lo[static_cast<std::size_t>(k)]) * i / (n - 1); };
+            pen::PenPose<double> pose{{lerp(0, a), lerp(1, b), lerp(2, c)}, lerp(3, d), lerp(4, e)};
+            pen::JointVec<double> q;
+            ASSERT_EQ(pen::computeInverse(model, pose, q), pen::Status::kOk);
+            const auto counts = pen::countsFromAngles(model, q);
+            pen::JointVec<float> qf{};
+            for (std::size_t i = 0; i < 6; ++i) qf[i] = model_f.q_home_rad[i] + static_cast<float>(counts[i]) * 6.28318530718f / 4000.0f;
+            pen::Data<float> kin{};
+            const pen::Status s = pen::computeEnds(model_f, qf, kin);
+            ASSERT_TRUE(s == pen::Status::kOk || s == pen::Status::kSingular) << static_cast<int>(s);
+            if (s == pen::Status::kOk) worst = std::max(worst, std::fabs(static_cast<double>(kin.length_m) - pen::penLength(model)));
+          }
+  EXPECT_LT(worst, 0.5 * model.ends_tolerance_m);
+  std::printf("worst pen-length error from quantised encoders, float: %.3f mm\n", worst * 1e3);
+}
 
 // The firmware's joint windows are compile-time constants; they must contain every joint angle the default
 // geometry (pen::defaultModel, the one the plant and the host use) reaches inside the plant's soft stops, with

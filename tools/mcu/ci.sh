@@ -58,7 +58,8 @@ python3 tools/mcu/qemu_board.py plan --board ast1030-evb --app sea_finger
 #               the single-precision glove plant keeps real time under -icount shift=2)
 #   sea_finger  no target given; measured worst 7830–9900 before, 4530–4730 after the same, 4650–4770 with the
 #               frozen joint-sensor watch; gate 7000
-#   pantograph  no target given; measured worst 7640–9490 before, 4580–5340 after; gate 7000
+#   pantograph  no target given; measured worst 7640–9490 before, 4580–5340 after; 5830–5940 (median 3624, was
+#               2264 in the same session) with the rigid-pen encoder watch (pen::computeEnds each tick); gate 7000
 # --plant-period-ms: the plant runs in PendSV below the tick, as fast as the CPU allows, never ahead of the
 # firmware's clock. The pen plant (≈1.9 M instructions per simulated ms) cannot keep up under -icount at any
 # shift; capping it near the rate it reaches anyway (1/8) keeps QEMU's virtual clock at real time so the 3 s host

@@ -42,7 +42,19 @@ uint16_t PantographApp::sense(float dt_s) {
     s.current_A = static_cast<float>(raw - board::kAdcMidCounts) * board::kAmpsPerCount;
   }
   primed_ = true;
-  return faults;
+  return faults | watchRigidPen();
+}
+
+/// kSensorStuck after ends_inconsistent_ticks ticks in a row whose encoders place the pen's two ends more than the
+/// tolerance away from one pen length, or cannot close a five-bar (PantographConfig::ends_inconsistent_ticks). A
+/// singular five-bar (outside the soft stops) gives no verdict and ends the run.
+uint16_t PantographApp::watchRigidPen() {
+  pen::JointVec<float> q{};
+  for (size_t i = 0; i < q.size(); ++i) q[i] = model_.q_home_rad[i] + joint_[i].angle_rad;
+  const pen::Status s = pen::computeEnds(model_, q, kin_);
+  const bool broken = s == pen::Status::kEndsInconsistent || s == pen::Status::kUnreachable;
+  inconsistent_ticks_ = broken ? static_cast<uint16_t>(inconsistent_ticks_ < 0xFFFF ? inconsistent_ticks_ + 1 : 0xFFFF) : 0;
+  return inconsistent_ticks_ >= cfg_.ends_inconsistent_ticks ? protocol::fault::kSensorStuck : 0;
 }
 
 uint16_t PantographApp::control(const protocol::Command& cmd, float /*dt_s*/) {

@@ -612,10 +612,9 @@ PlanResult runPlanOnDevice(const Plan& plan, const Progress& progress, const Dev
       opt.sim_args.insert(opt.sim_args.end(), {"--instrument-delay-ms", d});
     }
   }
-  // The simulated board stands in for a board with a CPU of its own: under SCHED_FIFO 70 (below the session's 80,
-  // as the VM lane runs it), so the host machine's load does not starve its ticks and its amplifier. Measured without
-  // it beside stress-ng --cpu 1: 4 800 overruns in 16 s and an instrument delay wandering 14-46 ms within a step.
-  if (sim && o.realtime) opt.sim_args.insert(opt.sim_args.end(), {"--fifo", "70"});
+  // The simulated board runs under SCHED_FIFO below the session (the session runner does it for every real-time
+  // sim: session), so the host machine's load does not starve its ticks and its amplifier. Measured without it beside
+  // stress-ng --cpu 1: 4 800 overruns in 16 s and an instrument delay wandering 14-46 ms within a step.
   BenchHooks hooks(plan, sim_instrument);
   opt.hooks = &hooks;
   // Progress from a thread of its own: the session thread only stores two counters.

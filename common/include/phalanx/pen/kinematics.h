@@ -332,12 +332,13 @@ inline std::array<std::int32_t, kNumJoints> countsFromAngles(const Model<T>& mod
   return c;
 }
 
-/// Forward kinematics of the whole device from the six joint angles: both tips, both Jacobians, the pen pose
-/// (centre, axis, θx, θz), and §V's singularity margins. Status kEndsInconsistent when the tips are not one
-/// pen length (2·l6) apart (Model::ends_tolerance_m): the outputs are then still filled but must not be used to
-/// command force.
+/// The pen's two ends from the six joint angles, and the measured pen length |p_top − p_bottom| (Data::length_m):
+/// the first half of computeForward, and all the firmware's rigid-pen encoder watch needs (apps/pantograph.h).
+/// kOk when the ends are one pen length (2·l6) apart within Model::ends_tolerance_m, kEndsInconsistent when not,
+/// or the first pantograph's failure (kUnreachable: its five-bar cannot close; kSingular: its Jacobian does not
+/// exist — its tip is still written).
 template <class T>
-inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Data<T>& d) {
+inline Status computeEnds(const Model<T>& model, const JointVec<T>& q_rad, Data<T>& d) {
   d.q_rad = q_rad;
   d.near_singular = 0;
   for (std::size_t p = 0; p < kNumPantographs; ++p) {
@@ -350,12 +351,26 @@ inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Da
   }
   const Vec3<T>& pb = d.pantograph[kBottom].B_p_tip;
   const Vec3<T>& pt = d.pantograph[kTop].B_p_tip;
-  const Vec3<T> diff{pt[0] - pb[0], pt[1] - pb[1], pt[2] - pb[2]};
-  d.length_m = norm(diff);
+  d.length_m = norm(Vec3<T>{pt[0] - pb[0], pt[1] - pb[1], pt[2] - pb[2]});
+  d.status = std::fabs(d.length_m - penLength(model)) <= model.ends_tolerance_m ? Status::kOk : Status::kEndsInconsistent;
+  return d.status;
+}
+
+/// Forward kinematics of the whole device from the six joint angles: both tips, both Jacobians, the pen pose
+/// (centre, axis, θx, θz), and §V's singularity margins. Status kEndsInconsistent when the tips are not one
+/// pen length (2·l6) apart (Model::ends_tolerance_m): the outputs are then still filled but must not be used to
+/// command force.
+template <class T>
+inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Data<T>& d) {
+  const Status ends = computeEnds(model, q_rad, d);
+  if (ends != Status::kOk && ends != Status::kEndsInconsistent) return ends;
   if (!(d.length_m > T(0))) {
     d.status = Status::kEndsInconsistent;
     return d.status;
   }
+  const Vec3<T>& pb = d.pantograph[kBottom].B_p_tip;
+  const Vec3<T>& pt = d.pantograph[kTop].B_p_tip;
+  const Vec3<T> diff{pt[0] - pb[0], pt[1] - pb[1], pt[2] - pb[2]};
   const T inv_len = T(1) / d.length_m;
   d.B_axis = {diff[0] * inv_len, diff[1] * inv_len, diff[2] * inv_len};
   d.B_p_centre = {T(0.5) * (pb[0] + pt[0]), T(0.5) * (pb[1] + pt[1]), T(0.5) * (pb[2] + pt[2])};
@@ -379,8 +394,8 @@ inline Status computeForward(const Model<T>& model, const JointVec<T>& q_rad, Da
     min_sin = m < min_sin ? m : min_sin;
   }
   d.min_margin_sin = min_sin;
-  if (!(std::fabs(d.length_m - penLength(model)) <= model.ends_tolerance_m)) {
-    d.status = Status::kEndsInconsistent;
+  if (ends == Status::kEndsInconsistent) {
+    d.status = ends;
   } else {
     d.status = d.near_singular != 0 ? Status::kNearSingular : Status::kOk;
   }

@@ -11,13 +11,14 @@
 /// Safety (faults latch in the core, which then calls safe(): every duty 0, bridges off): encoder jump beyond a
 /// physical speed (kSensorRange), joint outside its window (kJointLimit), measured current beyond the amplifier
 /// limit or disagreeing with the command for too long (kCurrentLimit), current sense at full scale
-/// (kSensorSaturated). The core adds the command watchdog (link loss) and the e-stop.
+/// (kSensorSaturated), and the six encoders no longer describing one rigid pen (kSensorStuck, below). The core adds the command watchdog (link loss) and the e-stop.
 /// Freestanding: no heap, no exceptions, single precision.
 #include <cstdint>
 
 #include "phalanx/control/pid.h"
 #include "phalanx/fw/app.h"
 #include "phalanx/pen/board.h"
+#include "phalanx/pen/kinematics.h"
 
 namespace phalanx::apps {
 
@@ -38,6 +39,13 @@ struct PantographConfig {
   float current_mismatch_A = 3.0f;
   uint16_t current_mismatch_ticks = 20;
   float overcurrent_A = 1.1f * pen::board::kPeakCurrent_A;
+  /// The rigid-pen encoder watch: six encoders measure a pen with five degrees of freedom (004 §VI: the waist
+  /// actuator q4 is redundant), so the two pen ends they place must stay one pen length apart
+  /// (pen::Model::ends_tolerance_m, 2 mm ≈ 10 counts of tip motion) and both five-bars must close. An encoder that
+  /// freezes (or slips counts) breaks that as soon as the pen moves in a way it should have seen; this many ticks
+  /// in a row latch kSensorStuck. An encoder's count is legitimately constant while the pen is still, so, unlike
+  /// the glove's Hall sensors, "unchanged" alone is no evidence here.
+  uint16_t ends_inconsistent_ticks = 10;
 };
 
 PantographConfig pantographDefaultConfig();
@@ -80,7 +88,12 @@ class PantographApp : public fw::DeviceApp {
   const PantographConfig& config() const { return cfg_; }
 
  private:
+  uint16_t watchRigidPen();
+
   PantographConfig cfg_;
+  const pen::Model<float> model_ = pen::defaultModel<float>();  ///< the compile-time geometry (kGeometryFingerprint)
+  pen::Data<float> kin_{};  ///< computeEnds' workspace
+  uint16_t inconsistent_ticks_ = 0;
   hal::Board* board_ = nullptr;
   PenJointState joint_[kPenJoints];
   control::LowPass rate_lp_[kPenJoints];
