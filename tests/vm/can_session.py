@@ -421,7 +421,7 @@ def inject_compact():
 
 
 def bench(mode="fd"):
-    """A bench plan over CAN (vmlib.sea_rig_bench): the sea_rig firmware on vcan, its load cell over Modbus TCP."""
+    """A bench plan over CAN (vmlib.realtime_bench): the sea_rig firmware on vcan, its load cell over Modbus TCP."""
     bus = "vcan0"
     vcan(bus, mode != "classic")
     sh(IP, "link", "set", "lo", "up")  # the amplifier is on 127.0.0.1; the VM's init leaves lo down
@@ -434,7 +434,7 @@ def bench(mode="fd"):
     m = re.search(r"tcp 127\.0\.0\.1:(\d+)", inst)
     check(m is not None, "firmware-sim did not report its instrument: %r" % inst)
     try:
-        line = vmlib.sea_rig_bench("bench-" + mode, "can:%s:%d@%s" % (bus, NODE, mode), m.group(1), BIN, OUT, check, fail)
+        line = vmlib.realtime_bench("bench-" + mode, "can:%s:%d@%s" % (bus, NODE, mode), m.group(1), BIN, OUT, check, fail)
     finally:
         fw.terminate()
         fw.wait(timeout=10)

@@ -14,7 +14,7 @@ Scenarios:
                       session: nothing from before is resent) and control resumes; no loss inside either session.
   usb-bench           a bench plan (`phalanx bench run`, docs/bench-runner.md "Real time") over usb: against the
                       FunctionFS device restarted as the sea_rig firmware, its load cell served by firmware-sim over
-                      Modbus TCP (vmlib.sea_rig_bench: what is gated and what is only printed).
+                      Modbus TCP (vmlib.realtime_bench: what is gated and what is only printed).
   usb-update          `phalanx update` over usb: to firmware-sim with a code flash file, and once with the power
                       lost mid-update: the board boots its old image and the retry completes.
 Prints RESULT lines; exits non-zero on the first failed expectation.
@@ -364,13 +364,13 @@ def restart_device(name, args):
 
 def bench():
     """The FunctionFS device becomes the sea_rig firmware with its load cell on Modbus TCP, and a bench plan runs
-    over usb: against it (vmlib.sea_rig_bench: what is gated and what is only printed)."""
+    over usb: against it (vmlib.realtime_bench: what is gated and what is only printed)."""
     subprocess.run(["/usr/sbin/ip", "link", "set", "lo", "up"], check=True)  # the amplifier is on 127.0.0.1
     p = restart_device("usb-bench", ["--device", "sea_rig", "--substeps", "2", "--tick-hz", str(RATE), "--instrument", "tcp:0"])
     inst = p.stdout.readline()
     m = re.search(r"tcp 127\.0\.0\.1:(\d+)", inst)
     check(m is not None, "firmware-sim did not report its instrument: %r" % inst)
-    line = vmlib.sea_rig_bench("usb-bench", device_spec("usb"), m.group(1), BIN, OUT, check, fail)
+    line = vmlib.realtime_bench("usb-bench", device_spec("usb"), m.group(1), BIN, OUT, check, fail)
     print("RESULT usb-bench: " + line, flush=True)
 
 

@@ -59,26 +59,15 @@ def timing_line(name, s, rate, fw_log=None):
     return txt, strict
 
 
-def sea_rig_bench(name, device, instrument_port, bin_dir, out_dir, check, fail):
-    """A bench plan (docs/bench-runner.md "Real time") over a real link: `phalanx bench run` drives the sea_rig
-    firmware on DEVICE while the rig's load cell is served over Modbus TCP on 127.0.0.1:INSTRUMENT_PORT (by
-    firmware-sim in the VM lane, by the emulated board's amplifier in tools/mcu/qemu_board.py plan), as a lab's
-    board and amplifier. Checked (through check/fail): the plan ran through the session runner on that
-    link (the session ended cleanly) and its instrument was read. The limits' verdict, the alignment, any step error
-    and what the link kept (telemetry rate, ticks unseen, the device clock's rate) are returned as one line, not
-    gated: the emulated VM keeps neither 1 kHz nor a steady delay (measured over CAN: the instrument's delay wandered
-    8-24 ms within one 6 s step, so the alignment refused it)."""
-    plan_path, report = "/tmp/%s.yaml" % name, "/tmp/%s.html" % name
-    with open(plan_path, "w") as f:
-        f.write("""version: 1
-device: %s
-device_type: sea_rig
-instrument: {transport: tcp, host: 127.0.0.1, port: %s, type: int32, scale: 1.0e-5, unit: N*m, poll_hz: 500,
+# The plans realtime_bench runs, per device type: the instrument's scale and unit, the safety stage, and one step
+# as the shipped plans in bench/ write it (sea-rig.yaml, glove-free-motion.yaml).
+BENCH_PLANS = {
+    "sea_rig": ("""instrument: {transport: tcp, host: 127.0.0.1, port: %(port)s, type: int32, scale: 1.0e-5, unit: N*m, poll_hz: 500,
              timeout_ms: 50, stale_ms: 50}
 max_stale_percent: 5
 safety: {effort_max: 0.4, instrument_silence_ms: 200, disagreement_max: 0.05, disagreement_ms: 100}
 steps:
-  - name: sine 0.3 N*m over %s
+  - name: sine 0.3 N*m over %(link)s
     kind: sea-rig-sine
     peak_Nm: 0.3
     hz: 0.5
@@ -87,7 +76,39 @@ steps:
     limits:
       setpoint_vs_instrument: {nrmse_percent_max: 11.59, fidelity_percent_min: 97.7}
       estimate_vs_instrument: {nrmse_percent_max: 6.0}
-""" % (device, instrument_port, device.split(":")[0].upper()))
+""", "load cell", 1e3, "mN*m"),
+    "glove5": ("""instrument: {transport: tcp, host: 127.0.0.1, port: %(port)s, type: int32, scale: 1.0e-5, unit: N, poll_hz: 500,
+             timeout_ms: 50, stale_ms: 50}
+max_stale_percent: 5
+safety: {effort_max: 1.0, instrument_silence_ms: 200, disagreement_max: 0.5, disagreement_ms: 100}
+steps:
+  - name: free motion, index finger, over %(link)s
+    kind: glove-free-motion
+    finger: 1
+    seconds: 6
+    settle_s: 0.5
+    limits:
+      setpoint_vs_instrument: {rmse_max: 0.05}
+      estimate_vs_instrument: {rmse_max: 0.05}
+""", "fingertip sensor", 1e3, "mN"),
+}
+
+
+def realtime_bench(name, device, instrument_port, bin_dir, out_dir, check, fail, device_type="sea_rig"):
+    """A bench plan (docs/bench-runner.md "Real time") over a real link: `phalanx bench run` drives the firmware on
+    DEVICE (the sea_rig's sine, or the glove's free motion: BENCH_PLANS) while its instrument (the rig's load cell,
+    the index fingertip's force sensor) is served over Modbus TCP on 127.0.0.1:INSTRUMENT_PORT (by firmware-sim in
+    the VM lane, by the emulated board's amplifier in tools/mcu/qemu_board.py plan), as a lab's board and amplifier.
+    Checked (through check/fail): the plan ran through the session runner on that link (the session ended cleanly)
+    and its instrument was read. The limits' verdict, the alignment, any step error and what the link kept
+    (telemetry rate, ticks unseen, the device clock's rate) are returned as one line, not gated: the emulated VM
+    keeps neither 1 kHz nor a steady delay (measured over CAN: the instrument's delay wandered 8-24 ms within one
+    6 s step, so the alignment refused it)."""
+    plan_path, report = "/tmp/%s.yaml" % name, "/tmp/%s.html" % name
+    steps, what, to_unit, unit = BENCH_PLANS[device_type]
+    with open(plan_path, "w") as f:
+        f.write("version: 1\ndevice: %s\ndevice_type: %s\n" % (device, device_type)
+                + steps % {"port": instrument_port, "link": device.split(":")[0].upper()})
     # SCHED_FIFO from chrt, without the runner's mlockall (slow over 9p in the VM).
     r = subprocess.run(["chrt", "-f", "80", bin_dir + "/phalanx", "bench", "run", plan_path, "--report", report,
                         "--no-realtime"], capture_output=True, text=True, timeout=240)
@@ -108,8 +129,9 @@ steps:
     # What the emulated VM's erratic timing causes is reported, not gated: an alignment it does not allow, stale
     # instrument samples, a command-timeout the firmware latched when the host's commands came late.
     error = step.get("error", "")
-    aligned = ("instrument delay %.2f +- %.2f ms (correlation %.4f), estimate vs load cell RMSE %.2f mN*m"
-               % (a["delay_ms"], a["uncertainty_ms"], a["correlation"], step["estimate_vs_instrument"]["rmse"] * 1e3)
+    aligned = ("instrument delay %.2f +- %.2f ms (correlation %.4f), estimate vs %s RMSE %.2f %s"
+               % (a["delay_ms"], a["uncertainty_ms"], a["correlation"], what,
+                  step["estimate_vs_instrument"]["rmse"] * to_unit, unit)
                if a.get("ok") and not error else "not scored (%s)" % error)
     return ("plan over %s, %s; device kept %.0f Hz telemetry (%d of %d ticks unseen, its clock %.0f ppm off the "
             "host's), %d instrument polls; %s"

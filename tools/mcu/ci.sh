@@ -46,6 +46,9 @@ python3 tools/mcu/qemu_board.py settings --board ast1030-evb --app sea_finger
 # session ended cleanly, the amplifier served the board's lines and was read. Printed, not gated: the limits'
 # verdict and the alignment, which measure the emulator's timing on this machine (docs/bench-runner.md).
 python3 tools/mcu/qemu_board.py plan --board ast1030-evb --app sea_finger
+# The same for the glove: its free-motion plan against the index fingertip's force sensor (the board's pad-force
+# truth), the plant stepped every ms. Gated and printed as above.
+python3 tools/mcu/qemu_board.py plan --board ast1030-evb --app glove5 --plant-period-ms 1
 
 # Cycle gates: worst-case control tick in instructions (qemu -icount shift=2, host 100 Hz, 3 s session). A gate is
 # a regression guard set above the app's measured worst case (docs/firmware-mcu.md, "Cycle budget"), not the

@@ -495,26 +495,33 @@ class Amplifier:
         asyncio.run(StartAsyncTcpServer(context=context, address=("127.0.0.1", self.port)))
 
 
+# The device type of the plan each app's emulated board serves an instrument for, and the hand scenario it runs.
+PLAN_DEVICE = {"sea_finger": ("sea_rig", []), "glove5": ("glove5", ["scenario=close-open"])}
+
+
 def plan(args):
-    """A sea-rig sine plan in real time against the emulated board and its amplifier (tests/vm/vmlib.py
-    sea_rig_bench, as the VM lane runs it over CAN and USB). Gated: the plan ran through the session runner over
-    the board's link, the session ended cleanly, the amplifier served the board's lines and was read. Printed, not
-    gated: the limits' verdict and the alignment (an emulator's timing)."""
+    """A bench plan in real time against the emulated board and its amplifier (tests/vm/vmlib.py realtime_bench, as
+    the VM lane runs it over CAN and USB): the SEA rig's sine against its load cell, or the glove's free motion
+    against the index fingertip's force sensor. Gated: the plan ran through the session runner over the board's
+    link, the session ended cleanly, the amplifier served the board's lines and was read. Printed, not gated: the
+    limits' verdict and the alignment (an emulator's timing)."""
     sys.path.insert(0, os.path.join(ROOT, "tests", "vm"))
-    from vmlib import sea_rig_bench
+    from vmlib import realtime_bench
     c = Checks()
-    if args.app != "sea_finger":
-        print("plan: the emulated board serves an instrument for the SEA rig only (--app sea_finger)", file=sys.stderr)
+    if args.app not in PLAN_DEVICE:
+        print("plan: the emulated board serves an instrument for the SEA rig and the glove only (--app sea_finger or "
+              "glove5; the pen's plant cannot keep real time on the emulated core)", file=sys.stderr)
         return 2
-    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + args.extra, machine=args.board,
-                  instrument=True)
+    device_type, scenario = PLAN_DEVICE[args.app]
+    board = Board(args.elf, extra=[f"plant_period_ms={args.plant_period_ms}"] + scenario + args.extra,
+                  machine=args.board, instrument=True)
     out = tempfile.mkdtemp(prefix="phalanx-qemu-plan-")
     try:
         print(f"board up: pty={board.pty} instrument={board.instrument_pty}; {board.wait_for(r'^BOOT .*', 1).group(0)}")
         c.check(board.instrument_pty is not None, "QEMU exposed the board's instrument UART as a pty")
         amp = Amplifier(board.instrument_pty)
         time.sleep(0.2)
-        c.check(amp.lines > 0 and amp.bad == 0, "the board writes its load cell's truth on its instrument UART",
+        c.check(amp.lines > 0 and amp.bad == 0, "the board writes its instrument's truth on its instrument UART",
                 f"lines={amp.lines} unreadable={amp.bad}")
 
         def check(ok, why):  # vmlib's convention: why is the failure's description
@@ -527,7 +534,7 @@ def plan(args):
             c.check(False, why)
             raise RuntimeError(why)
 
-        line = sea_rig_bench("qemu-plan", f"serial:{board.pty}", amp.port, BIN, out, check, fail)
+        line = realtime_bench("qemu-plan", f"serial:{board.pty}", amp.port, BIN, out, check, fail, device_type)
         print(f"RESULT qemu-plan {args.board}: {line} (amplifier: {amp.lines} board lines)")
     except RuntimeError:
         pass

@@ -57,4 +57,6 @@ void step(void* plant, float dt_s, Io& io) {
   for (int i = 0; i < kAdc; ++i) io.adc[i] = s.adc[static_cast<size_t>(i)];
 }
 
+float padForce_N(const void* plant, int finger) { return static_cast<const sim32::GlovePlant*>(plant)->padForce_N(finger); }
+
 }  // namespace phx_glove_f32

@@ -41,5 +41,7 @@ constexpr size_t kPlantAlign = 8;
 void* construct(void* storage, const Options& o);
 /// One step of dt_s seconds: reads the actuator fields of io, writes its ADC counts.
 void step(void* plant, float dt_s, Io& io);
+/// The true pad force of finger 0..4 (N): the emulated board's instrument (sim_devices.h).
+float padForce_N(const void* plant, int finger);
 
 }  // namespace phx_glove_f32

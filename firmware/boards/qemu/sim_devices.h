@@ -42,6 +42,7 @@ class GlovePlantF32 {
     phx_glove_f32::step(plant_, static_cast<float>(dt_s), io_);
     for (int i = 0; i < phx_glove_f32::kAdc; ++i) io.adc[static_cast<size_t>(i)] = io_.adc[i];
   }
+  double padForce_N(int finger) const { return static_cast<double>(phx_glove_f32::padForce_N(plant_, finger)); }
 
  private:
   static_assert(phx_glove_f32::kPwm == sim::kMaxPwm && phx_glove_f32::kAdc == sim::kMaxAdc, "SimIo sizes");
@@ -78,9 +79,13 @@ inline int scenarioNumber(const char* s, int len) {
   if (is("random")) return static_cast<int>(sim::HandScenario::kRandom);
   return -1;
 }
-/// The simulated instrument (option instrument=1): none on the glove board yet.
-constexpr const char* kInstrumentSignal = nullptr;
-inline int32_t instrumentMicro(const PlantType&) { return 0; }
+/// The simulated instrument (option instrument=1): a fingertip force sensor on the index finger, its true pad
+/// force, as firmware-sim's glove5 serves it by default (`pad_force_index_N`), in µN.
+constexpr const char* kInstrumentSignal = "pad_force_index_uN";
+inline int32_t instrumentMicro(const PlantType& p) {
+  const double v = static_cast<double>(p.padForce_N(1)) * 1e6;
+  return static_cast<int32_t>(v < -2e9 ? -2e9 : (v > 2e9 ? 2e9 : v));
+}
 }  // namespace phalanx::mcu::qemu
 
 #elif defined(PHALANX_MCU_APP_SEA_FINGER)
@@ -142,7 +147,9 @@ inline int scenarioNumber(const char* s, int len) {
   if (spells(s, len, "released")) return static_cast<int>(sim::PenHandScenario::kReleased);
   return -1;
 }
-/// The simulated instrument (option instrument=1): none on the pen board yet.
+/// The simulated instrument (option instrument=1): none on the pen board. Its plant cannot keep real time on the
+/// emulated core (docs/firmware-mcu.md: about 1.9 M instructions per simulated ms), so a force it served would not
+/// belong to the board's ticks.
 constexpr const char* kInstrumentSignal = nullptr;
 inline int32_t instrumentMicro(const PlantType&) { return 0; }
 }  // namespace phalanx::mcu::qemu
