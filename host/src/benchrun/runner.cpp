@@ -243,6 +243,132 @@ void safeStop(LockstepRig& rig, StepResult& r) {
   }
 }
 
+/// One lockstep step as it runs: the rig stepped in real time, the simulated amplifier fed the plant's truth (and
+/// the plan's instrument faults), the instrument polled by its own thread, and the safety watch; every tick's
+/// setpoint and estimate kept for the scoring.
+class LockstepStepRun {
+ public:
+  LockstepStepRun(const Plan& plan, const Step& st, SimTarget& target, modbus::SimInstrumentServer& amp,
+                  modbus::InstrumentClient& inst, StepResult& r)
+      : plan_(plan), st_(st), target_(target), amp_(amp), inst_(inst), r_(r), safety_(plan),
+        steps_(static_cast<size_t>(std::lround(st.seconds * kFs))),
+        // A sample is "young" for two poll periods of rig time (see series()).
+        max_age_steps_(static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)))),
+        sp_(steps_), est_(steps_), set_ns_(steps_), stale_(steps_), excluded_(steps_) {
+    samples_.reserve(steps_);
+  }
+  size_t steps() const { return steps_; }
+
+  /// Rig step k, in real time (its wall-clock slot), and the instrument's reading after it. false: the safety
+  /// watch stopped the step (the device was put in its safe state).
+  bool tick(size_t k) {
+    stepRig(k);
+    sleepUntil(t0_ + paused_ns_ + static_cast<uint64_t>(k + 1) * 1000000ull);
+    return watch(k, awaitInstrument(k));
+  }
+
+  /// The instrument aligned to the rig steps: each sample held from the step whose ground truth it carried (the
+  /// last step published before the response arrived; the rig may have run in bursts on a loaded machine, and sim
+  /// time is what counts), scored only while young in sim time too (two poll periods): when the machine starved
+  /// the rig and it caught up in a burst, the steps of the burst were never measured.
+  StepSeries series() {
+    std::vector<double> inst_zoh(steps_, std::nan(""));
+    size_t si = 0, held_at = 0;
+    double held = std::nan("");
+    for (size_t k = 0; k < steps_; ++k) {
+      while (si < samples_.size() && (k + 1 >= steps_ || samples_[si].first < set_ns_[k + 1])) {
+        held = samples_[si].second;
+        held_at = k;
+        ++si;
+      }
+      inst_zoh[k] = held;
+      if (k - held_at > max_age_steps_) stale_[k] = 1;
+    }
+    const auto settle = static_cast<size_t>(std::lround(st_.settle_s * kFs));
+    return {std::move(sp_), std::move(est_), std::move(inst_zoh), std::move(stale_), std::move(excluded_), settle};
+  }
+
+ private:
+  /// The rig's step k and what it measured; the amplifier gets the plant's truth (or the plan's lying or hung
+  /// instrument from its set time on).
+  void stepRig(size_t k) {
+    if (target_.before_step) target_.before_step(k);
+    target_.rig->step();
+    if (target_.after_step) target_.after_step();
+    if (target_.unscorable && target_.unscorable()) {
+      for (size_t j = k; j < std::min(steps_, k + 1 + kExcludeAfter); ++j) excluded_[j] = 1;
+    }
+    r_.faults |= target_.rig->session().latest().fault_bits;
+    sp_[k] = target_.setpoint();
+    est_[k] = target_.estimate();
+    const double truth = target_.truth();
+    const double t_s = static_cast<double>(k) / kFs;
+    if (!lying_ && st_.instrument_lie_at_s >= 0.0 && t_s >= st_.instrument_lie_at_s) lying_ = true;
+    amp_.set(lying_ ? truth * st_.instrument_lie_gain + st_.instrument_lie_offset : truth);
+    set_ns_[k] = linux_hal::monotonicNs();
+    if (!hung_ && st_.instrument_hang_at_s >= 0.0 && t_s >= st_.instrument_hang_at_s) {
+      amp_.setResponsive(false);
+      hung_ = true;
+    }
+  }
+
+  /// The instrument's newest reading. Simulation only: the rig's clock is virtual, so when the machine starved the
+  /// polling thread the rig waits for the instrument instead of running ahead unmeasured (bounded by the request
+  /// timeout; after a timeout it stops waiting until the instrument answers again, and those samples count as stale).
+  modbus::InstrumentReading awaitInstrument(size_t k) {
+    modbus::InstrumentReading rd = inst_.latest(linux_hal::monotonicNs());
+    if (rd.sample_ns == last_sample_ns_ && k > last_sample_step_ + max_age_steps_ && instrument_answering_) {
+      const uint64_t w0 = linux_hal::monotonicNs();
+      const uint64_t w_end = w0 + static_cast<uint64_t>(plan_.instrument.timeout_ms) * 2000000ull;
+      while (rd.sample_ns == last_sample_ns_ && linux_hal::monotonicNs() < w_end) {
+        sleepUntil(linux_hal::monotonicNs() + 200000ull);
+        rd = inst_.latest(linux_hal::monotonicNs());
+      }
+      paused_ns_ += linux_hal::monotonicNs() - w0;
+      instrument_answering_ = rd.sample_ns != last_sample_ns_;
+    }
+    return rd;
+  }
+
+  /// Keeps a fresh sample and runs the safety watch on it; false after a safety stop.
+  bool watch(size_t k, const modbus::InstrumentReading& rd) {
+    stale_[k] = rd.stale ? 1 : 0;
+    if (rd.valid && rd.sample_ns != last_sample_ns_) {
+      samples_.emplace_back(rd.sample_ns, rd.value);
+      last_sample_ns_ = rd.sample_ns;
+      last_sample_step_ = k;
+      instrument_answering_ = true;
+      // Against the device's estimate at the rig step whose truth the sample carried (as the scoring does).
+      size_t j = k;
+      while (j > 0 && set_ns_[j] > rd.sample_ns) --j;
+      safety_.sample(k, rd.value, est_[j], r_);
+    }
+    const std::string cause = safety_.check(k, k - last_sample_step_, rd.last_error, est_[k], r_);
+    if (cause.empty()) return true;
+    r_.safety_stop = cause;
+    r_.stop_tick = static_cast<long>(k);
+    safeStop(*target_.rig, r_);
+    return false;
+  }
+
+  const Plan& plan_;
+  const Step& st_;
+  SimTarget& target_;
+  modbus::SimInstrumentServer& amp_;
+  modbus::InstrumentClient& inst_;
+  StepResult& r_;
+  SafetyWatch safety_;
+  const size_t steps_, max_age_steps_;
+  std::vector<double> sp_, est_;
+  std::vector<uint64_t> set_ns_;
+  std::vector<uint8_t> stale_, excluded_;
+  std::vector<std::pair<uint64_t, double>> samples_;  ///< instrument samples: (arrival time, value)
+  const uint64_t t0_ = linux_hal::monotonicNs();
+  uint64_t last_sample_ns_ = 0, paused_ns_ = 0;
+  size_t last_sample_step_ = 0;
+  bool instrument_answering_ = true, hung_ = false, lying_ = false;
+};
+
 StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer& amp, modbus::InstrumentClient& inst,
                    size_t index, const Progress& progress) {
   StepResult r;
@@ -264,108 +390,19 @@ StepResult runStep(const Plan& plan, const Step& st, modbus::SimInstrumentServer
     return r;
   }
 
-  const auto steps = static_cast<size_t>(std::lround(st.seconds * kFs));
-  const auto settle = static_cast<size_t>(std::lround(st.settle_s * kFs));
-  std::vector<double> sp(steps), est(steps), truth_set(steps);
-  std::vector<uint64_t> set_ns(steps);
-  std::vector<uint8_t> stale(steps), excluded(steps);
-  std::vector<std::pair<uint64_t, double>> samples;  // instrument samples: (arrival time, value)
-  samples.reserve(steps);
-  uint64_t last_sample_ns = 0;
-  size_t last_sample_step = 0;
-  uint64_t paused_ns = 0;
-  bool instrument_answering = true;
-  // A sample is "young" for two poll periods of rig time (see the alignment below).
-  const auto max_age_steps = static_cast<size_t>(std::max(2.0, std::ceil(2.0 * kFs / plan.instrument.poll_hz)));
-  bool hung = false;
-  bool lying = false;
-  SafetyWatch safety(plan);
-  const uint64_t t0 = linux_hal::monotonicNs();
-  size_t next_progress = 0;
-  for (size_t k = 0; k < steps; ++k) {
-    if (target.before_step) target.before_step(k);
-    target.rig->step();
-    if (target.after_step) target.after_step();
-    if (target.unscorable && target.unscorable()) {
-      for (size_t j = k; j < std::min(steps, k + 1 + kExcludeAfter); ++j) excluded[j] = 1;
-    }
-    r.faults |= target.rig->session().latest().fault_bits;
-    sp[k] = target.setpoint();
-    est[k] = target.estimate();
-    truth_set[k] = target.truth();
-    if (!lying && st.instrument_lie_at_s >= 0.0 && static_cast<double>(k) / kFs >= st.instrument_lie_at_s) lying = true;
-    amp.set(lying ? truth_set[k] * st.instrument_lie_gain + st.instrument_lie_offset : truth_set[k]);
-    set_ns[k] = linux_hal::monotonicNs();
-    if (!hung && st.instrument_hang_at_s >= 0.0 && static_cast<double>(k) / kFs >= st.instrument_hang_at_s) {
-      amp.setResponsive(false);
-      hung = true;
-    }
-    // Real time: the instrument is polled by its own thread while the rig runs at 1 kHz.
-    sleepUntil(t0 + paused_ns + static_cast<uint64_t>(k + 1) * 1000000ull);
-    modbus::InstrumentReading rd = inst.latest(linux_hal::monotonicNs());
-    // Simulation only: the rig's clock is virtual, so when the machine starved the polling thread the rig
-    // waits for the instrument instead of running ahead unmeasured (bounded by the request timeout; after a
-    // timeout it stops waiting until the instrument answers again, and those samples count as stale).
-    if (rd.sample_ns == last_sample_ns && k > last_sample_step + max_age_steps && instrument_answering) {
-      const uint64_t w0 = linux_hal::monotonicNs();
-      const uint64_t w_end = w0 + static_cast<uint64_t>(plan.instrument.timeout_ms) * 2000000ull;
-      while (rd.sample_ns == last_sample_ns && linux_hal::monotonicNs() < w_end) {
-        sleepUntil(linux_hal::monotonicNs() + 200000ull);
-        rd = inst.latest(linux_hal::monotonicNs());
-      }
-      paused_ns += linux_hal::monotonicNs() - w0;
-      instrument_answering = rd.sample_ns != last_sample_ns;
-    }
-    stale[k] = rd.stale ? 1 : 0;
-    if (rd.valid && rd.sample_ns != last_sample_ns) {
-      samples.emplace_back(rd.sample_ns, rd.value);
-      last_sample_ns = rd.sample_ns;
-      last_sample_step = k;
-      instrument_answering = true;
-      // Compare with the device's estimate at the rig step whose truth the sample carried (as the scoring does).
-      size_t j = k;
-      while (j > 0 && set_ns[j] > rd.sample_ns) --j;
-      safety.sample(k, rd.value, est[j], r);
-    }
-    const std::string cause = safety.check(k, k - last_sample_step, rd.last_error, est[k], r);
-    if (!cause.empty()) {
-      r.safety_stop = cause;
-      r.stop_tick = static_cast<long>(k);
-      safeStop(*target.rig, r);
-      break;
-    }
-    if (k >= next_progress) {
-      progress(index, plan.steps.size(), st.name, static_cast<double>(k) / static_cast<double>(steps));
-      next_progress += 100;
-    }
+  LockstepStepRun run(plan, st, target, amp, inst, r);
+  for (size_t k = 0; k < run.steps() && run.tick(k); ++k) {
+    if (k % 100 == 0) progress(index, plan.steps.size(), st.name, static_cast<double>(k) / static_cast<double>(run.steps()));
   }
   progress(index, plan.steps.size(), st.name, 1.0);
   amp.setResponsive(true);
+  r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
   if (!r.safety_stop.empty()) {
     r.error = r.safety_stop;
     if (r.ticks_to_safe < 0) r.error += "; the device did not report its safe state";
-    r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
     return r;  // nothing scored: the step was cut short
   }
-
-  // Align each instrument sample with the rig step whose ground truth it carried: the last step published
-  // before the response arrived (the rig may have run in bursts on a loaded machine; sim time is what counts).
-  // A held sample is scored only while it is young in *sim* time too: at most two poll periods old. When the
-  // machine starves the rig and it catches up in a burst, the steps of the burst were never measured.
-  std::vector<double> inst_zoh(steps, std::nan(""));
-  size_t si = 0, held_at = 0;
-  double held = std::nan("");
-  for (size_t k = 0; k < steps; ++k) {
-    while (si < samples.size() && (k + 1 >= steps || samples[si].first < set_ns[k + 1])) {
-      held = samples[si].second;
-      held_at = k;
-      ++si;
-    }
-    inst_zoh[k] = held;
-    if (k - held_at > max_age_steps) stale[k] = 1;
-  }
-  StepSeries series{std::move(sp), std::move(est), std::move(inst_zoh), std::move(stale), std::move(excluded), settle};
-  r.instrument_stats = inst.statsJson(linux_hal::monotonicNs());
+  StepSeries series = run.series();
   const modbus::InstrumentReading last = inst.latest(linux_hal::monotonicNs());
   if (!scoreSeries(plan, st, series, last.last_error, r)) return r;
   if (target.finish) target.finish(st, r);
