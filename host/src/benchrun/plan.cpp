@@ -124,7 +124,8 @@ Safety safetyOf(const YAML::Node& n, const std::string& device, const std::strin
   return s;
 }
 
-void apply(const YAML::Node& root, Plan& p) {
+/// The plan's top-level keys other than safety and steps.
+void topLevelOf(const YAML::Node& root, Plan& p) {
   onlyKeys(root, "", {"version", "device", "device_type", "sim_instrument", "sim_instrument_delay_ms", "controller", "seed", "noise", "report",
                       "instrument", "max_stale_percent", "safety", "steps"});
   if (root["version"] && get<int>(root["version"], "version", "integer") != 1) {
@@ -155,6 +156,107 @@ void apply(const YAML::Node& root, Plan& p) {
       throw Bad{err};
     }
   }
+}
+
+/// A step's kind (which must run on the plan's device) and the defaults that follow from it.
+Step stepKindOf(const YAML::Node& s, const std::string& w, const Plan& p) {
+  Step st;
+  if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp, pen-wall)"};
+  st.kind = get<std::string>(s["kind"], w + ".kind", "string");
+  const bool sea = isSeaStep(st);
+  const bool pen = st.kind == "pen-wall";
+  if (!sea && !pen && !isGloveStep(st)) {
+    throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp or pen-wall"};
+  }
+  const std::string runs_on = sea ? "sea_rig" : (pen ? "pantograph" : "glove5");
+  if (runs_on != p.device_type) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device + " (" + p.device_type + ")"};
+  st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
+  if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
+  if (st.kind == "glove-grasp") {
+    // As `phalanx bench glove-grasp`: reach and squeeze for 2 s, scored over the last second's steady contact.
+    st.seconds = 3.0;
+    st.settle_s = 2.0;
+  }
+  if (pen) {
+    if (s["stiffness_N_per_cm"]) {
+      // 64 N/cm: the top of `phalanx bench pen-wall --sweep` (docs/pen-plant.md).
+      st.stiffness_N_per_cm = number(s["stiffness_N_per_cm"], w + ".stiffness_N_per_cm", 0.1, 64.0);
+    }
+    if (s["braking"]) st.braking = get<bool>(s["braking"], w + ".braking", "boolean");
+    // Default: the whole wall-bench schedule (presses, corners, hands-off impact); a shorter step stops early.
+    pen::PenWallBenchOptions o;
+    o.stiffness_N_per_cm = st.stiffness_N_per_cm;
+    double total = 0.0;
+    for (const pen::PenWallPhase& ph : pen::wallBenchSchedule(pen::wallBenchScene(o))) total += ph.move_s + ph.hold_s;
+    st.seconds = total;
+    st.settle_s = 0.5;  // the first free hold
+  } else if (s["stiffness_N_per_cm"] || s["braking"]) {
+    throw Bad{w + ": stiffness_N_per_cm and braking are pen-wall keys"};
+  }
+  return st;
+}
+
+/// A step's timing, excitation, finger and lockstep instrument faults.
+void stepNumbersOf(const YAML::Node& s, const std::string& w, Step& st) {
+  if (s["seconds"]) st.seconds = number(s["seconds"], w + ".seconds", 0.5, 600.0);
+  if (s["settle_s"]) st.settle_s = number(s["settle_s"], w + ".settle_s", 0.0, 60.0);
+  if (st.kind == "sea-rig-chirp") st.settle_s = s["settle_s"] ? st.settle_s : 0.0;
+  if (st.settle_s >= st.seconds) throw Bad{w + ".settle_s: must be shorter than seconds"};
+  // 0.4 N·m: the range phalanx bench sea-rig-sine accepts (docs/bench-runner.md, constants).
+  if (s["peak_Nm"]) st.peak_Nm = number(s["peak_Nm"], w + ".peak_Nm", 0.001, 0.4);
+  if (s["hz"]) st.hz = number(s["hz"], w + ".hz", 0.01, 50.0);
+  if (s["amplitude_Nm"]) st.amplitude_Nm = number(s["amplitude_Nm"], w + ".amplitude_Nm", 0.001, 0.4);
+  if (s["f0_hz"]) st.f0_hz = number(s["f0_hz"], w + ".f0_hz", 0.0, 50.0);
+  if (s["fmax_hz"]) st.fmax_hz = number(s["fmax_hz"], w + ".fmax_hz", 0.5, 200.0);
+  if (st.kind == "sea-rig-chirp" && st.fmax_hz <= st.f0_hz + 1.0) throw Bad{w + ".fmax_hz: must exceed f0_hz by 1 Hz or more"};
+  if (s["finger"]) st.finger = static_cast<int>(number(s["finger"], w + ".finger", 0.0, 4.0));
+  if (s["instrument_hang_at_s"]) {
+    st.instrument_hang_at_s = number(s["instrument_hang_at_s"], w + ".instrument_hang_at_s", 0.0, 600.0);
+  }
+  if (s["instrument_lie_at_s"]) st.instrument_lie_at_s = number(s["instrument_lie_at_s"], w + ".instrument_lie_at_s", 0.0, 600.0);
+  if (s["instrument_lie_gain"]) st.instrument_lie_gain = number(s["instrument_lie_gain"], w + ".instrument_lie_gain", -1e3, 1e3);
+  if (s["instrument_lie_offset"]) {
+    st.instrument_lie_offset = number(s["instrument_lie_offset"], w + ".instrument_lie_offset", -1e6, 1e6);
+  }
+  if ((s["instrument_lie_gain"] || s["instrument_lie_offset"]) && !s["instrument_lie_at_s"]) {
+    throw Bad{w + ".instrument_lie_at_s: required with instrument_lie_gain / instrument_lie_offset"};
+  }
+}
+
+/// A step's limits: the pair metrics every kind has, pen-wall's own, and which metric needs which kind.
+void stepLimitsOf(const YAML::Node& s, const std::string& w, Step& st) {
+  const bool pen = st.kind == "pen-wall";
+  if (const YAML::Node l = s["limits"]) {
+    if (pen) {
+      onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument", "penetration_mm_max",
+                                  "wall_energy_generated_mJ_max"});
+      if (l["penetration_mm_max"]) st.penetration_mm_max = number(l["penetration_mm_max"], w + ".limits.penetration_mm_max", 0.0, 1e3);
+      if (l["wall_energy_generated_mJ_max"]) {
+        st.wall_energy_generated_mJ_max =
+            number(l["wall_energy_generated_mJ_max"], w + ".limits.wall_energy_generated_mJ_max", -1e6, 1e6);
+      }
+    } else {
+      onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument"});
+    }
+    if (l["estimate_vs_instrument"]) {
+      st.estimate_vs_instrument = limitsOf(l["estimate_vs_instrument"], w + ".limits.estimate_vs_instrument");
+    }
+    if (l["setpoint_vs_instrument"]) {
+      st.setpoint_vs_instrument = limitsOf(l["setpoint_vs_instrument"], w + ".limits.setpoint_vs_instrument");
+    }
+  }
+  if (st.kind != "sea-rig-chirp" &&
+      (st.estimate_vs_instrument.bandwidth_hz_min || st.setpoint_vs_instrument.bandwidth_hz_min)) {
+    throw Bad{w + ".limits: bandwidth_hz_min needs a sea-rig-chirp step"};
+  }
+  if (!isSeaStep(st) && (st.estimate_vs_instrument.fidelity_percent_min || st.setpoint_vs_instrument.fidelity_percent_min)) {
+    throw Bad{w + ".limits: fidelity_percent_min (eq 15, a torque trajectory's tracking) needs a sea-rig-sine or "
+                  "sea-rig-chirp step"};
+  }
+}
+
+void apply(const YAML::Node& root, Plan& p) {
+  topLevelOf(root, p);
   const bool have_safety = static_cast<bool>(root["safety"]);
   if (have_safety) p.safety = safetyOf(root["safety"], p.device, p.device_type);
   const YAML::Node steps = root["steps"];
@@ -165,94 +267,14 @@ void apply(const YAML::Node& root, Plan& p) {
     onlyKeys(s, w, {"name", "kind", "seconds", "settle_s", "peak_Nm", "hz", "amplitude_Nm", "f0_hz", "fmax_hz", "finger",
                     "stiffness_N_per_cm", "braking", "instrument_hang_at_s", "instrument_lie_at_s", "instrument_lie_gain",
                     "instrument_lie_offset", "limits"});
-    Step st;
-    if (!s["kind"]) throw Bad{w + ".kind: required (sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp, pen-wall)"};
-    st.kind = get<std::string>(s["kind"], w + ".kind", "string");
-    const bool sea = isSeaStep(st);
-    const bool pen = st.kind == "pen-wall";
-    if (!sea && !pen && !isGloveStep(st)) {
-      throw Bad{w + ".kind: '" + st.kind + "' is not sea-rig-sine, sea-rig-chirp, glove-free-motion, glove-grasp or pen-wall"};
-    }
-    const std::string runs_on = sea ? "sea_rig" : (pen ? "pantograph" : "glove5");
-    if (runs_on != p.device_type) throw Bad{w + ".kind: " + st.kind + " does not run on " + p.device + " (" + p.device_type + ")"};
-    st.name = s["name"] ? get<std::string>(s["name"], w + ".name", "string") : st.kind;
-    if (st.kind == "sea-rig-chirp") st.seconds = 20.0;
-    if (st.kind == "glove-grasp") {
-      // As `phalanx bench glove-grasp`: reach and squeeze for 2 s, scored over the last second's steady contact.
-      st.seconds = 3.0;
-      st.settle_s = 2.0;
-    }
-    if (pen) {
-      if (s["stiffness_N_per_cm"]) {
-        // 64 N/cm: the top of `phalanx bench pen-wall --sweep` (docs/pen-plant.md).
-        st.stiffness_N_per_cm = number(s["stiffness_N_per_cm"], w + ".stiffness_N_per_cm", 0.1, 64.0);
-      }
-      if (s["braking"]) st.braking = get<bool>(s["braking"], w + ".braking", "boolean");
-      // Default: the whole wall-bench schedule (presses, corners, hands-off impact); a shorter step stops early.
-      pen::PenWallBenchOptions o;
-      o.stiffness_N_per_cm = st.stiffness_N_per_cm;
-      double total = 0.0;
-      for (const pen::PenWallPhase& ph : pen::wallBenchSchedule(pen::wallBenchScene(o))) total += ph.move_s + ph.hold_s;
-      st.seconds = total;
-      st.settle_s = 0.5;  // the first free hold
-    } else if (s["stiffness_N_per_cm"] || s["braking"]) {
-      throw Bad{w + ": stiffness_N_per_cm and braking are pen-wall keys"};
-    }
-    if (s["seconds"]) st.seconds = number(s["seconds"], w + ".seconds", 0.5, 600.0);
-    if (s["settle_s"]) st.settle_s = number(s["settle_s"], w + ".settle_s", 0.0, 60.0);
-    if (st.kind == "sea-rig-chirp") st.settle_s = s["settle_s"] ? st.settle_s : 0.0;
-    if (st.settle_s >= st.seconds) throw Bad{w + ".settle_s: must be shorter than seconds"};
-    // 0.4 N·m: the range phalanx bench sea-rig-sine accepts (docs/bench-runner.md, constants).
-    if (s["peak_Nm"]) st.peak_Nm = number(s["peak_Nm"], w + ".peak_Nm", 0.001, 0.4);
-    if (s["hz"]) st.hz = number(s["hz"], w + ".hz", 0.01, 50.0);
-    if (s["amplitude_Nm"]) st.amplitude_Nm = number(s["amplitude_Nm"], w + ".amplitude_Nm", 0.001, 0.4);
-    if (s["f0_hz"]) st.f0_hz = number(s["f0_hz"], w + ".f0_hz", 0.0, 50.0);
-    if (s["fmax_hz"]) st.fmax_hz = number(s["fmax_hz"], w + ".fmax_hz", 0.5, 200.0);
-    if (st.kind == "sea-rig-chirp" && st.fmax_hz <= st.f0_hz + 1.0) throw Bad{w + ".fmax_hz: must exceed f0_hz by 1 Hz or more"};
-    if (s["finger"]) st.finger = static_cast<int>(number(s["finger"], w + ".finger", 0.0, 4.0));
-    if (s["instrument_hang_at_s"]) {
-      st.instrument_hang_at_s = number(s["instrument_hang_at_s"], w + ".instrument_hang_at_s", 0.0, 600.0);
-    }
-    if (s["instrument_lie_at_s"]) st.instrument_lie_at_s = number(s["instrument_lie_at_s"], w + ".instrument_lie_at_s", 0.0, 600.0);
-    if (s["instrument_lie_gain"]) st.instrument_lie_gain = number(s["instrument_lie_gain"], w + ".instrument_lie_gain", -1e3, 1e3);
-    if (s["instrument_lie_offset"]) {
-      st.instrument_lie_offset = number(s["instrument_lie_offset"], w + ".instrument_lie_offset", -1e6, 1e6);
-    }
-    if ((s["instrument_lie_gain"] || s["instrument_lie_offset"]) && !s["instrument_lie_at_s"]) {
-      throw Bad{w + ".instrument_lie_at_s: required with instrument_lie_gain / instrument_lie_offset"};
-    }
-    if (const YAML::Node l = s["limits"]) {
-      if (pen) {
-        onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument", "penetration_mm_max",
-                                    "wall_energy_generated_mJ_max"});
-        if (l["penetration_mm_max"]) st.penetration_mm_max = number(l["penetration_mm_max"], w + ".limits.penetration_mm_max", 0.0, 1e3);
-        if (l["wall_energy_generated_mJ_max"]) {
-          st.wall_energy_generated_mJ_max =
-              number(l["wall_energy_generated_mJ_max"], w + ".limits.wall_energy_generated_mJ_max", -1e6, 1e6);
-        }
-      } else {
-        onlyKeys(l, w + ".limits", {"estimate_vs_instrument", "setpoint_vs_instrument"});
-      }
-      if (l["estimate_vs_instrument"]) {
-        st.estimate_vs_instrument = limitsOf(l["estimate_vs_instrument"], w + ".limits.estimate_vs_instrument");
-      }
-      if (l["setpoint_vs_instrument"]) {
-        st.setpoint_vs_instrument = limitsOf(l["setpoint_vs_instrument"], w + ".limits.setpoint_vs_instrument");
-      }
-    }
-    if (st.kind != "sea-rig-chirp" &&
-        (st.estimate_vs_instrument.bandwidth_hz_min || st.setpoint_vs_instrument.bandwidth_hz_min)) {
-      throw Bad{w + ".limits: bandwidth_hz_min needs a sea-rig-chirp step"};
-    }
-    if (!sea && (st.estimate_vs_instrument.fidelity_percent_min || st.setpoint_vs_instrument.fidelity_percent_min)) {
-      throw Bad{w + ".limits: fidelity_percent_min (eq 15, a torque trajectory's tracking) needs a sea-rig-sine or "
-                    "sea-rig-chirp step"};
-    }
+    Step st = stepKindOf(s, w, p);
+    stepNumbersOf(s, w, st);
+    stepLimitsOf(s, w, st);
     if (have_safety) {
       const double e = stepEffortMax(st);
       if (e > p.safety.effort_max) {
         const std::string key = st.kind == "sea-rig-sine" ? ".peak_Nm" : (st.kind == "sea-rig-chirp" ? ".amplitude_Nm" : ".kind");
-        throw Bad{w + key + ": commands up to " + fmt(e) + (pen ? " (pen-wall: the force split's joint torque limit)" : "") +
+        throw Bad{w + key + ": commands up to " + fmt(e) + (st.kind == "pen-wall" ? " (pen-wall: the force split's joint torque limit)" : "") +
                   ", beyond safety.effort_max " + fmt(p.safety.effort_max)};
       }
     }
