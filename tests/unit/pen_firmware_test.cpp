@@ -146,6 +146,24 @@ TEST(PantographFirmware, AFrozenEncoderOnAStillPenIsNoFault) {
   EXPECT_EQ(r.rig.core().faultBits(), 0);
 }
 
+/// The joint angles of every pose of a 7⁵ grid over the plant's soft-stop workspace (pen::computeInverse).
+template <class Fn>
+void forEachSoftStopPose(const pen::Model<double>& model, Fn fn) {
+  const sim::PenPlantParams p;
+  const int n = 7;
+  auto lerp = [&](std::size_t k, int i) { return p.stop_lo[k] + (p.stop_hi[k] - p.stop_lo[k]) * i / (n - 1); };
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b)
+      for (int c = 0; c < n; ++c)
+        for (int d = 0; d < n; ++d)
+          for (int e = 0; e < n; ++e) {
+            const pen::PenPose<double> pose{{lerp(0, a), lerp(1, b), lerp(2, c)}, lerp(3, d), lerp(4, e)};
+            pen::JointVec<double> q;
+            ASSERT_EQ(pen::computeInverse(model, pose, q), pen::Status::kOk);
+            fn(q);
+          }
+}
+
 }  // namespace
 
 // The rigid-pen watch must never trip on a sound pen: at every pose of the soft-stop workspace grid, the encoder
@@ -154,27 +172,16 @@ TEST(PantographFirmware, AFrozenEncoderOnAStillPenIsNoFault) {
 TEST(PantographFirmware, SoundEncodersDescribeOneRigidPenAcrossTheSoftStopWorkspace) {
   const auto model = pen::defaultModel<double>();
   const auto model_f = pen::defaultModel<float>();
-  const sim::PenPlantParams p;
-  const int n = 7;
   double worst = 0.0;
-  for (int a = 0; a < n; ++a)
-    for (int b = 0; b < n; ++b)
-      for (int c = 0; c < n; ++c)
-        for (int d = 0; d < n; ++d)
-          for (int e = 0; e < n; ++e) {
-            auto lerp = [&](int k, int i) { return p.stop_lo[static_cast<std::size_t>(k)] +
-                                                   (p.stop_hi[static_cast<std::size_t>(k)] - p.stop_lo[static_cast<std::size_t>(k)]) * i / (n - 1); };
-            pen::PenPose<double> pose{{lerp(0, a), lerp(1, b), lerp(2, c)}, lerp(3, d), lerp(4, e)};
-            pen::JointVec<double> q;
-            ASSERT_EQ(pen::computeInverse(model, pose, q), pen::Status::kOk);
-            const auto counts = pen::countsFromAngles(model, q);
-            pen::JointVec<float> qf{};
-            for (std::size_t i = 0; i < 6; ++i) qf[i] = model_f.q_home_rad[i] + static_cast<float>(counts[i]) * 6.28318530718f / 4000.0f;
-            pen::Data<float> kin{};
-            const pen::Status s = pen::computeEnds(model_f, qf, kin);
-            ASSERT_TRUE(s == pen::Status::kOk || s == pen::Status::kSingular) << static_cast<int>(s);
-            if (s == pen::Status::kOk) worst = std::max(worst, std::fabs(static_cast<double>(kin.length_m) - pen::penLength(model)));
-          }
+  forEachSoftStopPose(model, [&](const pen::JointVec<double>& q) {
+    const auto counts = pen::countsFromAngles(model, q);
+    pen::JointVec<float> qf{};
+    for (std::size_t i = 0; i < 6; ++i) qf[i] = model_f.q_home_rad[i] + static_cast<float>(counts[i]) * 6.28318530718f / 4000.0f;
+    pen::Data<float> kin{};
+    const pen::Status s = pen::computeEnds(model_f, qf, kin);
+    EXPECT_TRUE(s == pen::Status::kOk || s == pen::Status::kSingular) << static_cast<int>(s);
+    if (s == pen::Status::kOk) worst = std::max(worst, std::fabs(static_cast<double>(kin.length_m) - pen::penLength(model)));
+  });
   EXPECT_LT(worst, 0.5 * model.ends_tolerance_m);
   std::printf("worst pen-length error from quantised encoders, float: %.3f mm\n", worst * 1e3);
 }
@@ -184,24 +191,13 @@ TEST(PantographFirmware, SoundEncodersDescribeOneRigidPenAcrossTheSoftStopWorksp
 // margin. A geometry change that invalidates them fails here.
 TEST(PantographFirmware, JointWindowsContainTheSoftStopWorkspace) {
   const auto model = pen::defaultModel<double>();
-  const sim::PenPlantParams p;
   const apps::PantographConfig fw = apps::pantographDefaultConfig();
   const double margin = 10.0 * 3.14159265358979323846 / 180.0;
-  const int n = 7;
-  for (int a = 0; a < n; ++a)
-    for (int b = 0; b < n; ++b)
-      for (int c = 0; c < n; ++c)
-        for (int d = 0; d < n; ++d)
-          for (int e = 0; e < n; ++e) {
-            auto lerp = [&](int k, int i) { return p.stop_lo[static_cast<std::size_t>(k)] +
-                                                   (p.stop_hi[static_cast<std::size_t>(k)] - p.stop_lo[static_cast<std::size_t>(k)]) * i / (n - 1); };
-            pen::PenPose<double> pose{{lerp(0, a), lerp(1, b), lerp(2, c)}, lerp(3, d), lerp(4, e)};
-            pen::JointVec<double> q;
-            ASSERT_EQ(pen::computeInverse(model, pose, q), pen::Status::kOk);
-            for (std::size_t i = 0; i < 6; ++i) {
-              const double rel = q[i] - model.q_home_rad[i];
-              EXPECT_GT(rel, static_cast<double>(fw.joint_min_rad[i]) + margin) << "joint " << i;
-              EXPECT_LT(rel, static_cast<double>(fw.joint_max_rad[i]) - margin) << "joint " << i;
-            }
-          }
+  forEachSoftStopPose(model, [&](const pen::JointVec<double>& q) {
+    for (std::size_t i = 0; i < 6; ++i) {
+      const double rel = q[i] - model.q_home_rad[i];
+      EXPECT_GT(rel, static_cast<double>(fw.joint_min_rad[i]) + margin) << "joint " << i;
+      EXPECT_LT(rel, static_cast<double>(fw.joint_max_rad[i]) - margin) << "joint " << i;
+    }
+  });
 }
