@@ -11,7 +11,8 @@
 /// Safety (faults latch in the core, which then calls safe(): every duty 0, bridges off): encoder jump beyond a
 /// physical speed (kSensorRange), joint outside its window (kJointLimit), measured current beyond the amplifier
 /// limit or disagreeing with the command for too long (kCurrentLimit), current sense at full scale
-/// (kSensorSaturated), and the six encoders no longer describing one rigid pen (kSensorStuck, below). The core adds the command watchdog (link loss) and the e-stop.
+/// (kSensorSaturated), and the six encoders no longer describing one rigid pen (kSensorStuck, below). The core adds
+/// the command watchdog (link loss) and the e-stop.
 /// Freestanding: no heap, no exceptions, single precision.
 #include <cstdint>
 
