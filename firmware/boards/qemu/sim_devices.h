@@ -14,6 +14,11 @@ inline bool spells(const char* s, int len, const char* name) {
   }
   return i == len && name[i] == 0;
 }
+/// An instrument reading in micro-units (µN, µN·m), clamped to the int32 the instrument line carries.
+inline int32_t microUnits(double si) {
+  const double v = si * 1e6;
+  return static_cast<int32_t>(v < -2e9 ? -2e9 : (v > 2e9 ? 2e9 : v));
+}
 }  // namespace phalanx::mcu::qemu
 
 #if defined(PHALANX_MCU_APP_GLOVE5)
@@ -82,10 +87,7 @@ inline int scenarioNumber(const char* s, int len) {
 /// The simulated instrument (option instrument=1): a fingertip force sensor on the index finger, its true pad
 /// force, as firmware-sim's glove5 serves it by default (`pad_force_index_N`), in µN.
 constexpr const char* kInstrumentSignal = "pad_force_index_uN";
-inline int32_t instrumentMicro(const PlantType& p) {
-  const double v = static_cast<double>(p.padForce_N(1)) * 1e6;
-  return static_cast<int32_t>(v < -2e9 ? -2e9 : (v > 2e9 ? 2e9 : v));
-}
+inline int32_t instrumentMicro(const PlantType& p) { return microUnits(p.padForce_N(1)); }
 }  // namespace phalanx::mcu::qemu
 
 #elif defined(PHALANX_MCU_APP_SEA_FINGER)
@@ -115,10 +117,7 @@ inline int scenarioNumber(const char* s, int len) {
 /// The simulated instrument (option instrument=1): the rig's load cell on SEA 0, its true joint torque, as
 /// firmware-sim's sea_rig serves it (docs/bench-runner.md "Devices"), in µN·m.
 constexpr const char* kInstrumentSignal = "joint_torque_uNm";
-inline int32_t instrumentMicro(const PlantType& p) {
-  const double v = p.truth(0).joint_torque_Nm * 1e6;
-  return static_cast<int32_t>(v < -2e9 ? -2e9 : (v > 2e9 ? 2e9 : v));
-}
+inline int32_t instrumentMicro(const PlantType& p) { return microUnits(p.truth(0).joint_torque_Nm); }
 }  // namespace phalanx::mcu::qemu
 #elif defined(PHALANX_MCU_APP_PANTOGRAPH)
 // The pen and the hand holding it, as firmware-sim's `pantograph` (same scenario names: the hand holds the pen
